@@ -1,0 +1,292 @@
+"""Per-bus ring buffers of PMU frames, ordered by PMU timestamp, with accounting of every drop.
+
+Invariant (checked by tests and the ingest benchmark): for every bus,
+``frames offered = frames buffered + sum(frames rejected by reason)``.  Frames that age out of a full
+ring were buffered and are not counted again.
+
+Reasons a frame is rejected here: ``late`` (older than the newest buffered frame of the bus minus the
+late-data allowance), ``duplicate`` (within a quarter frame period of a frame already held or earlier in
+the same batch).  Frames within the allowance but out of order are merged in time order.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+from service.frames import FrameBatch
+
+ROWS = ("t", "V", "theta", "P", "Q", "f")
+_NROWS = len(ROWS)
+
+
+@dataclass
+class Cut:
+    """Frames of one bus between two PMU times (copies, safe to hand to another process)."""
+
+    t: np.ndarray
+    V: np.ndarray
+    theta: np.ndarray
+    P: np.ndarray
+    Q: np.ndarray
+    f: np.ndarray | None
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+
+class BusBuffer:
+    """Time-ordered frames of one bus in a linear array that is compacted when its end is reached.
+
+    The live region ``data[:, start:end]`` is always contiguous and sorted by t, which keeps
+    appends to a slice copy and window cuts to two ``searchsorted`` calls.
+
+    Parameters
+    ----------
+    capacity : int
+        Frames kept; older ones are overwritten.
+    tol : float
+        Two frames closer than this are duplicates [s].
+    late_s : float
+        Late-data allowance [s].
+    """
+
+    __slots__ = ("capacity", "tol", "late_s", "data", "start", "end", "lock", "buffered", "rejected",
+                 "has_f", "last_arrival")
+
+    def __init__(self, capacity: int, tol: float, late_s: float) -> None:
+        self.capacity = int(capacity)
+        self.tol = float(tol)
+        self.late_s = float(late_s)
+        # Slack of a quarter capacity: compaction (one copy of the live region) every ~cap/4 frames.
+        self.data = np.empty((_NROWS, self.capacity + self.capacity // 4 + 64))
+        self.start = 0
+        self.end = 0
+        self.lock = threading.Lock()
+        self.buffered = 0
+        self.rejected: Counter[str] = Counter()
+        self.has_f = False
+        self.last_arrival = 0.0
+
+    @property
+    def size(self) -> int:
+        """Frames held."""
+        return self.end - self.start
+
+    @property
+    def newest(self) -> float:
+        """PMU time of the newest frame held [s] (-inf when empty)."""
+        return float(self.data[0, self.end - 1]) if self.end > self.start else -math.inf
+
+    def insert(self, batch: FrameBatch, arrival: float = 0.0) -> dict[str, int]:
+        """Add a validated batch; return the frames rejected by reason (empty when all were taken)."""
+        n = len(batch)
+        if n == 0:
+            return {}
+        with self.lock:
+            self.last_arrival = arrival
+            t = batch.t
+            newest = self.newest
+            if batch.f is not None:
+                self.has_f = True
+            if t[0] > newest + self.tol and (n == 1 or bool((np.diff(t) > self.tol).all())):
+                self._append(batch)
+                self.buffered += n
+                return {}
+            return self._insert_slow(batch, newest)
+
+    def _columns(self, batch: FrameBatch) -> np.ndarray:
+        cols = np.empty((_NROWS, len(batch)))
+        cols[0], cols[1], cols[2], cols[3], cols[4] = batch.t, batch.V, batch.theta, batch.P, batch.Q
+        cols[5] = batch.f if batch.f is not None else np.nan
+        return cols
+
+    def _reserve(self, n: int) -> None:
+        """Make room for n frames after ``end``, keeping at most ``capacity`` frames in all."""
+        if self.end + n <= self.data.shape[1]:
+            return
+        keep = max(0, min(self.size, self.capacity - n))
+        self.data[:, :keep] = self.data[:, self.end - keep:self.end]
+        self.start, self.end = 0, keep
+
+    def _append(self, batch: FrameBatch) -> None:
+        n = len(batch)
+        if n > self.capacity:  # a batch longer than the ring: only its tail can be held
+            batch = FrameBatch(*(None if a is None else a[-self.capacity:] for a in (
+                batch.t, batch.V, batch.theta, batch.P, batch.Q, batch.f)))
+            n = self.capacity
+        self._reserve(n)
+        e, d = self.end, self.data
+        d[0, e:e + n] = batch.t
+        d[1, e:e + n] = batch.V
+        d[2, e:e + n] = batch.theta
+        d[3, e:e + n] = batch.P
+        d[4, e:e + n] = batch.Q
+        d[5, e:e + n] = batch.f if batch.f is not None else np.nan
+        self.end = e + n
+        if self.size > self.capacity:
+            self.start = self.end - self.capacity
+
+    def _insert_slow(self, batch: FrameBatch, newest: float) -> dict[str, int]:
+        cols = self._columns(batch)
+        cols = cols[:, np.argsort(cols[0], kind="stable")]
+        t = cols[0]
+        rejected: dict[str, int] = {}
+        late = t < newest - self.late_s
+        if self.size >= self.capacity:
+            # A full ring cannot place frames older than its oldest one: late as well.
+            late |= t < self.data[0, self.start] - self.tol
+        n_late = int(late.sum())
+        if n_late:
+            rejected["late"] = n_late
+            cols = cols[:, ~late]
+            t = cols[0]
+        if t.size:
+            dup = np.zeros(t.size, bool)
+            dup[1:] = np.diff(t) <= self.tol
+            held = self.data[0, self.start:self.end]
+            i0 = int(np.searchsorted(held, t[0] - self.tol))
+            region = held[i0:]
+            if region.size:
+                j = np.searchsorted(region, t)
+                lo = np.abs(t - region[np.clip(j - 1, 0, region.size - 1)])
+                hi = np.abs(region[np.clip(j, 0, region.size - 1)] - t)
+                dup |= np.minimum(lo, hi) <= self.tol
+            n_dup = int(dup.sum())
+            if n_dup:
+                rejected["duplicate"] = n_dup
+                cols = cols[:, ~dup]
+                t = cols[0]
+            if t.size:
+                tail = self.data[:, self.start + i0:self.end].copy()
+                merged = np.concatenate([tail, cols], axis=1)
+                merged = merged[:, np.argsort(merged[0], kind="stable")]
+                self.end = self.start + i0
+                self._write(merged)
+                self.buffered += int(t.size)
+        for reason, k in rejected.items():
+            self.rejected[reason] += k
+        return rejected
+
+    def _write(self, cols: np.ndarray) -> None:
+        n = cols.shape[1]
+        if n > self.capacity:
+            cols = cols[:, -self.capacity:]
+            n = self.capacity
+        self._reserve(n)
+        self.data[:, self.end:self.end + n] = cols
+        self.end += n
+        if self.size > self.capacity:
+            self.start = self.end - self.capacity
+
+    def cut(self, t_from: float, t_to: float) -> Cut:
+        """Copy of the frames with ``t_from < t <= t_to`` [s]."""
+        with self.lock:
+            held = self.data[0, self.start:self.end]
+            i = self.start + int(np.searchsorted(held, t_from, side="right"))
+            j = self.start + int(np.searchsorted(held, t_to, side="right"))
+            block = self.data[:, i:j].copy()
+            has_f = self.has_f
+        f = block[5] if has_f and np.isfinite(block[5]).all() else None
+        return Cut(t=block[0], V=block[1], theta=block[2], P=block[3], Q=block[4], f=f)
+
+
+@dataclass
+class BusCounts:
+    """Accounting of one bus."""
+
+    bus: str
+    buffered: int
+    held: int
+    newest_t: float | None
+    rejected: dict[str, int]
+
+
+class BufferStore:
+    """All buses' buffers plus service-wide counters of frames and messages.
+
+    Parameters
+    ----------
+    window_s, frame_rate, late_s : float
+        Size the rings: ``(window_s + late_s + 3 s) * frame_rate`` frames, the 3 s covering the time
+        between a period's cut and the frames that keep arriving meanwhile.
+    max_buses : int
+        New buses beyond this are refused (``too_many_buses``), so stray keys cannot exhaust memory.
+    """
+
+    def __init__(self, window_s: float, frame_rate: float, late_s: float, max_buses: int = 100_000) -> None:
+        self.capacity = int(math.ceil((window_s + late_s + 3.0) * frame_rate))
+        self.tol = 0.25 / frame_rate
+        self.late_s = late_s
+        self.max_buses = max_buses
+        self._buses: dict[str, BusBuffer] = {}
+        self._lock = threading.Lock()
+        self.frames_received = 0
+        self.frames_rejected: Counter[str] = Counter()  # all reasons, service-wide
+        self.messages_received = 0
+        self.messages_rejected: Counter[str] = Counter()  # undecodable messages by reason
+        self.bus_rejected: dict[str, Counter[str]] = {}  # validation rejects per bus (before buffering)
+
+    def buffer(self, bus: str, create: bool = True) -> BusBuffer | None:
+        """The buffer of ``bus``, created on first use."""
+        buf = self._buses.get(bus)
+        if buf is None and create:
+            with self._lock:
+                buf = self._buses.get(bus)
+                if buf is None:
+                    if len(self._buses) >= self.max_buses:
+                        return None
+                    buf = self._buses[bus] = BusBuffer(self.capacity, self.tol, self.late_s)
+        return buf
+
+    def buses(self) -> list[str]:
+        """Buses that have sent at least one accepted message, sorted."""
+        return sorted(self._buses)
+
+    def count_rejected(self, bus: str, rejected: dict[str, int]) -> None:
+        """Record frames rejected before buffering (validation) for ``bus``."""
+        c = self.bus_rejected.setdefault(bus, Counter())
+        for reason, k in rejected.items():
+            c[reason] += k
+            self.frames_rejected[reason] += k
+
+    def count_message_rejected(self, bus: str, reason: str, n_frames: int) -> None:
+        """Record an undecodable message (and the frames it announced, if known)."""
+        self.messages_rejected[reason] += 1
+        if n_frames:
+            self.frames_received += n_frames
+            self.count_rejected(bus, {reason: n_frames})
+
+    def add(self, bus: str, batch: FrameBatch, arrival: float = 0.0) -> dict[str, int]:
+        """Buffer a validated batch for ``bus``; returns buffer-level rejects."""
+        buf = self.buffer(bus)
+        if buf is None:
+            rej = {"too_many_buses": len(batch)}
+            self.count_rejected(bus, rej)
+            return rej
+        rej = buf.insert(batch, arrival)
+        for reason, k in rej.items():
+            self.frames_rejected[reason] += k
+        return rej
+
+    def counts(self, bus: str) -> BusCounts | None:
+        """Accounting of one bus (None if unknown)."""
+        buf = self._buses.get(bus)
+        extra = self.bus_rejected.get(bus, Counter())
+        if buf is None and not extra:
+            return None
+        rejected = Counter(extra)
+        if buf is not None:
+            rejected.update(buf.rejected)
+        newest = buf.newest if buf is not None and buf.size else None
+        return BusCounts(bus=bus, buffered=buf.buffered if buf else 0, held=buf.size if buf else 0,
+                         newest_t=newest, rejected=dict(rejected))
+
+    @property
+    def frames_buffered(self) -> int:
+        """Frames accepted into any buffer since start."""
+        return sum(b.buffered for b in list(self._buses.values()))

@@ -1,0 +1,239 @@
+"""Settings of the streaming service: one pydantic-settings object.
+
+Precedence (lowest to highest): field defaults < TOML file < ``ASLM_*`` environment < CLI flags
+(passed as keyword arguments).  A period changed at run time through ``PUT /config`` is stored in
+the results database and applied on top of these at the next start (see :mod:`service.storage`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import socket
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field, SecretStr, ValidationError, field_validator, model_validator
+from pydantic_settings import (
+    BaseSettings,
+    PydanticBaseSettingsSource,
+    SettingsConfigDict,
+    TomlConfigSettingsSource,
+)
+
+_DASK_ADDRESS = re.compile(r"^(tcp|tls|ucx|inproc)://[^\s]+$")
+_KEY_CHUNK = re.compile(r"^[A-Za-z0-9_\-.]+(/[A-Za-z0-9_\-.]+)*$")
+
+CONFIG_ENV = "ASLM_CONFIG"
+"""Environment variable naming the TOML settings file (the ``--config`` flag overrides it)."""
+
+
+class ServiceSettings(BaseSettings):
+    """Everything the service needs to run; every field is also ``ASLM_<NAME>`` in the environment.
+
+    Lists (Zenoh endpoints) are JSON in the environment, e.g.
+    ``ASLM_ZENOH_CONNECT='["tcp/zenoh-router:7447"]'``.
+    """
+
+    model_config = SettingsConfigDict(env_prefix="ASLM_", extra="forbid", validate_default=True)
+
+    # --- topics and timing -------------------------------------------------------------------
+    prefix: str = Field("aslm", description="Zenoh key-expression prefix (aslm/pmu/**, aslm/params/**, ...)")
+    period_s: float = Field(900.0, description="Identification period T [s], aligned to the wall clock")
+    window_s: float = Field(10.0, description="Identification window length [s]")
+    frame_rate: float = Field(50.0, description="Nominal PMU frame rate [frames/s]")
+    late_s: float = Field(2.0, description="Late-data allowance [s]: wait after a boundary, accept reordering")
+    max_future_s: float = Field(5.0, description="Frames stamped further ahead of this clock are rejected [s]")
+    f0: float = Field(50.0, description="Nominal system frequency [Hz]")
+    # --- window quality -----------------------------------------------------------------------
+    min_coverage: float = Field(0.9, description="Minimum fraction of the window's expected frames present [-]")
+    max_gap_s: float = Field(0.2, description="Longest tolerated gap between frames in a window [s]")
+    min_v_std: float = Field(1e-5, description="Minimum std of V in a window (excitation) [pu]")
+    # --- compute -------------------------------------------------------------------------------
+    workers: int = Field(2, description="Local worker processes (spawned)")
+    executor: str = Field("local", description="'local' (process pool) or a Dask scheduler address tcp://host:port")
+    task_timeout_s: float = Field(60.0, description="Per-window identification timeout [s]")
+    n_starts: int = Field(3, description="Random starts of the identifier besides the warm start")
+    identify_fn: str = Field(
+        "service.worker:identify_window",
+        description="module:function run in the workers (a seam for tests and alternative identifiers)",
+    )
+    # --- storage -------------------------------------------------------------------------------
+    storage_url: str = Field("aslm.sqlite", description="SQLite file path or sqlite:///path URL")
+    # --- zenoh ---------------------------------------------------------------------------------
+    zenoh_mode: Literal["peer", "client", "router"] = Field("peer", description="Zenoh session mode")
+    zenoh_connect: list[str] = Field(default_factory=list, description="Zenoh endpoints to connect to")
+    zenoh_listen: list[str] = Field(default_factory=list, description="Zenoh endpoints to listen on")
+    zenoh_multicast_scouting: bool = Field(False, description="Zenoh multicast scouting (off: explicit endpoints)")
+    zenoh_config_file: Path | None = Field(
+        None, description="Zenoh JSON5 config (TLS certificates, ...); the fields above override it",
+    )
+    # --- REST ------------------------------------------------------------------------------------
+    http_host: str = Field("127.0.0.1", description="REST bind address")
+    http_port: int = Field(8080, description="REST port (0: pick a free one)")
+    operator_token: SecretStr | None = Field(
+        None, description="Bearer token for mutating endpoints (PUT /config); unset: they are refused",
+    )
+    instance: str = Field(
+        default_factory=lambda: f"{socket.gethostname()}-{os.getpid()}",
+        description="Instance name of the liveliness token {prefix}/service/{instance}",
+    )
+
+    @classmethod
+    def settings_customise_sources(
+        cls,
+        settings_cls: type[BaseSettings],
+        init_settings: PydanticBaseSettingsSource,
+        env_settings: PydanticBaseSettingsSource,
+        dotenv_settings: PydanticBaseSettingsSource,
+        file_secret_settings: PydanticBaseSettingsSource,
+    ) -> tuple[PydanticBaseSettingsSource, ...]:
+        # First wins: CLI flags (init kwargs) > environment > TOML file.
+        sources: list[PydanticBaseSettingsSource] = [init_settings, env_settings]
+        if cls.model_config.get("toml_file"):
+            sources.append(TomlConfigSettingsSource(settings_cls))
+        return tuple(sources)
+
+    # --- validation ------------------------------------------------------------------------------
+    @field_validator("period_s", "window_s", "frame_rate", "task_timeout_s", "f0", "max_gap_s")
+    @classmethod
+    def _positive(cls, v: float, info) -> float:
+        if not v > 0:
+            raise ValueError(f"{info.field_name} must be > 0 (got {v})")
+        return v
+
+    @field_validator("late_s", "max_future_s", "min_v_std")
+    @classmethod
+    def _non_negative(cls, v: float, info) -> float:
+        if not v >= 0:
+            raise ValueError(f"{info.field_name} must be >= 0 (got {v})")
+        return v
+
+    @field_validator("workers", "n_starts")
+    @classmethod
+    def _count(cls, v: int, info) -> int:
+        if v < (1 if info.field_name == "workers" else 0):
+            raise ValueError(f"{info.field_name} must be a positive count (got {v})")
+        return v
+
+    @field_validator("min_coverage")
+    @classmethod
+    def _fraction(cls, v: float) -> float:
+        if not 0.0 < v <= 1.0:
+            raise ValueError(f"min_coverage must be in (0, 1] (got {v})")
+        return v
+
+    @field_validator("executor")
+    @classmethod
+    def _executor(cls, v: str) -> str:
+        if v != "local" and not _DASK_ADDRESS.match(v):
+            raise ValueError(f"executor must be 'local' or a Dask scheduler address like tcp://host:8786 (got {v!r})")
+        return v
+
+    @field_validator("prefix")
+    @classmethod
+    def _prefix(cls, v: str) -> str:
+        if not _KEY_CHUNK.match(v):
+            raise ValueError(f"prefix must be a plain key expression without wildcards (got {v!r})")
+        return v
+
+    @field_validator("http_port")
+    @classmethod
+    def _port(cls, v: int) -> int:
+        if not 0 <= v <= 65535:
+            raise ValueError(f"http_port must be in 0..65535 (got {v})")
+        return v
+
+    @field_validator("identify_fn")
+    @classmethod
+    def _fn(cls, v: str) -> str:
+        if ":" not in v:
+            raise ValueError(f"identify_fn must be 'module:function' (got {v!r})")
+        return v
+
+    @field_validator("zenoh_config_file")
+    @classmethod
+    def _zfile(cls, v: Path | None) -> Path | None:
+        if v is not None and not Path(v).is_file():
+            raise ValueError(f"zenoh_config_file {v} does not exist")
+        return v
+
+    @model_validator(mode="after")
+    def _coherent(self) -> ServiceSettings:
+        check_period(self.period_s, self)
+        if self.window_s * self.frame_rate < 10:
+            raise ValueError("window_s * frame_rate gives fewer than 10 frames per window")
+        return self
+
+    # --- derived -----------------------------------------------------------------------------------
+    @property
+    def storage_path(self) -> Path:
+        """Filesystem path of the SQLite database."""
+        url = self.storage_url
+        for scheme in ("sqlite:///", "sqlite://"):
+            if url.startswith(scheme):
+                return Path(url[len(scheme):])
+        if "://" in url:
+            raise ValueError(f"storage_url {url!r}: only SQLite (a path or sqlite:///path) is supported")
+        return Path(url)
+
+    def public_dict(self) -> dict[str, Any]:
+        """Settings as JSON-able dict with the operator token masked."""
+        out = json.loads(self.model_dump_json())
+        out["operator_token"] = "***" if self.operator_token else None
+        return out
+
+
+def check_period(period_s: float, settings: ServiceSettings) -> None:
+    """Refuse a period that cannot hold a window plus the late-data allowance.
+
+    Raises
+    ------
+    ValueError
+        With a message naming the values involved.
+    """
+    if period_s < settings.window_s + settings.late_s:
+        raise ValueError(
+            f"period_s ({period_s:g} s) must be at least window_s + late_s "
+            f"({settings.window_s:g} + {settings.late_s:g} s)"
+        )
+
+
+class SettingsError(ValueError):
+    """Invalid settings, with a message an operator can act on."""
+
+
+def load_settings(config_file: str | Path | None = None, **overrides: Any) -> ServiceSettings:
+    """Build the settings from a TOML file, the environment and explicit overrides.
+
+    Parameters
+    ----------
+    config_file : str or Path, optional
+        TOML file; default ``$ASLM_CONFIG`` if set.  Its keys are the field names.
+    **overrides
+        CLI flags; ``None`` values are ignored (flag not given).
+
+    Raises
+    ------
+    SettingsError
+        Missing file or invalid values, one line per problem.
+    """
+    overrides = {k: v for k, v in overrides.items() if v is not None}
+    config_file = config_file or os.environ.get(CONFIG_ENV)
+    cls: type[ServiceSettings] = ServiceSettings
+    if config_file:
+        path = Path(config_file)
+        if not path.is_file():
+            raise SettingsError(f"settings file {path} does not exist")
+        cls = type("ServiceSettingsFromFile", (ServiceSettings,), {
+            "model_config": SettingsConfigDict(**{**ServiceSettings.model_config, "toml_file": path}),
+        })
+    try:
+        return cls(**overrides)
+    except ValidationError as exc:
+        lines = []
+        for err in exc.errors():
+            where = ".".join(str(p) for p in err["loc"]) or "settings"
+            lines.append(f"  {where}: {err['msg']}")
+        raise SettingsError("invalid settings:\n" + "\n".join(lines)) from None

@@ -1,0 +1,135 @@
+"""SQLite (WAL) store of results history, completed periods and run-time configuration.
+
+One connection guarded by a lock: writes come from the scheduler thread in one transaction per
+period, reads from REST handlers; SQLite in WAL mode keeps readers off the writer's way on disk.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from service.models import BusResult, PeriodSummary
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS results (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    bus TEXT NOT NULL,
+    period REAL NOT NULL,
+    status TEXT NOT NULL,
+    completed_at REAL NOT NULL,
+    body TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS results_bus_period ON results (bus, period);
+CREATE TABLE IF NOT EXISTS periods (
+    period REAL PRIMARY KEY,
+    body TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS config (
+    key TEXT PRIMARY KEY,
+    value TEXT NOT NULL,
+    updated REAL NOT NULL
+);
+"""
+
+
+class Storage:
+    """Results history and persisted configuration in one SQLite file.
+
+    Parameters
+    ----------
+    path : str or Path
+        Database file; created with its parent directory.  ``:memory:`` for a throw-away store.
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        if str(path) != ":memory:":
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._lock = threading.Lock()
+        self._db = sqlite3.connect(str(path), check_same_thread=False, isolation_level=None)
+        with self._lock:
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.execute("PRAGMA synchronous=NORMAL")  # durable at checkpoints; fine for results
+            self._db.executescript(_SCHEMA)
+
+    def close(self) -> None:
+        """Close the connection."""
+        with self._lock:
+            self._db.close()
+
+    # --- results -----------------------------------------------------------------------------------
+    def save_results(self, results: list[BusResult]) -> None:
+        """Append results in one transaction."""
+        rows = [(r.bus, r.period, r.status, r.completed_at, r.model_dump_json()) for r in results]
+        with self._lock:
+            self._db.execute("BEGIN")
+            self._db.executemany(
+                "INSERT INTO results (bus, period, status, completed_at, body) VALUES (?, ?, ?, ?, ?)", rows)
+            self._db.execute("COMMIT")
+
+    def latest(self, bus: str, *, ok_only: bool = False) -> BusResult | None:
+        """Most recent result of ``bus`` (only successful ones with ``ok_only``)."""
+        sql = "SELECT body FROM results WHERE bus = ?" + (" AND status = 'ok'" if ok_only else "")
+        sql += " ORDER BY period DESC, id DESC LIMIT 1"
+        with self._lock:
+            row = self._db.execute(sql, (bus,)).fetchone()
+        return BusResult.model_validate_json(row[0]) if row else None
+
+    def latest_all(self, *, ok_only: bool = False) -> dict[str, BusResult]:
+        """Most recent result of every bus."""
+        cond = "WHERE status = 'ok'" if ok_only else ""
+        sql = (f"SELECT r.body FROM results r JOIN (SELECT bus, MAX(id) AS id FROM results {cond} "
+               "GROUP BY bus) m ON r.id = m.id")
+        with self._lock:
+            rows = self._db.execute(sql).fetchall()
+        out = [BusResult.model_validate_json(r[0]) for r in rows]
+        return {r.bus: r for r in out}
+
+    def history(self, bus: str, since: float | None = None, until: float | None = None,
+                limit: int = 100) -> list[BusResult]:
+        """Results of ``bus`` with ``since <= period <= until`` [s], newest first."""
+        sql = "SELECT body FROM results WHERE bus = ? AND period >= ? AND period <= ? ORDER BY period DESC, id DESC LIMIT ?"
+        args = (bus, since if since is not None else -1e300, until if until is not None else 1e300, int(limit))
+        with self._lock:
+            rows = self._db.execute(sql, args).fetchall()
+        return [BusResult.model_validate_json(r[0]) for r in rows]
+
+    def buses(self) -> list[str]:
+        """Buses with at least one result, sorted."""
+        with self._lock:
+            rows = self._db.execute("SELECT DISTINCT bus FROM results ORDER BY bus").fetchall()
+        return [r[0] for r in rows]
+
+    # --- periods -----------------------------------------------------------------------------------
+    def save_period(self, summary: PeriodSummary) -> None:
+        """Record a completed period."""
+        with self._lock:
+            self._db.execute("INSERT OR REPLACE INTO periods (period, body) VALUES (?, ?)",
+                             (summary.period, summary.model_dump_json()))
+
+    def periods(self, limit: int = 20) -> list[PeriodSummary]:
+        """Completed periods, newest first."""
+        with self._lock:
+            rows = self._db.execute("SELECT body FROM periods ORDER BY period DESC LIMIT ?", (limit,)).fetchall()
+        return [PeriodSummary.model_validate_json(r[0]) for r in rows]
+
+    # --- configuration -------------------------------------------------------------------------------
+    def set_config(self, values: dict[str, Any]) -> None:
+        """Persist run-time configuration changes (JSON values)."""
+        now = time.time()
+        with self._lock:
+            self._db.execute("BEGIN")
+            self._db.executemany("INSERT OR REPLACE INTO config (key, value, updated) VALUES (?, ?, ?)",
+                                 [(k, json.dumps(v), now) for k, v in values.items()])
+            self._db.execute("COMMIT")
+
+    def get_config(self) -> dict[str, Any]:
+        """Persisted run-time configuration."""
+        with self._lock:
+            rows = self._db.execute("SELECT key, value FROM config").fetchall()
+        return {k: json.loads(v) for k, v in rows}
