@@ -1,0 +1,75 @@
+"""Declaration of every model parameter: name, unit, meaning and identification bounds.
+
+The transformed third-order induction motor (paper eq. 4) has D = [a, b, H2, Tm]; the static part
+is ZIP (eq. 6) or exponential.  Bounds are the paper's §V.A box; Tm's upper bound is the window's
+mean active power, and a·Vmin² > 2b·Tm keeps an equilibrium in existence.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One identified parameter."""
+
+    name: str
+    unit: str
+    description: str
+    lower: float
+    upper: float | None  # None: set from the data (Tm <= mean P)
+
+
+DYNAMIC_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("a", "1/s", "(X/X' - 1)/(Td0 X'): drive of the rotor flux by the voltage", 10.0, 80.0),
+    ParamSpec("b", "1/s", "X/(Td0 X'): decay rate of the rotor flux", 3.0, 30.0),
+    ParamSpec("H2", "s", "inertia constant (2H) of the slip equation", 0.5, 3.0),
+    ParamSpec("Tm", "pu", "mechanical load torque on the system base", 0.0, None),
+)
+DYNAMIC_NAMES: tuple[str, ...] = tuple(p.name for p in DYNAMIC_PARAMS)
+
+ZIP_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("Pz", "pu", "constant-impedance active power coefficient (of V^2)", -np.inf, np.inf),
+    ParamSpec("Pi", "pu", "constant-current active power coefficient (of V)", -np.inf, np.inf),
+    ParamSpec("Pp", "pu", "constant-power active power", -np.inf, np.inf),
+    ParamSpec("Qz", "pu", "constant-impedance reactive coefficient (includes the motor's V^2/X')", -np.inf, np.inf),
+    ParamSpec("Qi", "pu", "constant-current reactive power coefficient (of V)", -np.inf, np.inf),
+    ParamSpec("Qp", "pu", "constant-power reactive power", -np.inf, np.inf),
+)
+ZIP_NAMES: tuple[str, ...] = tuple(p.name for p in ZIP_PARAMS)
+
+EXPONENTIAL_PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("P0", "pu", "static active power at V = 1 pu", -np.inf, np.inf),
+    ParamSpec("np", "-", "voltage exponent of the static active power", -np.inf, np.inf),
+    ParamSpec("Q0", "pu", "static reactive power at V = 1 pu (includes the motor's V^2/X')", -np.inf, np.inf),
+    ParamSpec("nq", "-", "voltage exponent of the static reactive power", -np.inf, np.inf),
+)
+EXPONENTIAL_NAMES: tuple[str, ...] = tuple(p.name for p in EXPONENTIAL_PARAMS)
+
+
+def dynamic_bounds(p_mean: float) -> tuple[np.ndarray, np.ndarray]:
+    """Box bounds of D = [a, b, H2, Tm].
+
+    Parameters
+    ----------
+    p_mean : float
+        Mean measured active power of the window [pu]; the upper bound of Tm.
+
+    Returns
+    -------
+    lower, upper : ndarray of shape (4,)
+    """
+    lower = np.array([p.lower for p in DYNAMIC_PARAMS])
+    upper = np.array([p.upper if p.upper is not None else max(p_mean, 0.0) for p in DYNAMIC_PARAMS])
+    return lower, upper
+
+
+def equilibrium_margin(d: np.ndarray, v_min: float) -> float:
+    """Margin of the equilibrium-existence constraint a·Vmin² − 2b·Tm [pu·1/s].
+
+    Positive when the motor's maximum torque a·V²/(2b) exceeds Tm at the lowest voltage of the window.
+    """
+    return float(d[0] * v_min * v_min - 2.0 * d[1] * d[3])

@@ -1,0 +1,125 @@
+"""Window checks and conditioning before identification: grid, gaps, ranges, excitation, low-pass."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal
+
+from aslm_core.errors import WindowError
+from aslm_core.window import Window
+
+CHANNELS = ("V", "theta", "P", "Q")
+
+
+@dataclass
+class Prepared:
+    """A window on a uniform grid, gaps repaired, θ unwrapped, optionally low-passed."""
+
+    t: np.ndarray
+    V: np.ndarray
+    theta: np.ndarray
+    P: np.ndarray
+    Q: np.ndarray
+    dt: float
+    flags: list[str] = field(default_factory=list)
+    repaired: int = 0
+
+
+def _fill_short_gaps(x: np.ndarray, max_run: int, name: str) -> int:
+    """Linearly interpolate runs of NaN up to max_run samples long, in place; return the count filled."""
+    bad = ~np.isfinite(x)
+    if not bad.any():
+        return 0
+    if bad[0] or bad[-1]:
+        raise WindowError("gaps", f"{name} is missing at the window's edge")
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], bad.view(np.int8), [0]))))
+    runs = edges[1::2] - edges[0::2]
+    if runs.max() > max_run:
+        raise WindowError("gaps", f"{name} has a gap of {runs.max()} samples (repair limit {max_run})")
+    idx = np.arange(x.size)
+    x[bad] = np.interp(idx[bad], idx[~bad], x[~bad])
+    return int(bad.sum())
+
+
+def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,
+            lowpass_hz: float | None = None) -> Prepared:
+    """Check a window and bring it onto a clean uniform grid.
+
+    Parameters
+    ----------
+    window : Window
+        Raw measurements.
+    max_gap_samples : int
+        Longest run of missing samples (missing time stamps or non-finite values) repaired by linear
+        interpolation; a longer gap is an error.
+    min_duration_s : float
+        Shortest usable window [s].
+    lowpass_hz : float or None
+        Cut-off [Hz] of a causal 2nd-order Butterworth low-pass applied identically to V, θ, P, Q
+        (causal so the end of the window, the most recent data, is not distorted).
+
+    Returns
+    -------
+    Prepared
+
+    Raises
+    ------
+    WindowError
+        ``shape``, ``too_short``, ``non_monotonic``, ``non_uniform``, ``gaps``, ``non_finite``,
+        ``bad_range`` or ``no_excitation``, with a message naming the problem.
+    """
+    t = window.t
+    n = t.shape[0]
+    arrays = {c: getattr(window, c) for c in CHANNELS}
+    if t.ndim != 1 or any(a.shape != t.shape for a in arrays.values()):
+        shapes = ", ".join(f"{k}{a.shape}" for k, a in {"t": t, **arrays}.items())
+        raise WindowError("shape", f"channels must be 1-D and of equal length, got {shapes}")
+    if n < 3:
+        raise WindowError("too_short", f"{n} samples")
+    if not np.all(np.isfinite(t)):
+        raise WindowError("non_finite", "time stamps contain NaN or Inf")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        k = int(np.flatnonzero(steps <= 0)[0])
+        raise WindowError("non_monotonic", f"time does not increase at sample {k + 1} (t={t[k + 1]!r})")
+    dt = float(np.median(steps))
+    ratio = steps / dt
+    k_steps = np.rint(ratio)
+    if np.any(np.abs(ratio - k_steps) > 0.1):
+        worst = float(np.max(np.abs(ratio - k_steps)))
+        raise WindowError("non_uniform", f"sample times deviate from a {dt:.6g} s grid by {worst:.2f} steps")
+    if t[-1] - t[0] < min_duration_s:
+        raise WindowError("too_short", f"window covers {t[-1] - t[0]:.3g} s, need at least {min_duration_s:g} s")
+
+    flags: list[str] = []
+    idx = np.concatenate(([0], np.cumsum(k_steps).astype(np.int64)))
+    n_grid = int(idx[-1]) + 1
+    grid = {}
+    for c, a in arrays.items():
+        g = np.full(n_grid, np.nan)
+        g[idx] = a
+        grid[c] = g
+    if np.isinf(np.concatenate(list(arrays.values()))).any():
+        raise WindowError("non_finite", "a channel contains Inf")
+    repaired = 0
+    for c in CHANNELS:
+        repaired = max(repaired, _fill_short_gaps(grid[c], max_gap_samples, c))
+    if repaired:
+        flags.append(f"repaired_samples:{repaired}")
+    V, theta, P, Q = (grid[c] for c in CHANNELS)
+    if np.any(V <= 0.3) or np.any(V > 2.0):
+        raise WindowError("bad_range", f"V outside (0.3, 2] pu: min {V.min():.4g}, max {V.max():.4g}")
+    theta = np.unwrap(theta)
+    if np.std(V) < 1e-7 * np.mean(V) or np.std(P) == 0.0 or np.std(Q) == 0.0:
+        raise WindowError("no_excitation", "V, P or Q is constant: ambient signals carry no information")
+    if lowpass_hz is not None:
+        fs = 1.0 / dt
+        if not 0.0 < lowpass_hz < 0.5 * fs:
+            raise ValueError(f"lowpass_hz must lie in (0, {0.5 * fs:g}) Hz for a {fs:g} Hz window")
+        b, a = signal.butter(2, lowpass_hz, fs=fs)
+        zi = signal.lfilter_zi(b, a)
+        V, theta, P, Q = (signal.lfilter(b, a, x, zi=zi * x[0])[0] for x in (V, theta, P, Q))
+    tg = t[0] + dt * np.arange(n_grid)
+    return Prepared(tg, V, theta, P, Q, dt, flags, repaired)

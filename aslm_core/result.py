@@ -1,0 +1,99 @@
+"""Configuration and result objects of one identification."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from aslm_core.params import DYNAMIC_NAMES
+
+Integrator = Literal["rk4", "euler"]
+Objective = Literal["paper", "ml", "ssq"]
+StaticModel = Literal["zip", "exponential"]
+
+
+@dataclass(frozen=True)
+class IdentifyConfig:
+    """Options of :func:`aslm_core.identify`.
+
+    Attributes
+    ----------
+    integrator : {"rk4", "euler"}
+        RK4 at the sample step (default) or the paper's explicit Euler (reproduction mode).
+    objective : {"paper", "ml", "ssq"}
+        ``paper``: (‖r_p‖ + ‖r_q‖)/l, eq. 7.  ``ml``: Gaussian likelihood with one unknown noise
+        variance per channel (weights 1/‖r‖²).  ``ssq``: plain sum of squares.
+    static : {"zip", "exponential"}
+        Static load model regressed in the lower stage.
+    skip_s : float
+        Initial transient excluded from the objective [s].
+    n_starts : int
+        Random feasible starts (in addition to the warm start, if given).
+    lowpass_hz : float or None
+        Cut-off of the optional causal Butterworth low-pass applied to V, θ, P, Q [Hz].
+    max_iter : int
+        Levenberg–Marquardt iterations per start.
+    seed : int or None
+        Seed of the random starts (None: fixed per window for reproducibility).
+    max_gap_samples : int
+        Longest run of missing samples repaired by interpolation.
+    """
+
+    integrator: Integrator = "rk4"
+    objective: Objective = "paper"
+    static: StaticModel = "zip"
+    skip_s: float = 1.0
+    n_starts: int = 3
+    lowpass_hz: float | None = None
+    max_iter: int = 60
+    seed: int | None = 0
+    max_gap_samples: int = 5
+    min_duration_s: float = 5.0
+
+
+@dataclass
+class IdentificationResult:
+    """Identified composite load of one window.
+
+    Attributes
+    ----------
+    dynamic : dict
+        D = {a [1/s], b [1/s], H2 [s], Tm [pu]}.
+    static : dict
+        ZIP {Pz, Pi, Pp, Qz, Qi, Qp} [pu] or exponential {P0, np, Q0, nq}.
+    objective : float
+        Value of the configured objective at the optimum (eq. 7 for ``paper``).
+    fit : dict
+        Fit degree (eq. 9) of P and Q over the regression samples: {fd_p, fd_q}.
+    stderr : dict
+        Standard errors of D from the Jacobian at the optimum (Gaussian, per-channel noise).
+    quality : dict
+        Indicators: SNR estimates [dB], excitation (std of V [pu]), constraint margin, n samples.
+    flags : list of str
+        Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``.
+    """
+
+    dynamic: dict[str, float]
+    static: dict[str, float]
+    objective: float
+    fit: dict[str, float]
+    stderr: dict[str, float]
+    quality: dict[str, float]
+    flags: list[str] = field(default_factory=list)
+    iterations: int = 0
+    starts: int = 0
+    evaluations: int = 0
+    elapsed_s: float = 0.0
+    bus: str = ""
+    config: dict = field(default_factory=dict)
+
+    @property
+    def d(self) -> np.ndarray:
+        """D as an array [a, b, H2, Tm]."""
+        return np.array([self.dynamic[k] for k in DYNAMIC_NAMES])
+
+    def to_dict(self) -> dict:
+        """Plain JSON-serialisable dict (the CLI/REST/Zenoh payload)."""
+        return asdict(self)

@@ -1,0 +1,27 @@
+"""The ``aslm`` command line: one sub-command per module in :mod:`service.commands`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from service.commands import identify as identify_cmd
+
+COMMANDS = (identify_cmd,)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="aslm", description="Ambient-signal load modelling from PMU data.")
+    sub = parser.add_subparsers(dest="command", required=True)
+    for module in COMMANDS:
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    return int(args.func(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Sub-commands of the ``aslm`` CLI, one module each with ``add_parser(subparsers)``."""
