@@ -22,6 +22,7 @@ from service.frames import FrameBatch
 
 ROWS = ("t", "V", "theta", "P", "Q", "f")
 _NROWS = len(ROWS)
+_EMPTY = np.empty((_NROWS, 0))
 
 
 @dataclass
@@ -56,14 +57,13 @@ class BusBuffer:
     """
 
     __slots__ = ("capacity", "tol", "late_s", "data", "start", "end", "lock", "buffered", "rejected",
-                 "has_f", "last_arrival")
+                 "has_f", "last_arrival", "messages", "messages_rejected")
 
     def __init__(self, capacity: int, tol: float, late_s: float) -> None:
         self.capacity = int(capacity)
         self.tol = float(tol)
         self.late_s = float(late_s)
-        # Slack of a quarter capacity: compaction (one copy of the live region) every ~cap/4 frames.
-        self.data = np.empty((_NROWS, self.capacity + self.capacity // 4 + 64))
+        self.data = _EMPTY  # allocated on the first frame: a key that only sends garbage costs nothing
         self.start = 0
         self.end = 0
         self.lock = threading.Lock()
@@ -71,6 +71,17 @@ class BusBuffer:
         self.rejected: Counter[str] = Counter()
         self.has_f = False
         self.last_arrival = 0.0
+        self.messages = 0
+        self.messages_rejected: Counter[str] = Counter()
+
+    def count(self, rejected: dict[str, int], message_reason: str | None = None) -> None:
+        """Record frames rejected before buffering (validation, undecodable message)."""
+        with self.lock:
+            self.messages += 1
+            if message_reason:
+                self.messages_rejected[message_reason] += 1
+            for reason, k in rejected.items():
+                self.rejected[reason] += k
 
     @property
     def size(self) -> int:
@@ -88,6 +99,9 @@ class BusBuffer:
         if n == 0:
             return {}
         with self.lock:
+            if self.data is _EMPTY:
+                # Slack of a quarter capacity: compaction (one copy of the live region) every ~cap/4 frames.
+                self.data = np.empty((_NROWS, self.capacity + self.capacity // 4 + 64))
             self.last_arrival = arrival
             t = batch.t
             newest = self.newest
@@ -197,17 +211,38 @@ class BusBuffer:
 
 @dataclass
 class BusCounts:
-    """Accounting of one bus."""
+    """Accounting of one bus: ``buffered + sum(rejected.values())`` frames were offered."""
 
     bus: str
+    messages: int
     buffered: int
     held: int
     newest_t: float | None
     rejected: dict[str, int]
+    messages_rejected: dict[str, int]
+
+
+@dataclass
+class Totals:
+    """Service-wide accounting (sums over buses, computed on demand)."""
+
+    buses: int
+    messages: int
+    frames_buffered: int
+    frames_rejected: dict[str, int]
+    messages_rejected: dict[str, int]
+
+    @property
+    def frames_received(self) -> int:
+        """Frames offered: buffered plus rejected."""
+        return self.frames_buffered + sum(self.frames_rejected.values())
 
 
 class BufferStore:
-    """All buses' buffers plus service-wide counters of frames and messages.
+    """All buses' buffers and their accounting.
+
+    Counters live in each bus's buffer and change under its lock, so the accounting stays exact
+    whichever Zenoh thread delivers a message; service-wide totals are sums taken on demand.
 
     Parameters
     ----------
@@ -225,14 +260,11 @@ class BufferStore:
         self.max_buses = max_buses
         self._buses: dict[str, BusBuffer] = {}
         self._lock = threading.Lock()
-        self.frames_received = 0
-        self.frames_rejected: Counter[str] = Counter()  # all reasons, service-wide
-        self.messages_received = 0
-        self.messages_rejected: Counter[str] = Counter()  # undecodable messages by reason
-        self.bus_rejected: dict[str, Counter[str]] = {}  # validation rejects per bus (before buffering)
+        self._refused: Counter[str] = Counter()  # frames of buses beyond max_buses
+        self._refused_messages = 0
 
     def buffer(self, bus: str, create: bool = True) -> BusBuffer | None:
-        """The buffer of ``bus``, created on first use."""
+        """The buffer of ``bus``, created on first use (None beyond ``max_buses``)."""
         buf = self._buses.get(bus)
         if buf is None and create:
             with self._lock:
@@ -244,49 +276,54 @@ class BufferStore:
         return buf
 
     def buses(self) -> list[str]:
-        """Buses that have sent at least one accepted message, sorted."""
+        """Buses that have sent anything, sorted."""
         return sorted(self._buses)
 
-    def count_rejected(self, bus: str, rejected: dict[str, int]) -> None:
-        """Record frames rejected before buffering (validation) for ``bus``."""
-        c = self.bus_rejected.setdefault(bus, Counter())
-        for reason, k in rejected.items():
-            c[reason] += k
-            self.frames_rejected[reason] += k
-
-    def count_message_rejected(self, bus: str, reason: str, n_frames: int) -> None:
-        """Record an undecodable message (and the frames it announced, if known)."""
-        self.messages_rejected[reason] += 1
-        if n_frames:
-            self.frames_received += n_frames
-            self.count_rejected(bus, {reason: n_frames})
-
-    def add(self, bus: str, batch: FrameBatch, arrival: float = 0.0) -> dict[str, int]:
-        """Buffer a validated batch for ``bus``; returns buffer-level rejects."""
+    def reject_message(self, bus: str, reason: str, n_frames: int = 0) -> None:
+        """Record an undecodable message and the frames it announced, if known."""
         buf = self.buffer(bus)
         if buf is None:
-            rej = {"too_many_buses": len(batch)}
-            self.count_rejected(bus, rej)
-            return rej
-        rej = buf.insert(batch, arrival)
-        for reason, k in rej.items():
-            self.frames_rejected[reason] += k
-        return rej
+            self._refuse(n_frames)
+            return
+        buf.count({reason: n_frames} if n_frames else {}, message_reason=reason)
+
+    def add(self, bus: str, batch: FrameBatch, rejected: dict[str, int] | None = None,
+            arrival: float = 0.0) -> dict[str, int]:
+        """Buffer a validated batch of ``bus``; ``rejected`` are its frames that failed validation.
+
+        Returns the frames rejected by the buffer (late, duplicate) by reason.
+        """
+        buf = self.buffer(bus)
+        if buf is None:
+            self._refuse(len(batch) + sum((rejected or {}).values()))
+            return {"too_many_buses": len(batch)}
+        buf.count(rejected or {})
+        return buf.insert(batch, arrival)
+
+    def _refuse(self, n_frames: int) -> None:
+        with self._lock:
+            self._refused["too_many_buses"] += n_frames
+            self._refused_messages += 1
 
     def counts(self, bus: str) -> BusCounts | None:
         """Accounting of one bus (None if unknown)."""
         buf = self._buses.get(bus)
-        extra = self.bus_rejected.get(bus, Counter())
-        if buf is None and not extra:
+        if buf is None:
             return None
-        rejected = Counter(extra)
-        if buf is not None:
-            rejected.update(buf.rejected)
-        newest = buf.newest if buf is not None and buf.size else None
-        return BusCounts(bus=bus, buffered=buf.buffered if buf else 0, held=buf.size if buf else 0,
-                         newest_t=newest, rejected=dict(rejected))
+        with buf.lock:
+            return BusCounts(bus=bus, messages=buf.messages, buffered=buf.buffered, held=buf.size,
+                             newest_t=buf.newest if buf.size else None, rejected=dict(buf.rejected),
+                             messages_rejected=dict(buf.messages_rejected))
 
-    @property
-    def frames_buffered(self) -> int:
-        """Frames accepted into any buffer since start."""
-        return sum(b.buffered for b in list(self._buses.values()))
+    def totals(self) -> Totals:
+        """Service-wide sums."""
+        rejected: Counter[str] = Counter(self._refused)
+        mrej: Counter[str] = Counter({"too_many_buses": self._refused_messages} if self._refused_messages else {})
+        messages = buffered = 0
+        for buf in list(self._buses.values()):
+            messages += buf.messages
+            buffered += buf.buffered
+            rejected.update(buf.rejected)
+            mrej.update(buf.messages_rejected)
+        return Totals(buses=len(self._buses), messages=messages + self._refused_messages,
+                      frames_buffered=buffered, frames_rejected=dict(rejected), messages_rejected=dict(mrej))

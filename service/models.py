@@ -16,10 +16,10 @@ class Identified(BaseModel):
 
     dynamic: dict[str, float] = Field(description="D = {a [1/s], b [1/s], H2 [s], Tm [pu]}")
     static: dict[str, float] = Field(description="ZIP {Pz, Pi, Pp, Qz, Qi, Qp} [pu] or exponential {P0, np, Q0, nq}")
-    objective: float = Field(description="Objective value at the optimum")
-    fit: dict[str, float] = Field(description="Fit degree of P and Q (paper eq. 9): {fd_p, fd_q}")
-    stderr: dict[str, float] = Field(default_factory=dict, description="Standard errors of D")
-    quality: dict[str, float] = Field(default_factory=dict, description="SNR [dB], excitation, margins")
+    objective: float | None = Field(description="Objective value at the optimum")
+    fit: dict[str, float | None] = Field(description="Fit degree of P and Q (paper eq. 9): {fd_p, fd_q}")
+    stderr: dict[str, float | None] = Field(default_factory=dict, description="Standard errors of D (null: not available)")
+    quality: dict[str, float | None] = Field(default_factory=dict, description="SNR [dB], excitation, margins")
     flags: list[str] = Field(default_factory=list, description="Quality flags, e.g. at_bound:H2")
     elapsed_s: float = Field(0.0, description="Identification time in the worker [s]")
 

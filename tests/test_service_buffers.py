@@ -77,10 +77,10 @@ def test_store_invariant_sent_equals_buffered_plus_rejected():
             t = rng.permutation(t)
             store.add(bus, batch(t))
             sent += t.size
-    buffered = store.frames_buffered
-    rejected = sum(store.frames_rejected.values())
-    assert buffered + rejected == sent
-    assert store.frames_rejected["duplicate"] > 0 and store.frames_rejected["late"] > 0
+    tot = store.totals()
+    assert tot.frames_buffered + sum(tot.frames_rejected.values()) == sent == tot.frames_received
+    assert tot.frames_rejected["duplicate"] > 0 and tot.frames_rejected["late"] > 0
+    assert tot.messages == 120
     for bus in ("a", "b", "c"):
         c = store.counts(bus)
         assert c.buffered + sum(c.rejected.values()) == sent // 3
@@ -103,4 +103,17 @@ def test_too_many_buses_refused_with_reason():
     for bus in ("a", "b", "c"):
         store.add(bus, batch(frames_at(0, 10)))
     assert store.buses() == ["a", "b"]
-    assert store.counts("c").rejected == {"too_many_buses": 10}
+    assert store.counts("c") is None
+    assert store.totals().frames_rejected == {"too_many_buses": 10}
+    assert store.totals().frames_received == 30
+
+
+def test_validation_and_message_rejects_are_accounted_per_bus():
+    store = BufferStore(window_s=10, frame_rate=FS, late_s=2.0)
+    store.add("a", batch(frames_at(0, 8)), rejected={"non_finite": 2})
+    store.reject_message("a", "length_mismatch", 7)
+    store.reject_message("a", "malformed_json")
+    c = store.counts("a")
+    assert c.buffered == 8 and c.rejected == {"non_finite": 2, "length_mismatch": 7}
+    assert c.messages == 3 and c.messages_rejected == {"length_mismatch": 1, "malformed_json": 1}
+    assert store.totals().frames_received == 17

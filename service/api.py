@@ -1,0 +1,150 @@
+"""REST API (FastAPI): results, buses, configuration and metrics of a running service."""
+
+from __future__ import annotations
+
+import hmac
+import time
+from typing import TYPE_CHECKING, Annotated
+
+from fastapi import Depends, FastAPI, Header, HTTPException, Query, Response
+from pydantic import BaseModel, Field
+
+from service.models import BusResult, PeriodSummary
+
+if TYPE_CHECKING:
+    from service.app import Service
+
+
+class Health(BaseModel):
+    """Liveness and a summary of the service state."""
+
+    status: str = Field(description="ok")
+    instance: str
+    uptime_s: float
+    period_s: float = Field(description="Period T in force [s]")
+    next_period: float | None = Field(description="Next boundary being waited for, UTC [s]")
+    running_period: float | None = Field(description="Boundary of the period being computed, if any")
+    last_period: PeriodSummary | None
+    buses: int = Field(description="Buses known to the ingest")
+    frames_received: int
+    frames_dropped: int
+    workers_replaced: int = Field(description="Worker processes replaced after a crash or timeout")
+
+
+class BusInfo(BaseModel):
+    """One bus: ingest accounting and its latest result."""
+
+    bus: str
+    frames_buffered: int = Field(description="Frames accepted since start")
+    frames_dropped: dict[str, int] = Field(description="Frames dropped by reason since start")
+    messages_dropped: dict[str, int] = Field(description="Undecodable messages by reason since start")
+    newest_t: float | None = Field(description="PMU time of the newest frame held [s]")
+    last_status: str | None = Field(description="Status of the latest result")
+    last_period: float | None = Field(description="Period of the latest result [s]")
+
+
+class ConfigView(BaseModel):
+    """Settings in force (operator token masked)."""
+
+    settings: dict
+    period_s: float = Field(description="Effective period T [s] (settings or the persisted run-time change)")
+
+
+class ConfigUpdate(BaseModel):
+    """Run-time changes; they take effect from the next period and are persisted."""
+
+    period_s: float | None = Field(None, gt=0, description="New period T [s] (>= window_s + late_s)")
+
+
+def create_app(service: Service) -> FastAPI:
+    """FastAPI application bound to one :class:`service.app.Service`."""
+    app = FastAPI(title="ASLM service", version="0.1.0",
+                  description="Ambient-signal load model identification from PMU streams.")
+    started = time.time()
+
+    def operator(authorization: Annotated[str | None, Header()] = None,
+                 x_operator_token: Annotated[str | None, Header()] = None) -> None:
+        """Require ``Authorization: Bearer <token>`` (or ``X-Operator-Token``)."""
+        expected = service.settings.operator_token
+        given = x_operator_token
+        if authorization and authorization.lower().startswith("bearer "):
+            given = authorization[7:].strip()
+        if expected is None:
+            raise HTTPException(401, "no operator token is configured (ASLM_OPERATOR_TOKEN): changes refused",
+                                headers={"WWW-Authenticate": "Bearer"})
+        if not given or not hmac.compare_digest(given.encode(), expected.get_secret_value().encode()):
+            raise HTTPException(401, "operator token required", headers={"WWW-Authenticate": "Bearer"})
+
+    @app.get("/health", response_model=Health)
+    def health() -> Health:
+        tot = service.store.totals()
+        periods = service.storage.periods(limit=1)
+        sched = service.scheduler
+        return Health(
+            status="ok", instance=service.settings.instance, uptime_s=time.time() - started,
+            period_s=service.period_s, next_period=sched.next_period if sched else None,
+            running_period=sched.running_period if sched else None,
+            last_period=periods[0] if periods else None, buses=tot.buses,
+            frames_received=tot.frames_received, frames_dropped=sum(tot.frames_rejected.values()),
+            workers_replaced=getattr(service.executor, "replaced", 0),
+        )
+
+    @app.get("/buses", response_model=list[BusInfo])
+    def buses() -> list[BusInfo]:
+        latest = service.latest.copy()
+        names = sorted(set(service.store.buses()) | set(latest))
+        out = []
+        for bus in names:
+            c = service.store.counts(bus)
+            res = latest.get(bus)
+            out.append(BusInfo(
+                bus=bus, frames_buffered=c.buffered if c else 0, frames_dropped=c.rejected if c else {},
+                messages_dropped=c.messages_rejected if c else {}, newest_t=c.newest_t if c else None,
+                last_status=res.status if res else None, last_period=res.period if res else None,
+            ))
+        return out
+
+    @app.get("/buses/{bus}/parameters/latest", response_model=BusResult)
+    def latest(bus: str, ok: Annotated[bool, Query(description="latest successful result only")] = False
+               ) -> BusResult:
+        res = service.latest.get(bus)
+        if ok and (res is None or res.status != "ok"):
+            res = service.storage.latest(bus, ok_only=True)
+        if res is None:
+            raise HTTPException(404, f"no result for bus {bus!r} yet")
+        return res
+
+    @app.get("/buses/{bus}/parameters", response_model=list[BusResult])
+    def history(bus: str,
+                since: Annotated[float | None, Query(description="earliest period, UTC [s]")] = None,
+                until: Annotated[float | None, Query(description="latest period, UTC [s]")] = None,
+                limit: Annotated[int, Query(ge=1, le=10000)] = 100) -> list[BusResult]:
+        return service.storage.history(bus, since, until, limit)
+
+    @app.get("/buses/{bus}/diagnosis/latest")
+    def diagnosis(bus: str) -> None:
+        raise HTTPException(404, f"no diagnosis for bus {bus!r}: the service does not run discrepancy "
+                                 "diagnosis yet (use `aslm diagnose FILE` offline)")
+
+    @app.get("/periods", response_model=list[PeriodSummary])
+    def periods(limit: Annotated[int, Query(ge=1, le=1000)] = 20) -> list[PeriodSummary]:
+        return service.storage.periods(limit)
+
+    @app.get("/config", response_model=ConfigView)
+    def get_config() -> ConfigView:
+        return ConfigView(settings=service.settings.public_dict(), period_s=service.period_s)
+
+    @app.put("/config", response_model=ConfigView, dependencies=[Depends(operator)])
+    def put_config(update: ConfigUpdate) -> ConfigView:
+        if update.period_s is not None:
+            try:
+                service.set_period(update.period_s)
+            except ValueError as exc:
+                raise HTTPException(422, str(exc)) from None
+        return ConfigView(settings=service.settings.public_dict(), period_s=service.period_s)
+
+    @app.get("/metrics", response_class=Response)
+    def metrics() -> Response:
+        return Response(service.metrics.render(), media_type="text/plain; version=0.0.4; charset=utf-8")
+
+    return app

@@ -1,0 +1,172 @@
+"""The service: Zenoh ingest, buffers, scheduler, worker pool, storage, publication and REST, wired."""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+
+import uvicorn
+import zenoh
+
+from service.api import create_app
+from service.buffers import BufferStore
+from service.metrics import ServiceMetrics
+from service.models import BusResult, PeriodSummary
+from service.pool import make_executor
+from service.publish import ResultPublisher
+from service.scheduler import QualityRules, Scheduler
+from service.settings import ServiceSettings, check_period
+from service.storage import Storage
+from service.zenoh_config import from_settings
+
+log = logging.getLogger(__name__)
+
+
+class Service:
+    """One running service instance.
+
+    Parameters
+    ----------
+    settings : ServiceSettings
+    rest : bool
+        Serve the REST API (uvicorn in a thread); off for embedded uses that need no HTTP.
+
+    Notes
+    -----
+    Start order: storage (history, persisted period, warm starts) → workers (spawned before the Zenoh
+    session opens) → Zenoh session, publisher, ingest → scheduler → REST.  Stop is the reverse.
+    """
+
+    def __init__(self, settings: ServiceSettings, *, rest: bool = True) -> None:
+        self.settings = settings
+        self.rest = rest
+        self.storage = Storage(settings.storage_path)
+        persisted = self.storage.get_config()
+        self.period_s = settings.period_s
+        if "period_s" in persisted:
+            try:
+                check_period(float(persisted["period_s"]), settings)
+                self.period_s = float(persisted["period_s"])
+                log.info("period_s=%g from the run-time configuration persisted in %s", self.period_s,
+                         settings.storage_path)
+            except (TypeError, ValueError) as exc:
+                log.warning("ignoring persisted period_s: %s", exc)
+        self.store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s)
+        self.metrics = ServiceMetrics(self.store)
+        self.metrics.period_s.set(self.period_s)
+        self.latest: dict[str, BusResult] = self.storage.latest_all()
+        self.warm_starts: dict[str, list[float]] = {
+            bus: [r.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
+            for bus, r in self.storage.latest_all(ok_only=True).items() if r.parameters is not None
+        }
+        self.executor = None
+        self.session: zenoh.Session | None = None
+        self.ingest = None
+        self.publisher: ResultPublisher | None = None
+        self.scheduler: Scheduler | None = None
+        self._server: uvicorn.Server | None = None
+        self._server_thread: threading.Thread | None = None
+        self.http_port: int | None = None
+        self._stopped = False
+
+    # --- lifecycle ------------------------------------------------------------------------------------
+    def start(self, wait_workers: float = 120.0) -> Service:
+        """Start every part; returns self once REST answers (if enabled)."""
+        s = self.settings
+        self.executor = make_executor(s.executor, s.workers, s.identify_fn, s.task_timeout_s)
+        if hasattr(self.executor, "wait_ready") and not self.executor.wait_ready(wait_workers):
+            log.warning("workers not ready after %g s; continuing", wait_workers)
+        from service.ingest import Ingest
+
+        self.session = zenoh.open(from_settings(s))
+        self.publisher = ResultPublisher(self.session, s.prefix, s.instance, lambda: self.latest.copy())
+        self.ingest = Ingest(self.session, s.prefix, self.store, max_future_s=s.max_future_s, f0=s.f0)
+        rules = QualityRules(s.window_s, s.frame_rate, s.min_coverage, s.max_gap_s, s.min_v_std)
+        self.scheduler = Scheduler(
+            self.store, self.executor, rules, late_s=s.late_s, f0=s.f0, period_s=lambda: self.period_s,
+            on_results=self._on_results, on_period=self._on_period, warm_starts=self.warm_starts,
+            options={"n_starts": s.n_starts},
+        )
+        self.scheduler.start()
+        if self.rest:
+            self._start_rest()
+        return self
+
+    def _start_rest(self) -> None:
+        config = uvicorn.Config(create_app(self), host=self.settings.http_host, port=self.settings.http_port,
+                                log_level="warning", access_log=False)
+        self._server = uvicorn.Server(config)
+        self._server_thread = threading.Thread(target=self._server.run, name="aslm-rest", daemon=True)
+        self._server_thread.start()
+        end = time.monotonic() + 20
+        while not self._server.started:
+            if not self._server_thread.is_alive() or time.monotonic() > end:
+                raise RuntimeError(f"REST server did not start on {self.settings.http_host}:{self.settings.http_port}")
+            time.sleep(0.02)
+        self.http_port = self._server.servers[0].sockets[0].getsockname()[1]
+
+    def stop(self) -> None:
+        """Stop REST, scheduler, ingest, publication, workers, Zenoh and storage (idempotent)."""
+        if self._stopped:
+            return
+        self._stopped = True
+        if self._server is not None:
+            self._server.should_exit = True
+            self._server_thread.join(10)
+        if self.scheduler is not None:
+            self.scheduler.stop()
+        if self.ingest is not None:
+            self.ingest.close()
+        if self.publisher is not None:
+            self.publisher.close()
+        if self.executor is not None:
+            self.executor.close()
+        if self.session is not None:
+            self.session.close()
+        self.storage.close()
+
+    def __enter__(self) -> Service:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    @property
+    def url(self) -> str:
+        """Base URL of the REST API."""
+        return f"http://{self.settings.http_host}:{self.http_port}"
+
+    # --- run-time configuration --------------------------------------------------------------------
+    def set_period(self, period_s: float) -> None:
+        """Change T from the next period on, and persist it.
+
+        Raises
+        ------
+        ValueError
+            A period shorter than window + late allowance.
+        """
+        check_period(period_s, self.settings)
+        self.storage.set_config({"period_s": float(period_s)})
+        self.period_s = float(period_s)
+        self.metrics.period_s.set(self.period_s)
+        if self.scheduler is not None:
+            self.scheduler.replan()
+
+    # --- results --------------------------------------------------------------------------------------
+    def _on_results(self, batch: list[BusResult]) -> None:
+        # Persist first (history survives a crash), then publish; a failing publication is logged only.
+        self.storage.save_results(batch)
+        for res in batch:
+            self.latest[res.bus] = res
+        self.metrics.results(batch)
+        for res in batch:
+            try:
+                self.publisher.publish(res)
+            except Exception:  # noqa: BLE001 - one bus's publication never stops the others
+                self.metrics.request_errors.labels("publish").inc()
+                log.exception("publishing %s failed", res.bus)
+
+    def _on_period(self, summary: PeriodSummary) -> None:
+        self.storage.save_period(summary)
+        self.metrics.period(summary)

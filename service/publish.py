@@ -1,0 +1,66 @@
+"""Results onto Zenoh: ``{prefix}/params/{bus}`` puts, a "latest" queryable, a liveliness token."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+
+import zenoh
+
+from service.models import BusResult
+
+log = logging.getLogger(__name__)
+
+
+class ResultPublisher:
+    """Publication side of one service instance.
+
+    Parameters
+    ----------
+    session : zenoh.Session
+    prefix : str
+    instance : str
+        Name in the liveliness token ``{prefix}/service/{instance}``.
+    latest : callable
+        Returns bus → latest :class:`BusResult` (answers queries on ``{prefix}/params/**``).
+    """
+
+    def __init__(self, session: zenoh.Session, prefix: str, instance: str,
+                 latest: Callable[[], dict[str, BusResult]]) -> None:
+        self.session = session
+        self.prefix = prefix
+        self._latest = latest
+        self._publishers: dict[str, zenoh.Publisher] = {}
+        self.published = 0
+        self.queryable = session.declare_queryable(f"{prefix}/params/**", self._on_query)
+        self.token = session.liveliness().declare_token(f"{prefix}/service/{instance}")
+
+    def publish(self, result: BusResult) -> None:
+        """Put one result (JSON, reliable, blocking congestion control: never dropped)."""
+        pub = self._publishers.get(result.bus)
+        if pub is None:
+            pub = self._publishers[result.bus] = self.session.declare_publisher(
+                f"{self.prefix}/params/{result.bus}", encoding=zenoh.Encoding.APPLICATION_JSON,
+                congestion_control=zenoh.CongestionControl.BLOCK, reliability=zenoh.Reliability.RELIABLE,
+            )
+        pub.put(result.model_dump_json())
+        self.published += 1
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        try:
+            asked = query.key_expr
+            for bus, res in self._latest().items():
+                key = f"{self.prefix}/params/{bus}"
+                if zenoh.KeyExpr(key).intersects(asked):
+                    query.reply(key, res.model_dump_json(), encoding=zenoh.Encoding.APPLICATION_JSON)
+        except Exception:  # noqa: BLE001 - a bad query never stops the service
+            log.exception("params query failed")
+
+    def close(self) -> None:
+        """Undeclare everything (the liveliness token disappears)."""
+        for obj in (*self._publishers.values(), self.queryable, self.token):
+            try:
+                obj.undeclare()
+            except Exception:  # noqa: BLE001 - session may already be closed
+                pass
+        self._publishers.clear()

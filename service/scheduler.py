@@ -1,0 +1,234 @@
+"""Periodic identification: every period T (wall-clock aligned) cut, check, submit, collect, publish.
+
+Timeline of one period with boundary B (a multiple of T since the epoch)::
+
+    B - window_s ........ B ........ B + late_s  -> cut windows (B - window_s, B] by PMU time
+                                                 -> quality check, submit good ones
+                                                 -> results persisted, then published
+    latency = time of the last result published - (B + late_s)
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, Future, wait
+from dataclasses import dataclass
+
+import numpy as np
+
+from service.buffers import BufferStore, Cut
+from service.models import BusResult, Identified, PeriodSummary
+from service.pool import Executor
+from service.worker import TaskOutcome, WindowTask
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class QualityRules:
+    """Window acceptance rules.
+
+    Attributes
+    ----------
+    window_s : float
+        Window length [s].
+    frame_rate : float
+        Nominal frame rate [frames/s].
+    min_coverage : float
+        Minimum fraction of the expected frames [-].
+    max_gap_s : float
+        Longest tolerated gap between consecutive frames [s].
+    min_v_std : float
+        Minimum standard deviation of V (ambient excitation) [pu].
+    """
+
+    window_s: float
+    frame_rate: float
+    min_coverage: float
+    max_gap_s: float
+    min_v_std: float
+
+
+def check_window(cut: Cut, rules: QualityRules) -> str | None:
+    """Reason a window is unusable (``no_data``, ``coverage``, ``gap``, ``no_excitation``), or None."""
+    n = len(cut)
+    if n < 2:
+        return "no_data"
+    if n < rules.min_coverage * rules.window_s * rules.frame_rate:
+        return "coverage"
+    if float(np.max(np.diff(cut.t))) > rules.max_gap_s:
+        return "gap"
+    if float(np.std(cut.V)) < rules.min_v_std:
+        return "no_excitation"
+    return None
+
+
+def next_boundary(now: float, period_s: float) -> float:
+    """First multiple of ``period_s`` since the epoch strictly after ``now`` [s]."""
+    return (math.floor(now / period_s) + 1) * period_s
+
+
+class Scheduler:
+    """Runs periods in its own thread.
+
+    Parameters
+    ----------
+    store : BufferStore
+    executor : Executor
+    rules : QualityRules
+    late_s : float
+        Late-data allowance [s].
+    f0 : float
+        Nominal frequency [Hz].
+    period_s : callable
+        Returns the period T in force [s]; read before planning each period.
+    on_results : callable
+        Called with each batch of finished :class:`BusResult` (persist, then publish).
+    on_period : callable
+        Called with the :class:`PeriodSummary` of each completed period.
+    warm_starts : dict
+        bus → D [a, b, H2, Tm] of its previous successful result (kept up to date here).
+    options : dict
+        :class:`aslm_core.IdentifyConfig` keyword arguments for every task.
+    """
+
+    def __init__(self, store: BufferStore, executor: Executor, rules: QualityRules, *, late_s: float,
+                 f0: float, period_s: Callable[[], float], on_results: Callable[[list[BusResult]], None],
+                 on_period: Callable[[PeriodSummary], None], warm_starts: dict[str, list[float]],
+                 options: dict | None = None) -> None:
+        self.store = store
+        self.executor = executor
+        self.rules = rules
+        self.late_s = late_s
+        self.f0 = f0
+        self.period_s = period_s
+        self.on_results = on_results
+        self.on_period = on_period
+        self.warm_starts = warm_starts
+        self.options = options or {}
+        self._stop = threading.Event()
+        self._replan = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.next_period: float | None = None
+        self.running_period: float | None = None
+
+    def start(self) -> None:
+        """Start the scheduling thread."""
+        self._thread = threading.Thread(target=self._loop, name="aslm-scheduler", daemon=True)
+        self._thread.start()
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Stop after the period in progress (if any) and join."""
+        self._stop.set()
+        self._replan.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    def replan(self) -> None:
+        """Recompute the next boundary now (the period changed)."""
+        self._replan.set()
+
+    def _loop(self) -> None:
+        last = -math.inf
+        while not self._stop.is_set():
+            period_s = self.period_s()
+            boundary = next_boundary(max(time.time() - self.late_s, last), period_s)
+            self.next_period = boundary
+            self._replan.clear()
+            delay = boundary + self.late_s - time.time()
+            if delay > 0 and self._replan.wait(delay):
+                continue  # period changed or stopping: plan again
+            if self._stop.is_set():
+                break
+            try:
+                self.run_period(boundary, period_s)
+            except Exception:  # noqa: BLE001 - one bad period must not end the service
+                log.exception("period %s failed", boundary)
+            last = boundary
+
+    def run_period(self, boundary: float, period_s: float) -> PeriodSummary:
+        """Cut, check, identify and report every known bus for the period ending at ``boundary``."""
+        self.running_period = boundary
+        started = time.time()
+        done: list[BusResult] = []
+        pending: dict[Future, tuple[str, Cut, bool]] = {}
+        skipped: list[BusResult] = []
+        for bus in self.store.buses():
+            buf = self.store.buffer(bus, create=False)
+            if buf is None:
+                continue
+            newest = buf.newest
+            end = min(boundary, newest)  # a PMU running slightly behind still gives its latest window
+            cut = buf.cut(end - self.rules.window_s, end) if newest > boundary - self.rules.window_s else None
+            reason = "no_data" if cut is None else check_window(cut, self.rules)
+            if reason is not None:
+                skipped.append(self._record(bus, boundary, period_s, "skipped", reason, cut, False))
+                continue
+            warm = self.warm_starts.get(bus)
+            task = WindowTask(bus=bus, t=cut.t, V=cut.V, theta=cut.theta, P=cut.P, Q=cut.Q, f=cut.f, f0=self.f0,
+                              warm_start=list(warm) if warm is not None else None, options=self.options)
+            pending[self.executor.submit(task)] = (bus, cut, warm is not None)
+        if skipped:
+            self._emit(skipped, done)
+        while pending:
+            finished, _ = wait(list(pending), return_when=FIRST_COMPLETED)
+            batch = []
+            for fut in finished:
+                bus, cut, warm = pending.pop(fut)
+                outcome: TaskOutcome = fut.result()
+                if outcome.ok:
+                    res = self._record(bus, boundary, period_s, "ok", None, cut, warm, outcome)
+                    self.warm_starts[bus] = [res.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
+                else:
+                    res = self._record(bus, boundary, period_s, "failed", outcome.reason, cut, warm, outcome)
+                batch.append(res)
+            self._emit(batch, done)
+        finished_at = time.time()
+        summary = PeriodSummary(
+            period=boundary, period_s=period_s,
+            n_ok=sum(r.status == "ok" for r in done), n_failed=sum(r.status == "failed" for r in done),
+            n_skipped=sum(r.status == "skipped" for r in done),
+            latency_s=finished_at - max(started, boundary + self.late_s), completed_at=finished_at,
+        )
+        self.on_period(summary)
+        self.running_period = None
+        log.info("period %.0f: %d ok, %d failed, %d skipped in %.2f s", boundary, summary.n_ok, summary.n_failed,
+                 summary.n_skipped, summary.latency_s)
+        return summary
+
+    def _emit(self, batch: list[BusResult], done: list[BusResult]) -> None:
+        try:
+            self.on_results(batch)
+        except Exception:  # noqa: BLE001 - storage/publication trouble must not stop the period
+            log.exception("reporting %d results failed", len(batch))
+        done.extend(batch)
+
+    def _record(self, bus: str, boundary: float, period_s: float, status: str, reason: str | None,
+                cut: Cut | None, warm: bool, outcome: TaskOutcome | None = None) -> BusResult:
+        params = None
+        if outcome is not None and outcome.ok:
+            params = Identified.model_validate(_finite(outcome.value))
+        if outcome is not None and not outcome.ok and outcome.message:
+            log.warning("bus %s: %s: %s", bus, outcome.reason, outcome.message)
+        has = cut is not None and len(cut) > 0
+        return BusResult(
+            bus=bus, period=boundary, period_s=period_s, status=status, reason=reason,
+            window_start=float(cut.t[0]) if has else None, window_end=float(cut.t[-1]) if has else None,
+            n_frames=len(cut) if cut is not None else 0, warm_start=warm, completed_at=time.time(),
+            parameters=params,
+        )
+
+
+def _finite(obj):
+    """Replace non-finite floats (not JSON) by None, recursively."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    return obj

@@ -1,0 +1,99 @@
+"""What runs inside a worker process: one window in, one outcome out.
+
+Kept free of Zenoh, FastAPI and SQLite imports so spawned workers start quickly and hold no sockets.
+"""
+
+from __future__ import annotations
+
+import importlib
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class WindowTask:
+    """One bus's window to identify (pickled to the worker).
+
+    Attributes
+    ----------
+    bus : str
+    t, V, theta, P, Q : ndarray
+        Frames [s], [pu], [rad], [pu], [pu].
+    f : ndarray or None
+        Bus frequency [Hz].
+    f0 : float
+        Nominal frequency [Hz].
+    warm_start : list of float or None
+        Previous period's D = [a, b, H2, Tm] of the bus.
+    options : dict
+        Keyword arguments of :class:`aslm_core.IdentifyConfig` (e.g. ``n_starts``).
+    """
+
+    bus: str
+    t: np.ndarray
+    V: np.ndarray
+    theta: np.ndarray
+    P: np.ndarray
+    Q: np.ndarray
+    f: np.ndarray | None = None
+    f0: float = 50.0
+    warm_start: list[float] | None = None
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class TaskOutcome:
+    """Result of one task: ``value`` (the identification dict) or a failure ``reason``.
+
+    Reasons: ``window:<WindowError.reason>``, ``error:<ExceptionType>``, ``timeout``,
+    ``worker_crashed``, ``shutdown``.
+    """
+
+    ok: bool
+    value: dict | None = None
+    reason: str | None = None
+    message: str = ""
+    elapsed_s: float = 0.0
+
+
+def identify_window(task: WindowTask) -> dict:
+    """Default worker function: :func:`aslm_core.identify` on the task's window.
+
+    Returns
+    -------
+    dict
+        ``IdentificationResult.to_dict()``.
+    """
+    from aslm_core import IdentifyConfig, Window, identify
+
+    window = Window(t=task.t, V=task.V, theta=task.theta, P=task.P, Q=task.Q, f=task.f, f0=task.f0, bus=task.bus)
+    warm = np.asarray(task.warm_start, dtype=float) if task.warm_start is not None else None
+    return identify(window, warm_start=warm, config=IdentifyConfig(**task.options)).to_dict()
+
+
+_FN_CACHE: dict[str, Callable[[WindowTask], dict]] = {}
+
+
+def resolve(fn_path: str) -> Callable[[WindowTask], dict]:
+    """Import ``module:function``."""
+    fn = _FN_CACHE.get(fn_path)
+    if fn is None:
+        module, _, name = fn_path.partition(":")
+        fn = _FN_CACHE[fn_path] = getattr(importlib.import_module(module), name)
+    return fn
+
+
+def run_task(fn_path: str, task: WindowTask) -> TaskOutcome:
+    """Run one task, turning every exception into a failed outcome with a reason."""
+    t0 = time.perf_counter()
+    try:
+        value = resolve(fn_path)(task)
+        return TaskOutcome(ok=True, value=value, elapsed_s=time.perf_counter() - t0)
+    except Exception as exc:  # noqa: BLE001 - any failure fails this bus only
+        reason = getattr(exc, "reason", None)
+        reason = f"window:{reason}" if reason and type(exc).__name__ == "WindowError" else f"error:{type(exc).__name__}"
+        return TaskOutcome(ok=False, reason=reason, message=str(exc)[:500], elapsed_s=time.perf_counter() - t0)

@@ -1,0 +1,75 @@
+"""Local worker pool: real spawned processes; crashes and hangs fail one task only."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+import pytest
+
+from service.pool import LocalPool
+from service.worker import WindowTask
+
+
+def task(bus: str) -> WindowTask:
+    t = np.arange(100) / 50.0
+    return WindowTask(bus=bus, t=t, V=1 + 0 * t, theta=0 * t, P=0.5 + 0 * t, Q=0.1 + 0 * t)
+
+
+@pytest.fixture
+def env(tmp_path, monkeypatch):
+    monkeypatch.setenv("ASLM_TEST_HANG_BUS", "hang")
+    monkeypatch.setenv("ASLM_TEST_MARKER", str(tmp_path / "marker"))
+    return tmp_path / "marker"
+
+
+def test_killed_worker_fails_its_task_only_and_is_replaced(env):
+    pool = LocalPool(2, "service_helpers:hang_once_identify", timeout_s=60)
+    try:
+        assert pool.wait_ready(60)
+        hang = pool.submit(task("hang"))
+        others = [pool.submit(task(f"b{i}")) for i in range(6)]
+        deadline = time.monotonic() + 30
+        while not env.exists() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        pid = int(env.read_text())
+        assert pool.busy().get(pid) == "hang"
+        os.kill(pid, signal.SIGKILL)
+        out = hang.result(timeout=30)
+        assert (out.ok, out.reason) == (False, "worker_crashed")
+        assert all(f.result(timeout=30).ok for f in others)
+        assert pool.replaced == 1
+        assert pool.wait_ready(60)
+        again = pool.submit(task("hang"))  # marker exists: the replacement runs it normally
+        assert again.result(timeout=30).ok
+    finally:
+        pool.close()
+
+
+def test_hung_task_times_out_and_others_finish(env):
+    pool = LocalPool(2, "service_helpers:hang_once_identify", timeout_s=2.0)
+    try:
+        assert pool.wait_ready(60)
+        hang = pool.submit(task("hang"))
+        others = [pool.submit(task(f"b{i}")) for i in range(4)]
+        out = hang.result(timeout=30)
+        assert (out.ok, out.reason) == (False, "timeout")
+        assert [f.result(timeout=30).ok for f in others] == [True] * 4
+        assert pool.replaced == 1
+    finally:
+        pool.close()
+
+
+def test_exceptions_become_reasons():
+    pool = LocalPool(1, "service.worker:identify_window", timeout_s=60)
+    try:
+        t = np.arange(3) / 50.0  # far too short for the identifier
+        bad = WindowTask(bus="x", t=t, V=1 + 0 * t, theta=0 * t, P=0 * t, Q=0 * t)
+        out = pool.submit(bad).result(timeout=120)
+        assert not out.ok and out.reason.startswith(("window:", "error:"))
+        assert out.message
+    finally:
+        pool.close()
+    assert pool.submit(task("late")).result(timeout=5).reason == "shutdown"
