@@ -11,13 +11,16 @@ objective (eq. 7 by default).
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict
 
 import numpy as np
 
 from aslm_core import motor, optimize, static
+from aslm_core.errors import WindowError
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import Prepared, prepare
 from aslm_core.result import IdentificationResult, IdentifyConfig
@@ -52,6 +55,9 @@ class Problem:
         phi = static.regressors(prep.V[self.k0:], config.static)
         basis, self.r_factor = np.linalg.qr(phi)
         self.basis = np.ascontiguousarray(basis)
+        # Non-constant orthonormal regressors (QR keeps the constant column first), padded to two.
+        self.basis2 = np.zeros((basis.shape[0], 2))
+        self.basis2[:, : basis.shape[1] - 1] = basis[:, 1:]
         self.p_meas = np.ascontiguousarray(prep.P[self.k0:])
         self.q_meas = np.ascontiguousarray(prep.Q[self.k0:])
         self.v_min = float(prep.V.min())
@@ -66,11 +72,8 @@ class Problem:
 
     def feasible(self, d: np.ndarray) -> bool:
         """Inside the box and strictly inside the equilibrium set."""
-        av = d[0] * self.v_min * self.v_min
-        return bool(
-            np.all(d >= self.lower) and np.all(d <= self.upper)
-            and av - 2.0 * d[1] * d[3] > EQUILIBRIUM_MARGIN * av
-        )
+        return bool(optimize.feasible(np.asarray(d, dtype=np.float64), self.lower, self.upper, self.v_min,
+                                      EQUILIBRIUM_MARGIN))
 
     def residuals(self, d: np.ndarray, jacobian: bool = True):
         """Projected residuals of P and Q over the regression samples, and their D-Jacobians.
@@ -99,15 +102,6 @@ class Problem:
         if obj == "ml":
             return 0.5 * self.l * (math.log(np_ * np_ + 1e-300) + math.log(nq_ * nq_ + 1e-300))
         return 0.5 * (np_ * np_ + nq_ * nq_)
-
-    def weights(self, rp: np.ndarray, rq: np.ndarray) -> tuple[float, float]:
-        """Channel weights w such that ∇cost = Σ w·Jᵀr: IRLS form of the configured objective."""
-        obj = self.config.objective
-        if obj == "paper":
-            return 1.0 / max(math.sqrt(rp @ rp), 1e-300), 1.0 / max(math.sqrt(rq @ rq), 1e-300)
-        if obj == "ml":
-            return self.l / max(rp @ rp, 1e-300), self.l / max(rq @ rq, 1e-300)
-        return 1.0, 1.0
 
     def random_start(self, rng: np.random.Generator) -> np.ndarray:
         """A point drawn uniformly in the box of a, b, H2 and then Tm inside the equilibrium set."""
@@ -144,7 +138,7 @@ def levenberg_marquardt(problem: Problem, d0: np.ndarray, max_iter: int = 60, xt
     out = np.empty(4)
     cost, iters, evals, status = optimize.lm_kernel(
         d, problem.vd, problem.vq, problem.vdm, problem.vqm, problem.dt, problem.omega0, problem.rk4,
-        problem.basis, problem.p_meas, problem.q_meas, problem.k0, problem.lower, problem.upper,
+        problem.basis2, problem.p_meas, problem.q_meas, problem.k0, problem.lower, problem.upper,
         problem.v_min, EQUILIBRIUM_MARGIN, optimize.OBJECTIVE_CODES[problem.config.objective],
         max_iter, xtol, known_arr, known_arr.shape[0], out,
     )
@@ -212,8 +206,6 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
         runs.append(levenberg_marquardt(problem, s, max_iter=config.max_iter, known=known))
     best = min(runs, key=lambda r: r["cost"])
     if not math.isfinite(best["cost"]):
-        from aslm_core.errors import WindowError
-
         raise WindowError("no_solution", "no start produced a finite objective")
     return _result(problem, window, best, runs, prep, config, t_start)
 
@@ -280,3 +272,44 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         bus=window.bus,
         config=asdict(config),
     )
+
+
+def identify_many(windows: Sequence[Window], *, warm_starts: Sequence[np.ndarray | None] | None = None,
+                  config: IdentifyConfig | None = None,
+                  workers: int | None = None) -> list[IdentificationResult | WindowError]:
+    """Identify many bus windows in one call, on all cores.
+
+    The compiled optimiser releases the GIL, so a thread pool runs identifications in parallel
+    without pickling windows or spawning processes.
+
+    Parameters
+    ----------
+    windows : sequence of Window
+    warm_starts : sequence of (array or None), optional
+        One previous D per window.
+    config : IdentifyConfig, optional
+    workers : int, optional
+        Threads (default: the number of CPUs).
+
+    Returns
+    -------
+    list
+        Per window, in order: its IdentificationResult, or the WindowError that rejected it (a bad
+        window never stops the others).
+    """
+    config = config or IdentifyConfig()
+    warm = list(warm_starts) if warm_starts is not None else [None] * len(windows)
+    if len(warm) != len(windows):
+        raise ValueError(f"{len(warm)} warm starts for {len(windows)} windows")
+
+    def one(i: int) -> IdentificationResult | WindowError:
+        try:
+            return identify(windows[i], warm_start=warm[i], config=config)
+        except WindowError as exc:
+            return exc
+
+    n_workers = workers or os.cpu_count() or 1
+    if n_workers == 1 or len(windows) < 2:
+        return [one(i) for i in range(len(windows))]
+    with ThreadPoolExecutor(max_workers=n_workers) as pool:
+        return list(pool.map(one, range(len(windows))))

@@ -51,7 +51,7 @@ def dq_inputs(V: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     return vd, vq, vm * np.cos(thm), vm * np.sin(thm)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _steady_state(vd0, vq0, a, b, h2, tm, w0, x0, s0):
     """Low-slip equilibrium x0 and its sensitivity s0 = dx0/dD (filled in place); False if none."""
     v2 = vd0 * vd0 + vq0 * vq0
@@ -91,7 +91,7 @@ def _steady_state(vd0, vq0, a, b, h2, tm, w0, x0, s0):
     return True
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _f(fd, fq, s, vd, vq, a, b, h2, tm, w0):
     ws = w0 * s
     return (
@@ -101,7 +101,7 @@ def _f(fd, fq, s, vd, vq, a, b, h2, tm, w0):
     )
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _fsens(fd, fq, s, vd, vq, a, b, h2, tm, w0, S, K):
     """K = fx·S + fp: time derivative of the sensitivity matrix S (3×4)."""
     ws = w0 * s
@@ -121,9 +121,14 @@ def _fsens(fd, fq, s, vd, vq, a, b, h2, tm, w0, S, K):
     K[2, 3] += 1.0 / h2
 
 
-@nb.njit(cache=True)
-def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, dp_out, dq_out, x_out):
-    """Integrate from the steady state at sample 0; fill P_im, Q_im (and their D-gradients).
+@nb.njit(cache=True, nogil=True)
+def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, dp_out, dq_out, x_out,
+                    store, k0, p_meas, q_meas, X):
+    """Integrate from the steady state at sample 0, with forward sensitivities dx/dD.
+
+    With ``store`` it fills P_im, Q_im, their D-gradients and the states per sample.  Otherwise it
+    fills, for samples k0.., the rows of X (l×10) with [yp, ∂P_im/∂D, yq, ∂Q_im/∂D] where
+    y = measured − model, each shifted by its value at sample k0 (see :func:`normal_equations`).
 
     Returns False when no equilibrium exists at the first sample, or when the trajectory
     leaves the finite numbers.
@@ -149,15 +154,26 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
     for k in range(n):
         ud = vd[k]
         uq = vq[k]
-        p_out[k] = fd * uq - fq * ud
-        q_out[k] = -ud * fd - uq * fq
-        x_out[k, 0] = fd
-        x_out[k, 1] = fq
-        x_out[k, 2] = s
-        if with_sens:
+        if store:
+            p_out[k] = fd * uq - fq * ud
+            q_out[k] = -ud * fd - uq * fq
+            x_out[k, 0] = fd
+            x_out[k, 1] = fq
+            x_out[k, 2] = s
+            if with_sens:
+                for j in range(4):
+                    dp_out[k, j] = uq * S[0, j] - ud * S[1, j]
+                    dq_out[k, j] = -ud * S[0, j] - uq * S[1, j]
+        elif k >= k0:
+            i = k - k0
+            X[i, 0] = p_meas[i] - (fd * uq - fq * ud)
+            X[i, 5] = q_meas[i] - (-ud * fd - uq * fq)
             for j in range(4):
-                dp_out[k, j] = uq * S[0, j] - ud * S[1, j]
-                dq_out[k, j] = -ud * S[0, j] - uq * S[1, j]
+                X[i, 1 + j] = uq * S[0, j] - ud * S[1, j]
+                X[i, 6 + j] = -ud * S[0, j] - uq * S[1, j]
+            if i > 0:
+                for j in range(10):
+                    X[i, j] -= X[0, j]
         if k == n - 1:
             break
         if rk4:
@@ -210,7 +226,31 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
             s += h * k1[2]
         if not (math.isfinite(fd) and math.isfinite(fq) and math.isfinite(s)) or abs(fd) > 1e12:
             return False
+    if not store:
+        for j in range(10):
+            X[0, j] = 0.0
     return True
+
+
+@nb.njit(cache=True, nogil=True)
+def normal_equations(X, basis2, G, BX):
+    """Projected residual norms and normal equations of both channels from the rows of X.
+
+    X rows are [yp, mp(4), yq, mq(4)] shifted by the first row (so that centring loses few digits);
+    the projection P⊥ removes the constant regressor (centring) and the orthonormal ``basis2``.
+    Fills G (10×10) = centred XᵀX − (B2ᵀX)ᵀ(B2ᵀX); the blocks give ‖r‖², Jᵀr and JᵀJ with J = −P⊥m.
+    """
+    l = X.shape[0]
+    gram = X.T @ X
+    colsum = np.zeros(10)
+    for i in range(l):
+        for j in range(10):
+            colsum[j] += X[i, j]
+    bx = basis2.T @ X
+    for u in range(10):
+        for v in range(10):
+            G[u, v] = gram[u, v] - colsum[u] * colsum[v] / l - bx[0, u] * bx[0, v] - bx[1, u] * bx[1, v]
+    BX[:, :] = bx
 
 
 def steady_state(V0: float, theta0: float, d: np.ndarray, omega0: float) -> np.ndarray:
@@ -301,7 +341,8 @@ def simulate(
     q = np.empty(n)
     x = np.empty((n, 3))
     dummy = np.empty((1, 4))
-    ok = simulate_kernel(vd, vq, vdm, vqm, d, float(dt), float(omega0), integrator == "rk4", False, p, q, dummy, dummy, x)
+    ok = simulate_kernel(vd, vq, vdm, vqm, d, float(dt), float(omega0), integrator == "rk4", False, p, q, dummy,
+                         dummy, x, True, 0, p, q, dummy)
     if not ok:
         p[:] = np.nan
         q[:] = np.nan

@@ -12,7 +12,7 @@ import math
 import numba as nb
 import numpy as np
 
-from aslm_core.motor import simulate_kernel
+from aslm_core.motor import normal_equations, simulate_kernel
 
 OBJECTIVE_CODES = {"paper": 0, "ml": 1, "ssq": 2}
 STATUS_NAMES = ("converged", "max_iter", "duplicate", "failed", "stalled")
@@ -20,7 +20,7 @@ STATUS_NAMES = ("converged", "max_iter", "duplicate", "failed", "stalled")
 DUPLICATE_RTOL = 2e-2
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def project_into(y, basis, out):
     """out = (I − B·Bᵀ)·y for an orthonormal basis B (l×m)."""
     m = basis.shape[1]
@@ -37,7 +37,7 @@ def project_into(y, basis, out):
                 out[i] -= basis[i, j] * c
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def feasible(d, lower, upper, vmin, margin):
     for i in range(4):
         if d[i] < lower[i] or d[i] > upper[i]:
@@ -46,25 +46,12 @@ def feasible(d, lower, upper, vmin, margin):
     return av - 2.0 * d[1] * d[3] > margin * av
 
 
-@nb.njit(cache=True)
-def cost_of(rp, rq, objective, l):
-    sp = 0.0
-    sq = 0.0
-    for i in range(rp.shape[0]):
-        sp += rp[i] * rp[i]
-        sq += rq[i] * rq[i]
-    if objective == 0:
-        return (math.sqrt(sp) + math.sqrt(sq)) / l
-    if objective == 1:
-        return 0.5 * l * (math.log(sp + 1e-300) + math.log(sq + 1e-300))
-    return 0.5 * (sp + sq)
-
-
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def residuals_into(d, vd, vq, vdm, vqm, dt, w0, rk4, with_jac, basis, p_meas, q_meas, k0,
                    p, q, dp, dq, x, yp, yq, rp, rq, jp, jq):
     """Simulate D, project P/Q residuals (and Jacobians) over samples k0..n-1; False on failure."""
-    ok = simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_jac, p, q, dp, dq, x)
+    ok = simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_jac, p, q, dp, dq, x,
+                         True, k0, p_meas, q_meas, dp)
     if not ok:
         return False
     l = p_meas.shape[0]
@@ -83,95 +70,102 @@ def residuals_into(d, vd, vq, vdm, vqm, dt, w0, rk4, with_jac, basis, p_meas, q_
     return True
 
 
-@nb.njit(cache=True)
-def _normal_equations(jp, jq, rp, rq, wp, wq, A, g):
-    l = rp.shape[0]
-    for a in range(4):
-        ga = 0.0
-        for i in range(l):
-            ga += wp * jp[i, a] * rp[i] + wq * jq[i, a] * rq[i]
-        g[a] = ga
-        for b in range(a, 4):
-            s = 0.0
-            for i in range(l):
-                s += wp * jp[i, a] * jp[i, b] + wq * jq[i, a] * jq[i, b]
-            A[a, b] = s
-            A[b, a] = s
-
-
-@nb.njit(cache=True)
-def _weights(rp, rq, objective, l):
-    sp = 0.0
-    sq = 0.0
-    for i in range(rp.shape[0]):
-        sp += rp[i] * rp[i]
-        sq += rq[i] * rq[i]
+@nb.njit(cache=True, nogil=True)
+def _cost_rr(rr_p, rr_q, objective, l):
     if objective == 0:
-        return 1.0 / max(math.sqrt(sp), 1e-300), 1.0 / max(math.sqrt(sq), 1e-300)
+        return (math.sqrt(rr_p) + math.sqrt(rr_q)) / l
     if objective == 1:
-        return l / max(sp, 1e-300), l / max(sq, 1e-300)
+        return 0.5 * l * (math.log(rr_p + 1e-300) + math.log(rr_q + 1e-300))
+    return 0.5 * (rr_p + rr_q)
+
+
+@nb.njit(cache=True, nogil=True)
+def _weights_rr(rr_p, rr_q, objective, l):
+    """Channel weights w with ∇cost = Σ w·Jᵀr: the IRLS form of the configured objective."""
+    if objective == 0:
+        return 1.0 / max(math.sqrt(rr_p), 1e-300), 1.0 / max(math.sqrt(rr_q), 1e-300)
+    if objective == 1:
+        return l / max(rr_p, 1e-300), l / max(rr_q, 1e-300)
     return 1.0, 1.0
 
 
-@nb.njit(cache=True)
-def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis, p_meas, q_meas, k0, lower, upper, vmin,
+@nb.njit(cache=True, nogil=True)
+def _evaluate(d, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2, X, G, BX, Ap, Aq, gp, gq, d1, d2):
+    """Simulation with sensitivities + normal equations of both channels; returns (ok, ‖r_p‖², ‖r_q‖²)."""
+    ok = simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, True, d1, d1, d2, d2, d2, False, k0, p_meas,
+                         q_meas, X)
+    if not ok:
+        return False, 0.0, 0.0
+    normal_equations(X, basis2, G, BX)
+    for u in range(4):
+        gp[u] = -G[1 + u, 0]
+        gq[u] = -G[6 + u, 5]
+        for v in range(4):
+            Ap[u, v] = G[1 + u, 1 + v]
+            Aq[u, v] = G[6 + u, 6 + v]
+    return True, max(G[0, 0], 0.0), max(G[5, 5], 0.0)
+
+
+@nb.njit(cache=True, nogil=True)
+def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, lower, upper, vmin,
               margin, objective, max_iter, xtol, known, n_known, out_d):
     """Levenberg–Marquardt from d0 (feasible). Returns (cost, iterations, evaluations, status code).
 
+    ``basis2`` holds the non-constant orthonormal static regressors over the regression samples (l×2).
     Status: 0 converged, 1 max_iter, 2 duplicate (came within DUPLICATE_RTOL of a row of ``known``),
     3 failed (no finite objective at the start), 4 stalled (no descent step found).
     """
-    n = vd.shape[0]
     l = p_meas.shape[0]
-    p = np.empty(n)
-    q = np.empty(n)
-    dp = np.empty((n, 4))
-    dq = np.empty((n, 4))
-    x = np.empty((n, 3))
-    yp = np.empty(l)
-    yq = np.empty(l)
-    rp = np.empty(l)
-    rq = np.empty(l)
-    jp = np.empty((l, 4))
-    jq = np.empty((l, 4))
-    rp_t = np.empty(l)
-    rq_t = np.empty(l)
-    jp_t = np.empty((l, 4))
-    jq_t = np.empty((l, 4))
+    X = np.empty((l, 10))
+    G = np.empty((10, 10))
+    BX = np.empty((2, 10))
+    Ap = np.empty((4, 4))
+    Aq = np.empty((4, 4))
+    gp = np.empty(4)
+    gq = np.empty(4)
+    Ap_t = np.empty((4, 4))
+    Aq_t = np.empty((4, 4))
+    gp_t = np.empty(4)
+    gq_t = np.empty(4)
+    dummy1 = np.empty(1)
+    dummy2 = np.empty((1, 4))
     A = np.empty((4, 4))
     g = np.empty(4)
     d = d0.copy()
     trial = np.empty(4)
     step = np.empty(4)
+    idx = np.empty(4, dtype=np.int64)
     evals = 1
-    if not residuals_into(d, vd, vq, vdm, vqm, dt, w0, rk4, True, basis, p_meas, q_meas, k0,
-                          p, q, dp, dq, x, yp, yq, rp, rq, jp, jq):
+    ok, rr_p, rr_q = _evaluate(d, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2, X, G,
+                               BX, Ap, Aq, gp, gq, dummy1, dummy2)
+    if not ok:
         out_d[:] = d
         return math.inf, 0, evals, 3
-    cost = cost_of(rp, rq, objective, l)
+    cost = _cost_rr(rr_p, rr_q, objective, l)
     lam = 1e-3
     status = 1
     it = 0
     while it < max_iter:
         it += 1
-        wp, wq = _weights(rp, rq, objective, l)
-        _normal_equations(jp, jq, rp, rq, wp, wq, A, g)
+        wp, wq = _weights_rr(rr_p, rr_q, objective, l)
         dmax = 0.0
-        for a in range(4):
-            dmax = max(dmax, A[a, a])
-        idx = np.empty(4, dtype=np.int64)
+        for u in range(4):
+            g[u] = wp * gp[u] + wq * gq[u]
+            for v in range(4):
+                A[u, v] = wp * Ap[u, v] + wq * Aq[u, v]
+            dmax = max(dmax, A[u, u])
         nf = 0
-        for a in range(4):
-            at_lo = d[a] <= lower[a] and g[a] > 0.0
-            at_hi = d[a] >= upper[a] and g[a] < 0.0
+        for u in range(4):
+            at_lo = d[u] <= lower[u] and g[u] > 0.0
+            at_hi = d[u] >= upper[u] and g[u] < 0.0
             if not (at_lo or at_hi):
-                idx[nf] = a
+                idx[nf] = u
                 nf += 1
         accepted = False
         moved = 0.0
         for _ in range(14):
-            for a in range(4):
-                step[a] = 0.0
+            for u in range(4):
+                step[u] = 0.0
             if nf > 0:
                 M = np.empty((nf, nf))
                 rhs = np.empty(nf)
@@ -186,27 +180,30 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis, p_meas, q_meas, k0, lowe
             alpha = 1.0
             ok_feas = False
             for _b in range(25):
-                for a in range(4):
-                    trial[a] = min(max(d[a] + alpha * step[a], lower[a]), upper[a])
+                for u in range(4):
+                    trial[u] = min(max(d[u] + alpha * step[u], lower[u]), upper[u])
                 if feasible(trial, lower, upper, vmin, margin):
                     ok_feas = True
                     break
                 alpha *= 0.5
             if ok_feas:
                 evals += 1
-                if residuals_into(trial, vd, vq, vdm, vqm, dt, w0, rk4, True, basis, p_meas, q_meas, k0,
-                                  p, q, dp, dq, x, yp, yq, rp_t, rq_t, jp_t, jq_t):
-                    cost_t = cost_of(rp_t, rq_t, objective, l)
+                ok, rr_pt, rr_qt = _evaluate(trial, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2,
+                                             X, G, BX, Ap_t, Aq_t, gp_t, gq_t, dummy1, dummy2)
+                if ok:
+                    cost_t = _cost_rr(rr_pt, rr_qt, objective, l)
                     if cost_t < cost:
                         moved = 0.0
-                        for a in range(4):
-                            moved = max(moved, abs(trial[a] - d[a]) / (abs(d[a]) + 1e-3))
-                            d[a] = trial[a]
+                        for u in range(4):
+                            moved = max(moved, abs(trial[u] - d[u]) / (abs(d[u]) + 1e-3))
+                            d[u] = trial[u]
                         cost = cost_t
-                        rp, rp_t = rp_t, rp
-                        rq, rq_t = rq_t, rq
-                        jp, jp_t = jp_t, jp
-                        jq, jq_t = jq_t, jq
+                        rr_p = rr_pt
+                        rr_q = rr_qt
+                        Ap, Ap_t = Ap_t, Ap
+                        Aq, Aq_t = Aq_t, Aq
+                        gp, gp_t = gp_t, gp
+                        gq, gq_t = gq_t, gq
                         lam = max(lam * 0.2, 1e-10)
                         accepted = True
                         break
@@ -220,8 +217,8 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis, p_meas, q_meas, k0, lowe
         dup = False
         for k in range(n_known):
             close = True
-            for a in range(4):
-                if abs(d[a] - known[k, a]) > DUPLICATE_RTOL * abs(known[k, a]) + 1e-9:
+            for u in range(4):
+                if abs(d[u] - known[k, u]) > DUPLICATE_RTOL * abs(known[k, u]) + 1e-9:
                     close = False
             if close:
                 dup = True

@@ -1,0 +1,35 @@
+"""Shared fixtures: hermetic, deterministic data built from the paper's equations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from aslm_core import Window, motor
+
+D_TRUE = np.array([40.0, 15.0, 1.3, 1.2])
+ZIP_P = (2.0, 1.0, 3.0)  # Pz, Pi, Pp
+ZIP_Q = (-1.0, 0.5, 1.0)  # Qz, Qi, Qp
+
+
+def equation_window(d=D_TRUE, *, seed: int = 1, fs: float = 100.0, fine: int = 10, duration: float = 10.0,
+                    f0: float = 50.0, v_std: float = 0.03) -> Window:
+    """V/θ: 2 Hz low-passed noise; P/Q: eq. 4–5 integrated at fs·fine (RK4) plus a ZIP part, sampled at fs."""
+    rng = np.random.default_rng(seed)
+    ff = fs * fine
+    nf = int(round(duration * ff)) + 1
+    t = np.arange(nf) / ff
+    b, a = signal.butter(2, 2.0, fs=ff)
+    V = 1.0 + signal.lfilter(b, a, rng.standard_normal(nf)) * v_std
+    theta = 0.1 + np.cumsum(signal.lfilter(b, a, rng.standard_normal(nf)) * 5e-4)
+    p_im, q_im, _ = motor.simulate(V, theta, np.asarray(d, float), 1.0 / ff, motor.omega0_of(f0))
+    P = p_im + ZIP_P[0] * V**2 + ZIP_P[1] * V + ZIP_P[2]
+    Q = q_im + ZIP_Q[0] * V**2 + ZIP_Q[1] * V + ZIP_Q[2]
+    sl = slice(0, nf, fine)
+    return Window(t[sl], V[sl], theta[sl], P[sl], Q[sl], f0=f0, bus="eq")
+
+
+@pytest.fixture(scope="session")
+def eq_window() -> Window:
+    return equation_window()
