@@ -1,0 +1,62 @@
+"""Helpers shared by the service sub-commands: settings flags, logging, waiting for Ctrl-C."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import threading
+
+# CLI flag → settings field; a flag not given leaves the file/environment value alone.
+SETTING_FLAGS: tuple[tuple[str, str, type, str], ...] = (
+    ("--prefix", "prefix", str, "Zenoh key prefix"),
+    ("--period", "period_s", float, "period T [s]"),
+    ("--window", "window_s", float, "window length [s]"),
+    ("--frame-rate", "frame_rate", float, "nominal PMU frame rate [frames/s]"),
+    ("--late", "late_s", float, "late-data allowance [s]"),
+    ("--workers", "workers", int, "local worker processes"),
+    ("--executor", "executor", str, "'local' or a Dask scheduler address tcp://host:8786"),
+    ("--task-timeout", "task_timeout_s", float, "per-window identification timeout [s]"),
+    ("--storage", "storage_url", str, "SQLite file (or sqlite:///path)"),
+    ("--zenoh-mode", "zenoh_mode", str, "peer, client or router"),
+    ("--zenoh-config", "zenoh_config_file", str, "Zenoh JSON5 config file (TLS, ...)"),
+    ("--host", "http_host", str, "REST bind address"),
+    ("--port", "http_port", int, "REST port (0: any free port)"),
+    ("--f0", "f0", float, "nominal frequency [Hz]"),
+)
+
+
+def add_setting_flags(p: argparse.ArgumentParser, skip: tuple[str, ...] = ()) -> None:
+    """Add the settings flags (all default None: not given)."""
+    p.add_argument("--config", metavar="FILE", help="TOML settings file (default $ASLM_CONFIG)")
+    for flag, field, typ, help_ in SETTING_FLAGS:
+        if field not in skip:
+            p.add_argument(flag, dest=field, type=typ, default=None, help=help_)
+    if "zenoh_connect" not in skip:
+        p.add_argument("--connect", dest="zenoh_connect", action="append", metavar="ENDPOINT",
+                       help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+        p.add_argument("--listen", dest="zenoh_listen", action="append", metavar="ENDPOINT",
+                       help="Zenoh endpoint to listen on (repeatable)")
+    p.add_argument("--log-level", default="INFO", help="logging level (default INFO)")
+
+
+def setting_overrides(args: argparse.Namespace) -> dict:
+    """The settings given on the command line."""
+    names = [f for _, f, _, _ in SETTING_FLAGS] + ["zenoh_connect", "zenoh_listen"]
+    return {n: getattr(args, n) for n in names if getattr(args, n, None) is not None}
+
+
+def setup_logging(level: str) -> None:
+    logging.basicConfig(level=level.upper(), format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+
+
+def stop_event_on_signals() -> threading.Event:
+    """An event set by SIGINT/SIGTERM (main thread only)."""
+    stop = threading.Event()
+
+    def handler(signum, frame):  # noqa: ARG001
+        stop.set()
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return stop

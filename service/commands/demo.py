@@ -1,0 +1,165 @@
+"""``aslm demo``: the service and a synthetic fleet on loopback, identified vs true parameters per period.
+
+Everything runs on 127.0.0.1: a Zenoh peer listening on a free port, the replayer connecting to it, a
+local process pool, SQLite in a temporary directory (or ``--out``), REST on ``--port`` (8080, or any free
+port if taken).  Ctrl-C stops cleanly; ``--periods``/``--duration`` stop by themselves.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import socket
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from service.commands._common import setup_logging, stop_event_on_signals
+
+log = logging.getLogger("aslm.demo")
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("demo", help="service + synthetic PMU fleet on loopback; prints identified vs true")
+    p.add_argument("--buses", type=int, default=10, help="synthetic buses (default 10)")
+    p.add_argument("--period", type=float, default=20.0, help="period T [s] (default 20)")
+    p.add_argument("--window", type=float, default=10.0, help="window [s] (default 10)")
+    p.add_argument("--late", type=float, default=1.0, help="late-data allowance [s] (default 1)")
+    p.add_argument("--rate", type=float, default=50.0, help="frames/s per bus (default 50)")
+    p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--level", type=int, default=2, help="measurement-noise level (default 2)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--periods", type=int, default=None, help="exit after N periods with results")
+    p.add_argument("--duration", type=float, default=None, help="exit after this many seconds")
+    p.add_argument("--port", type=int, default=8080, help="REST port (default 8080; any free port if taken)")
+    p.add_argument("--out", default=None, help="directory for the SQLite file (default: a temporary one)")
+    p.add_argument("--encoding", choices=["binary", "json"], default="binary")
+    p.add_argument("--log-level", default="WARNING")
+    p.set_defaults(func=run)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _port_free(port: int) -> bool:
+    with socket.socket() as s:
+        try:
+            s.bind(("127.0.0.1", port))
+            return True
+        except OSError:
+            return False
+
+
+def format_period(summary, results: dict, truth: dict) -> str:
+    """Table of one period: identified vs true D per bus, with relative errors."""
+    head = (f"period {time.strftime('%H:%M:%S', time.gmtime(summary.period))} UTC  "
+            f"T={summary.period_s:g}s  ok={summary.n_ok} failed={summary.n_failed} skipped={summary.n_skipped}  "
+            f"latency={summary.latency_s:.2f}s")
+    lines = [head, f"  {'bus':8s} {'status':8s}" + "".join(f"{k:>22s}" for k in ("a [1/s]", "b [1/s]", "H2 [s]",
+                                                                                   "Tm [pu]")) + "   FD(P)"]
+    for bus in sorted(results):
+        r = results[bus]
+        tr = truth.get(bus, {}).get("dynamic", {})
+        if r.status != "ok" or r.parameters is None:
+            lines.append(f"  {bus:8s} {r.status:8s} {r.reason or ''}")
+            continue
+        cells = []
+        for k in ("a", "b", "H2", "Tm"):
+            est, true = r.parameters.dynamic.get(k), tr.get(k)
+            err = f"{100 * (est - true) / true:+4.0f}%" if true else ""
+            cells.append(f"{est:7.3f} /{true:7.3f} {err:>5s}" if true is not None else f"{est:7.3f}")
+        fd = r.parameters.fit.get("fd_p")
+        lines.append(f"  {bus:8s} {'ok' + ('*' if r.warm_start else ''):8s}" + "".join(f"{c:>22s}" for c in cells)
+                     + (f"   {fd:.3f}" if fd is not None else ""))
+    lines.append("  (identified / true  error;  ok* = warm-started from the previous period)")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    setup_logging(args.log_level)
+    import zenoh
+
+    from aslm_core.synthetic import SyntheticFleet
+    from service.app import Service
+    from service.replay import FleetReplayer, FramePublisher
+    from service.settings import SettingsError, load_settings
+    from service.zenoh_config import zenoh_config
+
+    stop = stop_event_on_signals()
+    zport = _free_port()
+    http_port = args.port if args.port == 0 or _port_free(args.port) else 0
+    tmp = None
+    if args.out:
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+    else:
+        tmp = tempfile.TemporaryDirectory(prefix="aslm-demo-")
+        out = Path(tmp.name)
+    try:
+        settings = load_settings(
+            period_s=args.period, window_s=args.window, late_s=args.late, frame_rate=args.rate,
+            workers=args.workers, storage_url=str(out / "aslm-demo.sqlite"), http_host="127.0.0.1",
+            http_port=http_port, zenoh_mode="peer", zenoh_listen=[f"tcp/127.0.0.1:{zport}"], zenoh_connect=[],
+            zenoh_multicast_scouting=False, executor="local", instance="demo",
+        )
+    except SettingsError as exc:
+        print(f"aslm demo: {exc}", file=sys.stderr)
+        return 2
+    started = time.time()
+    print(f"aslm demo: {args.buses} synthetic buses at {args.rate:g} frames/s, period {args.period:g} s, "
+          f"window {args.window:g} s; starting workers and the fleet ...", flush=True)
+    svc = Service(settings)
+    session = None
+    rep = None
+    received = {"n": 0}
+    try:
+        svc.start()
+        print(f"REST: {svc.url}  (OpenAPI {svc.url}/docs, metrics {svc.url}/metrics); "
+              f"Zenoh: tcp/127.0.0.1:{zport}; storage: {settings.storage_path}", flush=True)
+        session = zenoh.open(zenoh_config("peer", connect=[f"tcp/127.0.0.1:{zport}"], listen=[]))
+        sub = session.declare_subscriber(f"{settings.prefix}/params/**",  # noqa: F841 - kept alive
+                                         lambda s: received.__setitem__("n", received["n"] + 1))
+        fleet = SyntheticFleet(args.buses, fs=args.rate, level=args.level, seed=args.seed, t0=time.time())
+        rep = FleetReplayer(FramePublisher(session, settings.prefix, args.encoding), fleet, batch_s=0.2)
+        truth = rep.truth()
+        rep.start()
+        print(f"streaming; first results after the first {args.period:g} s boundary with {args.window:g} s "
+              "of data. Ctrl-C to stop.", flush=True)
+        seen: set[float] = set()
+        with_results = 0
+        while not stop.wait(0.5):
+            if rep.error is not None:
+                print(f"aslm demo: replayer failed: {rep.error}", file=sys.stderr)
+                return 1
+            for summary in reversed(svc.storage.periods(limit=5)):
+                if summary.period in seen:
+                    continue
+                seen.add(summary.period)
+                results = {r.bus: r for r in (svc.storage.history(b, summary.period, summary.period, 1)[0:1]
+                                              for b in fleet.bus_names) for r in r}
+                if summary.n_ok + summary.n_failed == 0:
+                    print(f"period {summary.period:.0f}: all {summary.n_skipped} buses skipped "
+                          f"({', '.join(sorted({r.reason or '' for r in results.values()}))}) - waiting for a "
+                          "full window", flush=True)
+                    continue
+                with_results += 1
+                print(format_period(summary, results, truth), flush=True)
+                print(f"  results received over Zenoh so far: {received['n']}", flush=True)
+            if args.periods is not None and with_results >= args.periods:
+                break
+            if args.duration is not None and time.time() - started >= args.duration:
+                break
+    finally:
+        if rep is not None:
+            rep.stop()
+        if session is not None:
+            session.close()
+        svc.stop()
+        if tmp is not None:
+            tmp.cleanup()
+    print("aslm demo: stopped", flush=True)
+    return 0

@@ -1,0 +1,38 @@
+"""The service sub-commands as a user runs them (real subprocesses)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def aslm(*args: str, timeout: float, env: dict | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "service.cli", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=timeout, env={**os.environ, **(env or {})})
+
+
+def test_serve_refuses_invalid_settings_with_clear_message():
+    r = aslm("serve", "--period", "5", "--window", "10", timeout=60)
+    assert r.returncode == 2
+    assert "period_s (5 s) must be at least window_s + late_s" in r.stderr
+    r = aslm("serve", "--executor", "yarn", timeout=60)
+    assert r.returncode == 2 and "executor must be 'local' or a Dask scheduler address" in r.stderr
+    r = aslm("serve", timeout=60, env={"ASLM_WORKERS": "-3"})
+    assert r.returncode == 2 and "workers" in r.stderr
+
+
+def test_demo_runs_one_period_and_exits():
+    pytest.importorskip("aslm_core.synthetic")
+    r = aslm("demo", "--periods", "1", "--period", "12", "--buses", "4", "--port", "0", "--duration", "100",
+             timeout=150)
+    assert r.returncode == 0, r.stderr
+    assert "REST: http://127.0.0.1:" in r.stdout
+    assert "ok=4 failed=0" in r.stdout
+    assert r.stdout.count(" ok ") + r.stdout.count(" ok* ") >= 4
+    assert "aslm demo: stopped" in r.stdout
