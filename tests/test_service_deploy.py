@@ -1,0 +1,87 @@
+"""Deployment files checked against what the service needs (no Docker engine here: parse and compare)."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+import tomllib
+import zenoh
+
+from service.cli import build_parser
+from service.settings import ServiceSettings, load_settings
+
+yaml = pytest.importorskip("yaml")
+ROOT = Path(__file__).resolve().parents[1]
+COMPOSE = yaml.safe_load((ROOT / "docker-compose.yml").read_text())
+SERVICES = COMPOSE["services"]
+_INTERP = re.compile(r"\$\{([A-Z_]+)(?::?-([^}]*))?\}")
+
+
+def resolve(value: str) -> str:
+    """Compose-style ${VAR:-default} with the default (tests never read the host environment)."""
+    return _INTERP.sub(lambda m: m.group(2) or "", str(value))
+
+
+def test_router_is_official_image_with_existing_config():
+    router = SERVICES["zenoh-router"]
+    assert router["image"].startswith("eclipse/zenoh:")
+    for vol in router["volumes"]:
+        src, dst = vol.split(":")[:2]
+        assert (ROOT / src).is_file(), src
+        assert dst in router["command"]
+    conf = zenoh.Config.from_file(str(ROOT / "deploy/zenoh-router.json5"))  # Zenoh itself accepts it
+    assert json.loads(conf.get_json("mode")) == "router"
+    listen = json.loads(conf.get_json("listen/endpoints"))
+    ports = {p.split(":")[-1] for p in listen}
+    assert {p.split(":")[1] for p in router["ports"]} <= {*ports}
+
+
+def test_service_env_names_exist_and_values_are_valid(monkeypatch, tmp_path):
+    svc = SERVICES["aslm"]
+    env = {k: resolve(v) for k, v in svc["environment"].items()}
+    fields = {f"ASLM_{name.upper()}" for name in ServiceSettings.model_fields} | {"ASLM_CONFIG"}
+    assert set(env) <= fields, set(env) - fields
+    # The settings file the container mounts is the one in the repo, and it is valid with this environment.
+    mounts = dict(v.split(":")[:2][::-1] for v in svc["volumes"] if v.startswith("./"))
+    config_src = mounts[env["ASLM_CONFIG"]]
+    assert (ROOT / config_src).is_file()
+    tomllib.loads((ROOT / config_src).read_text())
+    for k, v in env.items():
+        monkeypatch.setenv(k, v)
+    monkeypatch.setenv("ASLM_CONFIG", str(ROOT / config_src))
+    monkeypatch.setenv("ASLM_STORAGE_URL", str(tmp_path / "x.sqlite"))
+    s = load_settings()
+    # REST port published, Zenoh endpoint pointing at the router's service name and port.
+    assert f"{s.http_port}:{s.http_port}" in svc["ports"] and s.http_host == "0.0.0.0"
+    router_port = SERVICES["zenoh-router"]["ports"][0].split(":")[1]
+    assert s.zenoh_connect == [f"tcp/zenoh-router:{router_port}"] and s.zenoh_mode == "client"
+    assert any(v.split(":")[1] == "/data" for v in svc["volumes"]) and s.storage_path.parent == tmp_path
+    assert svc["command"][0] in build_parser()._subparsers._group_actions[0].choices
+    assert (ROOT / svc["build"]["context"] / svc["build"]["dockerfile"]).is_file()
+
+
+def test_dask_profile_matches_executor_setting():
+    sched, worker = SERVICES["dask-scheduler"], SERVICES["dask-worker"]
+    assert sched["profiles"] == worker["profiles"] == ["dask"]
+    address = "tcp://dask-scheduler:8786"
+    assert address in worker["entrypoint"] and "8786:8786" in sched["ports"]
+    assert load_settings(executor=address, storage_url=":memory:").executor == address
+
+
+def test_replayer_command_parses_and_targets_the_router():
+    rep = SERVICES["replayer"]
+    args = build_parser().parse_args(rep["command"])
+    assert args.command == "replay" and args.connect == ["tcp/zenoh-router:7447"]
+
+
+def test_dockerfile_copies_existing_paths():
+    text = (ROOT / "deploy/Dockerfile").read_text()
+    for line in text.splitlines():
+        if line.startswith("COPY "):
+            for src in line.split()[1:-1]:
+                assert list(ROOT.glob(src.rstrip("*"))) or src.endswith("*"), src
+    assert 'ENTRYPOINT ["aslm"]' in text
+    assert "aslm" in tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
