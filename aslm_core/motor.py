@@ -7,7 +7,7 @@ States x = [Fd, Fq, s] with Fd = Ed/X', Fq = Eq/X'; parameters D = [a, b, H2, Tm
     ds/dt  = (Tm - Vq·Fd + Vd·Fq) / H2
     P_im = Fd·Vq - Fq·Vd,   Q_im = -Vd·Fd - Vq·Fq
 
-The kernels integrate at the sample step, either RK4 with V and θ interpolated linearly to the
+The kernels integrate at the sample step, either RK4 with V and θ interpolated (cubic) to the
 half step (default) or the paper's explicit Euler, and propagate dx/dD through the *discrete* map so
 the gradient is exact for the objective actually minimised.
 """
@@ -42,13 +42,25 @@ def dq_inputs(V: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     vd, vq : ndarray, shape (n,)
         Vd + jVq = V·e^{jθ} at the samples [pu].
     vdm, vqm : ndarray, shape (n-1,)
-        The same at the half steps, from V and θ interpolated linearly [pu].
+        The same at the half steps, from V and θ interpolated by cubics [pu].
     """
     vd = V * np.cos(theta)
     vq = V * np.sin(theta)
-    vm = 0.5 * (V[1:] + V[:-1])
-    thm = 0.5 * (theta[1:] + theta[:-1])
+    vm = _midpoints(V)
+    thm = _midpoints(theta)
     return vd, vq, vm * np.cos(thm), vm * np.sin(thm)
+
+
+def _midpoints(x: np.ndarray) -> np.ndarray:
+    """Values half-way between samples: cubic (4-point) inside, linear at the two end intervals.
+
+    Linear midpoints cost RK4 its order on sampled inputs and biased weakly excited parameters
+    by ~1–2 % on noise-free data; the cubic midpoint is O(dt⁴).
+    """
+    m = 0.5 * (x[1:] + x[:-1])
+    if x.size >= 4:
+        m[1:-1] = (9.0 * (x[1:-2] + x[2:-1]) - (x[:-3] + x[3:])) / 16.0
+    return m
 
 
 @nb.njit(cache=True, nogil=True)
@@ -317,7 +329,7 @@ def simulate(
     omega0 : float
         Synchronous speed [rad/s].
     integrator : {"rk4", "euler"}
-        RK4 with linearly interpolated inputs, or the paper's explicit Euler (§IV.A).
+        RK4 with cubic-interpolated half-step inputs, or the paper's explicit Euler (§IV.A).
 
     Returns
     -------
