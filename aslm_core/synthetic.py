@@ -9,14 +9,17 @@ Each case is a small network simulated in the time domain::
 * The motor at L is the third-order model in its ORIGINAL form (paper eq. 1–3, states Ed, Eq, s;
   parameters X, X', Td0, H2, Tm), seen by the network as E' behind jX'.
 * The static load at L is ZIP (eq. 6): the Z part is a shunt admittance, the I and P parts a
-  current injection solved by fixed-point iteration at every stage.
+  current injection, solved by Newton on V_L at every RK4 stage (below 0.5 pu the I and P parts
+  turn into constant impedance, as in PSAT; irrelevant to ambient data).
 * The generator is classical (E' behind X'd, swing equation with inertia and damping), so the angle
   and frequency of the hub move; the infinite bus holds the average frequency at f0.
 * Ambient excitation comes ONLY from bus N (paper §VI.A): low-pass filtered (2 Hz, 4th-order
   Butterworth) white noise in its conductance and susceptance.
 * RK4 with a fine step (≤ 1 ms by default), started from the steady state of the whole system;
-  a warm-up is discarded so the record is ambient.  All cases run in one numba kernel (parallel
-  over cases).
+  a warm-up of 5 s is discarded so the record is ambient.  All cases run in one numba kernel
+  (parallel over cases).  Network sizes scale with the load, so every case looks alike in relative
+  terms: ambient V fluctuation ~0.1–0.45 % (std/mean, 5–95 %), P ~0.1–0.8 %, Q ~0.5–2.5 %, bus
+  frequency std ~4–18 mHz, around an electromechanical mode near 1 Hz.
 * PMU channels at L: V, θ in the synchronously rotating frame of the infinite bus (ω0 = 2π·f0),
   P + jQ = V_L·conj(I_line) from the current of the feeder z_L (i.e. computed by the network, not
   by the load model, so that output consistency is a real check), f from dθ/dt.
@@ -76,6 +79,7 @@ _POWER_FACTOR = (0.9, 0.98)
 # Sag every truth must ride through (motor alone, rigid voltage, f0 = 60 Hz as the harsher case).
 _CHECK_SAG_V = 0.75
 _CHECK_SAG_S = 0.15
+_PARALLEL_MIN_CASES = 8  # make_cases runs its cases in threads from this many on
 _LOW_V = 0.5  # below this the I and P parts of ZIP turn into constant impedance (as in PSAT)
 
 
@@ -231,13 +235,16 @@ def random_truth(rng: np.random.Generator) -> LoadTruth:
     a ~ U[15, 75], b ~ U[4, 28], H2 ~ U[0.6, 2.8] [s]; Tm = k·a/(2b) with k ~ U[0.3, 0.55], i.e. a
     fraction of the breakdown torque a·V²/(2b) at 1 pu that still leaves an equilibrium at 0.8 pu
     (k < 0.64).  A draw is rejected unless the motor, alone on a rigid bus, rides through a sag to
-    0.75 pu for 150 ms at 60 Hz (slip back to its steady value, max slip < 0.15); this removes the
-    light-inertia / large-Tm corner (Tm/H2 large) in which a motor of the paper's box stalls in
-    any fault.  X/X' ~ U[4, 12] then gives X = (X/X' − 1)·b/a, X' = X/(X/X'), Td0 = (X/X')/b.
+    0.75 pu for 150 ms at 60 Hz (slip back to its steady value, max slip < 0.15).  This guard
+    against a stalling truth practically never fires with these ranges (the steep torque–slip
+    curve below breakdown recovers the motor: max slip ~0.04), so a, b, H2, k are in effect
+    independent uniforms.  X/X' ~ U[4, 12] then gives X = (X/X' − 1)·b/a, X' = X/(X/X'), Td0 = (X/X')/b.
     The static P at 1 pu makes the motor share of P ~ U[0.3, 0.7]; the total Q at 1 pu gives a
     power factor ~ U[0.9, 0.98] (lagging), so the static Q is often capacitive (negative).
-    ZIP shares are uniform on the simplex.  Because Tm ≤ 0.55·a/(2b), the total P at 1 pu spans
-    ~0.1–17 pu (median ~2 pu).
+    ZIP shares are uniform on the simplex.  Because Tm ≤ 0.55·a/(2b) [pu] (physics of eq. 4:
+    the breakdown torque is a·V²/(2b)), Tm spans ~0.1–3.6 pu and the total P at 1 pu ~0.2–10 pu
+    (median ~1.2 pu); the paper's printed examples (e.g. Tm = 7.33 with a/b = 2.25) are not on
+    this scale and would violate a·V² > 2b·Tm.
     """
     w0_check = 2.0 * math.pi * 60.0
     for _ in range(1000):
@@ -407,9 +414,73 @@ def _solve_at(p, x, dpn, dqn, fault, vl):  # pragma: no cover - numba
     return v, vh, il, dx
 
 
+@nb.njit(cache=True, error_model="numpy")
+def _integrate_case(c, par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_int, fault_steps,
+                    out_v, out_s, out_x, x_end, vl_end):  # pragma: no cover - numba
+    """RK4 integration of case c over n_int forcing intervals; fills row c of the outputs."""
+    p = par[c]
+    cst = _consts(p)
+    x = x0[c].copy()
+    vl = vl0[c]
+    k1 = np.empty(_NX)
+    k2 = np.empty(_NX)
+    k3 = np.empty(_NX)
+    k4 = np.empty(_NX)
+    xt = np.empty(_NX)
+    step = 0
+    on_step = fault_steps[c, 0]
+    off_step = fault_steps[c, 1]
+    prev_fault = False
+    tb = _thevenin(p, cst, forcing[c, 0, 0], forcing[c, 1, 0], False)
+    for j in range(n_int):
+        fp0 = forcing[c, 0, j]
+        fq0 = forcing[c, 1, j]
+        dfp = forcing[c, 0, j + 1] - fp0
+        dfq = forcing[c, 1, j + 1] - fq0
+        for k in range(k_sub):
+            fault = step >= on_step and step < off_step
+            wm = (k + 0.5) / k_sub
+            wb = (k + 1.0) / k_sub
+            # The forcing is continuous, so the end of a step is the start of the next one.
+            if fault != prev_fault:
+                wa = k / k_sub
+                ta = _thevenin(p, cst, fp0 + wa * dfp, fq0 + wa * dfq, fault)
+            else:
+                ta = tb
+            tm_ = _thevenin(p, cst, fp0 + wm * dfp, fq0 + wm * dfq, fault)
+            tb = _thevenin(p, cst, fp0 + wb * dfp, fq0 + wb * dfq, fault)
+            prev_fault = fault
+            vl, vh, il = _rhs(p, cst, ta[0], ta[1], ta[2], x, vl, k1)
+            if k == 0 and j % m_per_sample == 0:
+                r = j // m_per_sample - n_skip
+                if r >= 0:
+                    out_v[c, r] = vl
+                    out_s[c, r] = vl * il.conjugate()
+                    for i in range(_NX):
+                        out_x[c, i, r] = x[i]
+            for i in range(_NX):
+                xt[i] = x[i] + 0.5 * h * k1[i]
+            v2, _, _ = _rhs(p, cst, tm_[0], tm_[1], tm_[2], xt, vl, k2)
+            for i in range(_NX):
+                xt[i] = x[i] + 0.5 * h * k2[i]
+            v3, _, _ = _rhs(p, cst, tm_[0], tm_[1], tm_[2], xt, v2, k3)
+            for i in range(_NX):
+                xt[i] = x[i] + h * k3[i]
+            v4, _, _ = _rhs(p, cst, tb[0], tb[1], tb[2], xt, v3, k4)
+            for i in range(_NX):
+                x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+            vl = v4
+            step += 1
+    for i in range(_NX):
+        x_end[c, i] = x[i]
+    vl_end[c] = vl
+
+
 @nb.njit(cache=True, parallel=True, error_model="numpy")
 def _simulate(par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_rec, fault_steps):  # pragma: no cover
     """Integrate all cases with RK4 and record the PMU channels.
+
+    Cases run in parallel threads (numba prange).
 
     Parameters
     ----------
@@ -433,62 +504,24 @@ def _simulate(par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_rec, faul
     x_end = np.empty((nc, _NX))
     vl_end = np.empty(nc, dtype=np.complex128)
     for c in nb.prange(nc):
-        p = par[c]
-        cst = _consts(p)
-        x = x0[c].copy()
-        vl = vl0[c]
-        k1 = np.empty(_NX)
-        k2 = np.empty(_NX)
-        k3 = np.empty(_NX)
-        k4 = np.empty(_NX)
-        xt = np.empty(_NX)
-        step = 0
-        on_step = fault_steps[c, 0]
-        off_step = fault_steps[c, 1]
-        prev_fault = False
-        tb = _thevenin(p, cst, forcing[c, 0, 0], forcing[c, 1, 0], False)
-        for j in range(n_int):
-            fp0 = forcing[c, 0, j]
-            fq0 = forcing[c, 1, j]
-            dfp = forcing[c, 0, j + 1] - fp0
-            dfq = forcing[c, 1, j + 1] - fq0
-            for k in range(k_sub):
-                fault = step >= on_step and step < off_step
-                wm = (k + 0.5) / k_sub
-                wb = (k + 1.0) / k_sub
-                # The forcing is continuous, so the end of a step is the start of the next one.
-                if fault != prev_fault:
-                    wa = k / k_sub
-                    ta = _thevenin(p, cst, fp0 + wa * dfp, fq0 + wa * dfq, fault)
-                else:
-                    ta = tb
-                tm_ = _thevenin(p, cst, fp0 + wm * dfp, fq0 + wm * dfq, fault)
-                tb = _thevenin(p, cst, fp0 + wb * dfp, fq0 + wb * dfq, fault)
-                prev_fault = fault
-                vl, vh, il = _rhs(p, cst, ta[0], ta[1], ta[2], x, vl, k1)
-                if k == 0 and j % m_per_sample == 0:
-                    r = j // m_per_sample - n_skip
-                    if r >= 0:
-                        out_v[c, r] = vl
-                        out_s[c, r] = vl * il.conjugate()
-                        for i in range(_NX):
-                            out_x[c, i, r] = x[i]
-                for i in range(_NX):
-                    xt[i] = x[i] + 0.5 * h * k1[i]
-                v2, _, _ = _rhs(p, cst, tm_[0], tm_[1], tm_[2], xt, vl, k2)
-                for i in range(_NX):
-                    xt[i] = x[i] + 0.5 * h * k2[i]
-                v3, _, _ = _rhs(p, cst, tm_[0], tm_[1], tm_[2], xt, v2, k3)
-                for i in range(_NX):
-                    xt[i] = x[i] + h * k3[i]
-                v4, _, _ = _rhs(p, cst, tb[0], tb[1], tb[2], xt, v3, k4)
-                for i in range(_NX):
-                    x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-                vl = v4
-                step += 1
-        for i in range(_NX):
-            x_end[c, i] = x[i]
-        vl_end[c] = vl
+        _integrate_case(c, par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_int, fault_steps,
+                        out_v, out_s, out_x, x_end, vl_end)
+    return out_v, out_s, out_x, x_end, vl_end
+
+
+@nb.njit(cache=True, error_model="numpy")
+def _simulate_serial(par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_rec, fault_steps):  # pragma: no cover
+    """:func:`_simulate` in the calling thread (the fleet: no thread hand-off per frame, one core at most)."""
+    nc = par.shape[0]
+    n_int = (n_skip + n_rec) * m_per_sample
+    out_v = np.empty((nc, n_rec), dtype=np.complex128)
+    out_s = np.empty((nc, n_rec), dtype=np.complex128)
+    out_x = np.empty((nc, _NX, n_rec))
+    x_end = np.empty((nc, _NX))
+    vl_end = np.empty(nc, dtype=np.complex128)
+    for c in range(nc):
+        _integrate_case(c, par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_int, fault_steps,
+                        out_v, out_s, out_x, x_end, vl_end)
     return out_v, out_s, out_x, x_end, vl_end
 
 
@@ -590,6 +623,11 @@ def _steady_state(tr: LoadTruth, net: dict) -> tuple[np.ndarray, np.ndarray, com
     p[_EG], p[_PM], p[_HG2], p[_DG], p[_W0] = abs(eg), pm, hg2, dg, w0
     x0 = np.array([np.angle(eg), 0.0, e_m.real, e_m.imag, x_m / w0])
     return p, x0, complex(vl_c)
+
+
+def _plain(net: dict) -> dict:
+    """JSON-friendly copy of a network draw: complex impedances as [re, im]."""
+    return {k: ([v.real, v.imag] if isinstance(v, complex) else float(v)) for k, v in net.items()}
 
 
 def _forcing_filter(fs_forcing: float) -> tuple[np.ndarray, float]:
@@ -773,7 +811,9 @@ def make_cases(
         noise_rngs.append(np.random.default_rng(s_noise))
     par = np.array(rows).reshape(n, _NPAR)
     faults = -np.ones((n, 2), dtype=np.int64)
-    out_v, out_s, out_x, _, _ = _simulate(
+    # Threads only pay off for a batch (and the parallel kernel costs its own compilation).
+    kernel = _simulate if n >= _PARALLEL_MIN_CASES else _simulate_serial
+    out_v, out_s, out_x, _, _ = kernel(
         par, np.array(x0s).reshape(n, _NX), np.array(vl0s, dtype=complex), forcing,
         h, k, m, n_skip, n_samp, faults,
     )
@@ -789,7 +829,7 @@ def make_cases(
         target = _target_snr(rng, level, snr_db)
         meta = {
             "source": "synthetic", "seed": seed, "case": i, "snr_target_db": target,
-            "network": {k_: (complex(v_) if isinstance(v_, complex) else float(v_)) for k_, v_ in net.items()},
+            "network": _plain(net),
             "step_s": h,
         }
         clean = Window(t=t, V=v, theta=th, P=pc, Q=qc, f=fr, f0=f0, bus=f"syn{i:04d}", meta=meta)
@@ -819,7 +859,6 @@ def make_cases(
         cases.append(SyntheticCase(window=noisy, clean=clean, truth=tr, snr_db=achieved, level=level,
                                    states=states))
     return cases
-
 
 
 def make_case(seed: int, **kw) -> SyntheticCase:
@@ -916,7 +955,7 @@ def large_disturbance(
     on = int(round(fault_start_s / h))
     off = on + max(1, int(round(fault_duration_s / h)))
     forcing = np.zeros((1, 2, n_samp * m + 1))
-    out_v, out_s, out_x, _, _ = _simulate(
+    out_v, out_s, out_x, _, _ = _simulate_serial(
         p[None, :], x0[None, :], np.array([vl0]), forcing, h, k, m, 0, n_samp,
         np.array([[on, off]], dtype=np.int64),
     )
@@ -925,7 +964,7 @@ def large_disturbance(
     states = _motor_and_static(truth, vl, out_x[0])
     meta = {
         "source": "synthetic-fault", "seed": seed, "sag_depth": sag_depth,
-        "fault_admittance": yf, "fault_start_s": on * h, "fault_end_s": off * h, "states": states,
+        "fault_admittance": [yf.real, yf.imag], "fault_start_s": on * h, "fault_end_s": off * h, "states": states,
     }
     return Window(
         t=np.arange(n_samp) / fs, V=np.abs(vl), theta=th, P=out_s[0].real, Q=out_s[0].imag,
@@ -962,7 +1001,7 @@ class SyntheticFleet:
     t0 : float or None
         Time of the first sample [s] (e.g. seconds since epoch, given by the caller); None: 0.0.
     step_s : float
-        Internal RK4 step [s] (default 5 ms, see Notes).
+        Longest internal RK4 step [s] (default 10 ms, see Notes).
 
     Attributes
     ----------
@@ -974,12 +1013,15 @@ class SyntheticFleet:
 
     Notes
     -----
-    Same model as :func:`make_cases` but integrated with a coarser step (5 ms instead of 1 ms) to be
-    cheap: with the fastest pole of the motor at b ≤ 28 1/s and the electromechanical mode near 1 Hz,
-    RK4 at 5 ms differs from 1 ms by ~1e-6 pu in V, far below any noise level.  The construction
-    runs a 5 s warm-up and a 20 s calibration (not emitted) whose ambient rms per channel fixes
-    each bus's noise std (eq. 10), so the SNR of a live 10 s window scatters around the target.
-    Noise is on V, θ, P, Q and f.
+    Same model as :func:`make_cases` (one independent small network per bus) but integrated with a
+    coarser step, 10 ms instead of 1 ms, in the calling thread (no thread pool: the fleet must leave
+    the cores to the identification workers).  With the fastest motor pole at b ≤ 28 1/s and the
+    electromechanical mode near 1 Hz, RK4 at 10 ms differs from 1 ms by < 1e-7 pu in V and < 5e-7
+    pu in P, ~1e-4 of the ambient fluctuation and far below the noise of any level.  The construction
+    runs a 5 s warm-up and a 20 s calibration (not emitted) whose ambient rms per channel fixes each
+    bus's noise std (eq. 10), so the SNR of a live 10 s window scatters around the bus's target
+    (within ~±3 dB).  Noise is on V, θ, P, Q and f.  Random draws are time-major, so the stream
+    does not depend on how it is chunked into :meth:`advance` calls.
     """
 
     _CAL_S = 20.0
@@ -993,7 +1035,7 @@ class SyntheticFleet:
         level: int | None = 2,
         seed: int = 0,
         t0: float | None = None,
-        step_s: float = 5e-3,
+        step_s: float = 1e-2,
     ) -> None:
         self.n_buses = int(n_buses)
         self.fs = float(fs)
@@ -1051,7 +1093,7 @@ class SyntheticFleet:
         new = y * self._gain * self._amp[:, :, None]
         forcing = np.concatenate([self._f_last[:, :, None], new], axis=-1)
         self._f_last = new[:, :, -1].copy()
-        out_v, out_s, _, self._x, self._vl = _simulate(
+        out_v, out_s, _, self._x, self._vl = _simulate_serial(
             self._par, self._x, self._vl, forcing, self._h, self._ksub, m, 0, n,
             -np.ones((self.n_buses, 2), dtype=np.int64),
         )
