@@ -4,7 +4,7 @@ Pure numerics (numpy, scipy, numba): no I/O and no service imports.
 """
 
 from aslm_core.errors import NoEquilibriumError, WindowError
-from aslm_core.identify import identify, identify_many
+from aslm_core.identify import identify, identify_many, warmup
 from aslm_core.result import IdentificationResult, IdentifyConfig
 from aslm_core.window import Window
 
@@ -16,4 +16,5 @@ __all__ = [
     "WindowError",
     "identify",
     "identify_many",
+    "warmup",
 ]
