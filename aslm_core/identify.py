@@ -125,7 +125,7 @@ def levenberg_marquardt(problem: Problem, d0: np.ndarray, max_iter: int = 60, xt
                         known: Sequence[np.ndarray] = ()) -> dict:
     """Constrained Levenberg–Marquardt on the projected residuals from one start.
 
-    A start whose iterate comes within 2 % (relative) of an optimum in ``known`` stops early: it is
+    A start whose iterate comes within 5 % (relative, every parameter) of an optimum in ``known`` stops early: it is
     heading to the same point.  See :func:`aslm_core.optimize.lm_kernel`.
 
     Returns

@@ -17,7 +17,9 @@ from aslm_core.motor import normal_equations, simulate_kernel
 OBJECTIVE_CODES = {"paper": 0, "ml": 1, "ssq": 2}
 STATUS_NAMES = ("converged", "max_iter", "duplicate", "failed", "stalled")
 # A start this close (relative, every parameter) to an optimum already found is in its basin: stop it.
-DUPLICATE_RTOL = 2e-2
+DUPLICATE_RTOL = 5e-2
+# Relative objective decrease below which a step is not worth an evaluation (rounding level).
+FTOL = 1e-10
 
 
 @nb.njit(cache=True, nogil=True)
@@ -143,6 +145,9 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
         return math.inf, 0, evals, 3
     cost = _cost_rr(rr_p, rr_q, objective, l)
     lam = 1e-3
+    nu = 2.0
+    # d(cost) = scale·gᵀδ for the IRLS weights of each objective (eq. 7 carries the 1/l).
+    scale = 1.0 / l if objective == 0 else 1.0
     status = 1
     it = 0
     while it < max_iter:
@@ -162,6 +167,7 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                 idx[nf] = u
                 nf += 1
         accepted = False
+        converged = False
         moved = 0.0
         for _ in range(14):
             for u in range(4):
@@ -187,12 +193,26 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                     break
                 alpha *= 0.5
             if ok_feas:
+                pred = 0.0
+                for u in range(4):
+                    su = trial[u] - d[u]
+                    pred -= g[u] * su
+                    for v in range(4):
+                        pred -= 0.5 * su * A[u, v] * (trial[v] - d[v])
+                if scale * pred <= FTOL * cost:
+                    # The model promises less than the objective's rounding: we are at the optimum.
+                    converged = True
+                    break
                 evals += 1
                 ok, rr_pt, rr_qt = _evaluate(trial, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2,
                                              X, G, BX, Ap_t, Aq_t, gp_t, gq_t, dummy1, dummy2)
                 if ok:
                     cost_t = _cost_rr(rr_pt, rr_qt, objective, l)
                     if cost_t < cost:
+                        rho = (cost - cost_t) / (scale * pred)
+                        # Nielsen's damping update: smooth in the gain ratio, fewer rejected steps.
+                        lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
+                        nu = 2.0
                         moved = 0.0
                         for u in range(4):
                             moved = max(moved, abs(trial[u] - d[u]) / (abs(d[u]) + 1e-3))
@@ -204,10 +224,13 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                         Aq, Aq_t = Aq_t, Aq
                         gp, gp_t = gp_t, gp
                         gq, gq_t = gq_t, gq
-                        lam = max(lam * 0.2, 1e-10)
                         accepted = True
                         break
-            lam *= 8.0
+            lam *= nu
+            nu *= 2.0
+        if converged:
+            status = 0
+            break
         if not accepted:
             status = 4
             break
