@@ -93,29 +93,39 @@ class BusBuffer:
         """PMU time of the newest frame held [s] (-inf when empty)."""
         return float(self.data[0, self.end - 1]) if self.end > self.start else -math.inf
 
-    def insert(self, batch: FrameBatch, arrival: float = 0.0) -> dict[str, int]:
-        """Add a validated batch; return the frames rejected by reason (empty when all were taken)."""
+    def insert(self, batch: FrameBatch, arrival: float = 0.0, rejected: dict[str, int] | None = None
+               ) -> dict[str, int]:
+        """Add one message's validated frames; ``rejected`` are its frames that failed validation.
+
+        Returns the frames rejected here (late, duplicate) by reason; empty when all were taken.
+        """
         n = len(batch)
-        if n == 0:
-            return {}
         with self.lock:
+            self.messages += 1
+            if rejected:
+                for reason, k in rejected.items():
+                    self.rejected[reason] += k
+            if n == 0:
+                return {}
             if self.data is _EMPTY:
                 # Slack of a quarter capacity: compaction (one copy of the live region) every ~cap/4 frames.
                 self.data = np.empty((_NROWS, self.capacity + self.capacity // 4 + 64))
             self.last_arrival = arrival
-            t = batch.t
+            cols = batch.block()
+            t = cols[0]
             newest = self.newest
             if batch.f is not None:
                 self.has_f = True
-            if t[0] > newest + self.tol and (n == 1 or bool((np.diff(t) > self.tol).all())):
-                self._append(batch)
+            # Fast path: the batch is strictly increasing and starts after the newest frame held.
+            if float(t[0]) > newest + self.tol and (n == 1 or float((t[1:] - t[:-1]).min()) > self.tol):
+                self._append(cols, batch.f is not None)
                 self.buffered += n
                 return {}
             return self._insert_slow(batch, newest)
 
     def _columns(self, batch: FrameBatch) -> np.ndarray:
         cols = np.empty((_NROWS, len(batch)))
-        cols[0], cols[1], cols[2], cols[3], cols[4] = batch.t, batch.V, batch.theta, batch.P, batch.Q
+        cols[:5] = batch.block()[:5]
         cols[5] = batch.f if batch.f is not None else np.nan
         return cols
 
@@ -127,20 +137,16 @@ class BusBuffer:
         self.data[:, :keep] = self.data[:, self.end - keep:self.end]
         self.start, self.end = 0, keep
 
-    def _append(self, batch: FrameBatch) -> None:
-        n = len(batch)
+    def _append(self, cols: np.ndarray, has_f: bool) -> None:
+        n = cols.shape[1]
         if n > self.capacity:  # a batch longer than the ring: only its tail can be held
-            batch = FrameBatch(*(None if a is None else a[-self.capacity:] for a in (
-                batch.t, batch.V, batch.theta, batch.P, batch.Q, batch.f)))
+            cols = cols[:, -self.capacity:]
             n = self.capacity
         self._reserve(n)
-        e, d = self.end, self.data
-        d[0, e:e + n] = batch.t
-        d[1, e:e + n] = batch.V
-        d[2, e:e + n] = batch.theta
-        d[3, e:e + n] = batch.P
-        d[4, e:e + n] = batch.Q
-        d[5, e:e + n] = batch.f if batch.f is not None else np.nan
+        e = self.end
+        self.data[:cols.shape[0], e:e + n] = cols
+        if not has_f and self.has_f:
+            self.data[5, e:e + n] = np.nan  # this bus sent f before: mark the frames without it
         self.end = e + n
         if self.size > self.capacity:
             self.start = self.end - self.capacity
@@ -297,8 +303,7 @@ class BufferStore:
         if buf is None:
             self._refuse(len(batch) + sum((rejected or {}).values()))
             return {"too_many_buses": len(batch)}
-        buf.count(rejected or {})
-        return buf.insert(batch, arrival)
+        return buf.insert(batch, arrival, rejected)
 
     def _refuse(self, n_frames: int) -> None:
         with self._lock:

@@ -21,8 +21,9 @@ rejected whole with a reason.
 from __future__ import annotations
 
 import json
+import math
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -78,9 +79,20 @@ class FrameBatch:
     Q: np.ndarray
     f: np.ndarray | None = None
     stat: np.ndarray | None = None
+    cols: np.ndarray | None = field(default=None, repr=False)  # rows t, V, theta, P, Q[, f] if built
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
+
+    def block(self) -> np.ndarray:
+        """Rows t, V, theta, P, Q (and f) as one float64 array; a view of the payload when decoded.
+
+        Why: whole-batch checks and copies then cost one numpy call instead of one per column.
+        """
+        if self.cols is None:
+            rows = [self.t, self.V, self.theta, self.P, self.Q] + ([self.f] if self.f is not None else [])
+            self.cols = np.stack(rows).astype(np.float64, copy=False)
+        return self.cols
 
 
 @dataclass
@@ -227,6 +239,14 @@ def decode_binary(payload: bytes) -> FrameBatch:
     expected = HEADER.size + 8 * n * ncols + (2 * n if flags & FLAG_STAT else 0)
     if len(payload) != expected:
         raise FrameError("length_mismatch", f"{len(payload)} bytes, header says {expected} for n={n}", n)
+    if not flags & (FLAG_T_NS | FLAG_CURRENT):
+        # Common case: the columns after the header are one (ncols, n) float64 block, viewed in place.
+        block = np.frombuffer(payload, dtype="<f8", count=n * ncols, offset=HEADER.size).reshape(ncols, n)
+        stat = None
+        if flags & FLAG_STAT:
+            stat = np.frombuffer(payload, dtype="<u2", count=n, offset=HEADER.size + 8 * n * ncols)
+        return FrameBatch(t=block[0], V=block[1], theta=block[2], P=block[3], Q=block[4],
+                          f=block[5] if flags & FLAG_F else None, stat=stat, cols=block)
     if flags & FLAG_T_NS:
         t = np.frombuffer(payload, dtype="<i8", count=n, offset=HEADER.size) * 1e-9
     else:
@@ -274,21 +294,25 @@ def validate(batch: FrameBatch, *, now: float, max_future_s: float, f0: float = 
         Nominal frequency [Hz], for the frequency range check.
     """
     n = len(batch)
+    if n == 0:
+        return Validated(batch, {})
+    # Fast path: per-row min and max (two numpy calls) decide for the whole batch; NaN propagates
+    # through min/max and fails every comparison, so any doubt falls through to the per-frame pass.
+    cols = batch.block()
+    lo, hi = cols.min(axis=1).tolist(), cols.max(axis=1).tolist()
+    ok = (lo[0] > -math.inf and hi[0] <= now + max_future_s and lo[1] > 0 and hi[1] <= V_MAX
+          and lo[2] > -math.inf and hi[2] < math.inf and lo[3] >= -PQ_MAX and hi[3] <= PQ_MAX
+          and lo[4] >= -PQ_MAX and hi[4] <= PQ_MAX
+          and (batch.f is None or (lo[5] >= f0 - F_TOL and hi[5] <= f0 + F_TOL)))
+    if ok and (batch.stat is None or not (batch.stat & STAT_DATA_ERROR).any()):
+        return Validated(batch, {})
     with np.errstate(invalid="ignore", over="ignore"):
-        # Fast path, one fused pass: the sum is finite iff every term is (values are range-checked too).
-        finite = np.isfinite(batch.t + batch.V + batch.theta + batch.P + batch.Q)
-        if batch.f is not None:
-            finite &= np.isfinite(batch.f)
+        finite = np.isfinite(cols).all(axis=0)
         in_range = (batch.V > 0) & (batch.V <= V_MAX) & (np.abs(batch.P) <= PQ_MAX) & (np.abs(batch.Q) <= PQ_MAX)
         if batch.f is not None:
             in_range &= np.abs(batch.f - f0) <= F_TOL
         future = batch.t > now + max_future_s
     bad_pmu = (batch.stat & STAT_DATA_ERROR) != 0 if batch.stat is not None else None
-    ok = finite & in_range & ~future
-    if bad_pmu is not None:
-        ok &= ~bad_pmu
-    if ok.all():
-        return Validated(batch, {})
     if bad_pmu is None:
         bad_pmu = np.zeros(n, bool)
     rejected: dict[str, int] = {}
