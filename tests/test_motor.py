@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
+from scipy.interpolate import CubicSpline
 
 from aslm_core import IdentifyConfig, NoEquilibriumError, motor
 from aslm_core.identify import Problem
@@ -42,14 +43,16 @@ def test_no_equilibrium_is_a_clear_error():
 
 
 def test_rk4_matches_adaptive_reference(eq_window):
-    """RK4 at the sample step vs a tight adaptive solution of eq. 4 with the same interpolated inputs."""
+    """RK4 at the sample step vs a tight adaptive solution of eq. 4 with spline-interpolated inputs."""
     w = eq_window
     d = D_TRUE
     p, q, x = motor.simulate(w.V, w.theta, d, w.dt, W0)
     t = w.t - w.t[0]
 
+    v_spline, th_spline = CubicSpline(t, w.V), CubicSpline(t, w.theta)
+
     def u(tt):
-        return np.interp(tt, t, w.V), np.interp(tt, t, w.theta)
+        return v_spline(tt), th_spline(tt)
 
     def f(tt, xx):
         v, th = u(tt)
