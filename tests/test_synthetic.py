@@ -61,9 +61,9 @@ def test_initial_state_is_a_steady_state():
         assert s_load.real == pytest.approx(p_ss, rel=1e-10)
         assert s_load.imag == pytest.approx(q_ss, rel=1e-9, abs=1e-10)
         # ...and the discretised system stays put without forcing.
-        m, k, h = syn._grid(100.0, syn.MAX_STEP_S)
+        m, k, h = syn._grid(100.0, syn.MAX_STEP_S, syn.MAX_FORCING_STEP_S)
         out_v, out_s, _, _, _ = syn._simulate(
-            p[None], x0[None], np.array([vl0]), np.zeros((1, 2, 201)), h, k, m, 0, 200,
+            p[None], x0[None], np.array([vl0]), np.zeros((1, 2, 200 * m + 1)), h, k, m, 0, 200,
             -np.ones((1, 2), dtype=np.int64),
         )
         assert np.max(np.abs(out_v[0] - vl0)) < 1e-10
