@@ -174,9 +174,10 @@ class Scheduler:
             pending[self.executor.submit(task)] = (bus, cut, warm is not None)
         if skipped:
             self._emit(skipped, done)
+        batch: list[BusResult] = []
+        last_emit = time.monotonic()
         while pending:
-            finished, _ = wait(list(pending), return_when=FIRST_COMPLETED)
-            batch = []
+            finished, _ = wait(list(pending), timeout=0.25, return_when=FIRST_COMPLETED)
             for fut in finished:
                 bus, cut, warm = pending.pop(fut)
                 outcome: TaskOutcome = fut.result()
@@ -186,7 +187,10 @@ class Scheduler:
                 else:
                     res = self._record(bus, boundary, period_s, "failed", outcome.reason, cut, warm, outcome)
                 batch.append(res)
-            self._emit(batch, done)
+            # Report in groups (one SQLite transaction each) rather than one by one.
+            if batch and (not pending or len(batch) >= 64 or time.monotonic() - last_emit > 0.25):
+                self._emit(batch, done)
+                batch, last_emit = [], time.monotonic()
         finished_at = time.time()
         summary = PeriodSummary(
             period=boundary, period_s=period_s,
