@@ -30,11 +30,6 @@ PAPER_TABLE2 = {  # DL: (M(FD), %>0.9, %>0.95) for Fault YC and Fault XLS
     3: ((0.991, 99.0, 97.4), (0.987, 99.1, 97.9)),
 }
 
-# Finding 2 of the brief: the forcing grid of the generator must be fine (1 ms) or V has kinks at the
-# sample instants that bias noise-free identification by 1–2 %.  Only override an older, coarser default.
-if syn.MAX_FORCING_STEP_S > 0.001:
-    syn.MAX_FORCING_STEP_S = 0.001
-
 
 def parser(description: str) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=description)
