@@ -23,7 +23,13 @@ from aslm_core.errors import NoEquilibriumError
 
 
 def omega0_of(f0: float) -> float:
-    """Synchronous angular speed [rad/s] for a nominal frequency f0 [Hz]."""
+    """Synchronous angular speed [rad/s].
+
+    Parameters
+    ----------
+    f0 : float
+        Nominal system frequency [Hz].
+    """
     return 2.0 * math.pi * f0
 
 

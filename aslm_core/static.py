@@ -35,6 +35,13 @@ def regressors(V: np.ndarray, model: str = "zip") -> np.ndarray:
 def coefficients(beta_p: np.ndarray, beta_q: np.ndarray, model: str = "zip") -> dict[str, float]:
     """Named static coefficients from the regression solutions of P and Q.
 
+    Parameters
+    ----------
+    beta_p, beta_q : ndarray
+        Least-squares coefficients of the columns of :func:`regressors` for P and Q [pu].
+    model : {"zip", "exponential"}
+        Static model the regressors belong to.
+
     Returns
     -------
     dict
