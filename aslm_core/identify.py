@@ -147,9 +147,9 @@ def levenberg_marquardt(problem: Problem, d0: np.ndarray, max_iter: int = 60, xt
             "status": optimize.STATUS_NAMES[status]}
 
 
-def _standard_errors(problem: Problem, d: np.ndarray) -> tuple[np.ndarray, dict]:
+def _standard_errors(problem: Problem, rp: np.ndarray, rq: np.ndarray, jp: np.ndarray,
+                     jq: np.ndarray) -> tuple[np.ndarray, dict]:
     """Standard errors of D from the projected Jacobian, per-channel noise, residual autocorrelation."""
-    rp, rq, jp, jq = problem.residuals(d)
     n_free = problem.basis.shape[1]
     fisher = np.zeros((4, 4))
     info = {}
@@ -213,17 +213,18 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
 def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prepared,
             config: IdentifyConfig, t_start: float) -> IdentificationResult:
     d = best["d"]
-    rp, rq, _, _ = problem.residuals(d, jacobian=False)
+    rp, rq, jp, jq = problem.residuals(d)
     k0 = problem.k0
     y_p = problem.p_meas - problem._p[k0:]
     y_q = problem.q_meas - problem._q[k0:]
     beta_p = np.linalg.solve(problem.r_factor, problem.basis.T @ y_p)
     beta_q = np.linalg.solve(problem.r_factor, problem.basis.T @ y_q)
-    se, info = _standard_errors(problem, d)
-    var_p = float(np.var(problem.p_meas)) * problem.l
-    var_q = float(np.var(problem.q_meas)) * problem.l
-    fd_p = 1.0 - float(rp @ rp) / var_p
-    fd_q = 1.0 - float(rq @ rq) / var_q
+    se, info = _standard_errors(problem, rp, rq, jp, jq)
+    pc = problem.p_meas - problem.p_meas.mean()
+    qc = problem.q_meas - problem.q_meas.mean()
+    ss_p, ss_q = float(pc @ pc), float(qc @ qc)
+    fd_p = 1.0 - float(rp @ rp) / ss_p
+    fd_q = 1.0 - float(rq @ rq) / ss_q
     flags = list(prep.flags)
     for i, name in enumerate(DYNAMIC_NAMES):
         if d[i] <= problem.lower[i] * (1 + 1e-9) or d[i] >= problem.upper[i] * (1 - 1e-9):
@@ -231,7 +232,8 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     margin = (d[0] * problem.v_min**2 - 2 * d[1] * d[3]) / (d[0] * problem.v_min**2)
     if margin < 0.01:
         flags.append("equilibrium_constraint_active")
-    v_rel = float(np.std(prep.V) / np.mean(prep.V))
+    v_mean = float(prep.V.mean())
+    v_rel = float(np.sqrt(np.mean((prep.V - v_mean) ** 2)) / v_mean)
     if v_rel < 2e-4:
         flags.append("low_excitation")
     rel_se = se / np.abs(d).clip(1e-12)
@@ -247,13 +249,13 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     if min(fd_p, fd_q) < 0.5:
         flags.append("poor_fit")
     snr = {}
-    for name, r, y in (("p", rp, problem.p_meas), ("q", rq, problem.q_meas)):
-        noise = float(r @ r) / problem.l
-        sig = max(float(np.var(y)) - noise, 1e-300)
-        snr[f"snr_{name}_db"] = 10.0 * math.log10(sig / max(noise, 1e-300))
+    for name, r, ss in (("p", rp, ss_p), ("q", rq, ss_q)):
+        # Ambient signal = measured variance minus what the fit leaves (the noise estimate), eq. 10.
+        noise = float(r @ r)
+        snr[f"snr_{name}_db"] = 10.0 * math.log10(max(ss - noise, 1e-300) / max(noise, 1e-300))
     of_paper = (math.sqrt(rp @ rp) + math.sqrt(rq @ rq)) / problem.l
     quality = {
-        **snr, "v_std_rel": v_rel, "theta_std_rad": float(np.std(np.diff(prep.theta)) * math.sqrt(prep.theta.size)),
+        **snr, "v_std_rel": v_rel, "f_dev_std_hz": float(np.std(np.diff(prep.theta)) / prep.dt / (2 * math.pi)),
         "equilibrium_margin": float(margin), "n_samples": float(prep.V.size), "n_regression": float(problem.l),
         "dt_s": prep.dt, "of_paper": of_paper, **info,
     }

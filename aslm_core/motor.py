@@ -69,7 +69,7 @@ def _midpoints(x: np.ndarray) -> np.ndarray:
     return m
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def _steady_state(vd0, vq0, a, b, h2, tm, w0, x0, s0):
     """Low-slip equilibrium x0 and its sensitivity s0 = dx0/dD (filled in place); False if none."""
     v2 = vd0 * vd0 + vq0 * vq0
@@ -109,7 +109,7 @@ def _steady_state(vd0, vq0, a, b, h2, tm, w0, x0, s0):
     return True
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always", error_model="numpy", fastmath={"contract"})
 def _f(fd, fq, s, vd, vq, a, b, h2, tm, w0):
     ws = w0 * s
     return (
@@ -119,7 +119,7 @@ def _f(fd, fq, s, vd, vq, a, b, h2, tm, w0):
     )
 
 
-@nb.njit(cache=True, nogil=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always", error_model="numpy", fastmath={"contract"})
 def _fsens(fd, fq, s, vd, vq, a, b, h2, tm, w0, S, K):
     """K = fx·S + fp: time derivative of the sensitivity matrix S (3×4)."""
     ws = w0 * s
@@ -139,7 +139,7 @@ def _fsens(fd, fq, s, vd, vq, a, b, h2, tm, w0, S, K):
     K[2, 3] += 1.0 / h2
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, dp_out, dq_out, x_out,
                     store, k0, p_meas, q_meas, X):
     """Integrate from the steady state at sample 0, with forward sensitivities dx/dD.
@@ -250,7 +250,7 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
     return True
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def normal_equations(X, basis2, G, BX):
     """Projected residual norms and normal equations of both channels from the rows of X.
 

@@ -22,7 +22,7 @@ DUPLICATE_RTOL = 5e-2
 FTOL = 1e-10
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def project_into(y, basis, out):
     """out = (I − B·Bᵀ)·y for an orthonormal basis B (l×m)."""
     m = basis.shape[1]
@@ -39,7 +39,7 @@ def project_into(y, basis, out):
                 out[i] -= basis[i, j] * c
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def feasible(d, lower, upper, vmin, margin):
     for i in range(4):
         if d[i] < lower[i] or d[i] > upper[i]:
@@ -48,7 +48,7 @@ def feasible(d, lower, upper, vmin, margin):
     return av - 2.0 * d[1] * d[3] > margin * av
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def residuals_into(d, vd, vq, vdm, vqm, dt, w0, rk4, with_jac, basis, p_meas, q_meas, k0,
                    p, q, dp, dq, x, yp, yq, rp, rq, jp, jq):
     """Simulate D, project P/Q residuals (and Jacobians) over samples k0..n-1; False on failure."""
@@ -72,7 +72,7 @@ def residuals_into(d, vd, vq, vdm, vqm, dt, w0, rk4, with_jac, basis, p_meas, q_
     return True
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _cost_rr(rr_p, rr_q, objective, l):
     if objective == 0:
         return (math.sqrt(rr_p) + math.sqrt(rr_q)) / l
@@ -81,7 +81,7 @@ def _cost_rr(rr_p, rr_q, objective, l):
     return 0.5 * (rr_p + rr_q)
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _weights_rr(rr_p, rr_q, objective, l):
     """Channel weights w with ∇cost = Σ w·Jᵀr: the IRLS form of the configured objective."""
     if objective == 0:
@@ -91,7 +91,7 @@ def _weights_rr(rr_p, rr_q, objective, l):
     return 1.0, 1.0
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def _evaluate(d, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2, X, G, BX, Ap, Aq, gp, gq, d1, d2):
     """Simulation with sensitivities + normal equations of both channels; returns (ok, ‖r_p‖², ‖r_q‖²)."""
     ok = simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, True, d1, d1, d2, d2, d2, False, k0, p_meas,
@@ -108,7 +108,7 @@ def _evaluate(d, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2, X, G
     return True, max(G[0, 0], 0.0), max(G[5, 5], 0.0)
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, lower, upper, vmin,
               margin, objective, max_iter, xtol, known, n_known, out_d):
     """Levenberg–Marquardt from d0 (feasible). Returns (cost, iterations, evaluations, status code).

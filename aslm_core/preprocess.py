@@ -24,7 +24,6 @@ class Prepared:
     Q: np.ndarray
     dt: float
     flags: list[str] = field(default_factory=list)
-    repaired: int = 0
 
 
 def _fill_short_gaps(x: np.ndarray, max_run: int, name: str) -> int:
@@ -94,25 +93,26 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         raise WindowError("too_short", f"window covers {t[-1] - t[0]:.3g} s, need at least {min_duration_s:g} s")
 
     flags: list[str] = []
-    idx = np.concatenate(([0], np.cumsum(k_steps).astype(np.int64)))
-    n_grid = int(idx[-1]) + 1
-    grid = {}
-    for c, a in arrays.items():
-        g = np.full(n_grid, np.nan)
-        g[idx] = a
-        grid[c] = g
-    if np.isinf(np.concatenate(list(arrays.values()))).any():
+    stacked = np.stack([arrays[c] for c in CHANNELS])
+    if np.isinf(stacked).any():
         raise WindowError("non_finite", "a channel contains Inf")
-    repaired = 0
-    for c in CHANNELS:
-        repaired = max(repaired, _fill_short_gaps(grid[c], max_gap_samples, c))
-    if repaired:
-        flags.append(f"repaired_samples:{repaired}")
-    V, theta, P, Q = (grid[c] for c in CHANNELS)
+    n_grid = int(k_steps.sum()) + 1
+    if n_grid == n and np.isfinite(stacked).all():
+        V, theta, P, Q = stacked.copy()  # already a complete uniform grid
+    else:
+        idx = np.concatenate(([0], np.cumsum(k_steps).astype(np.int64)))
+        grid = np.full((len(CHANNELS), n_grid), np.nan)
+        grid[:, idx] = stacked
+        repaired = 0
+        for i, c in enumerate(CHANNELS):
+            repaired = max(repaired, _fill_short_gaps(grid[i], max_gap_samples, c))
+        if repaired:
+            flags.append(f"repaired_samples:{repaired}")
+        V, theta, P, Q = grid
     if np.any(V <= 0.3) or np.any(V > 2.0):
         raise WindowError("bad_range", f"V outside (0.3, 2] pu: min {V.min():.4g}, max {V.max():.4g}")
     theta = np.unwrap(theta)
-    if np.std(V) < 1e-7 * np.mean(V) or np.std(P) == 0.0 or np.std(Q) == 0.0:
+    if np.ptp(V) < 1e-6 * V[0] or np.ptp(P) == 0.0 or np.ptp(Q) == 0.0:
         raise WindowError("no_excitation", "V, P or Q is constant: ambient signals carry no information")
     if lowpass_hz is not None:
         fs = 1.0 / dt
@@ -122,4 +122,4 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         zi = signal.lfilter_zi(b, a)
         V, theta, P, Q = (signal.lfilter(b, a, x, zi=zi * x[0])[0] for x in (V, theta, P, Q))
     tg = t[0] + dt * np.arange(n_grid)
-    return Prepared(tg, V, theta, P, Q, dt, flags, repaired)
+    return Prepared(tg, V, theta, P, Q, dt, flags)
