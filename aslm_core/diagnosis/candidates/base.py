@@ -1,0 +1,168 @@
+"""What every candidate physics is: a small extension of ZIP + IM fitted in the hierarchical framework.
+
+A candidate maps (D, z) — the motor parameters D = [a, b, H2, Tm] and its own nonlinear parameters z —
+to a :class:`Prediction`: the part of P and Q that is nonlinear in the parameters (``mp``, ``mq``) and
+the columns that enter linearly (``xp``, ``xq``: the static regressors plus the candidate's linear
+extras).  The engine (:mod:`aslm_core.diagnosis.engine`) then does what the identifier does: the lower
+stage regresses the linear coefficients on the training samples, the upper stage optimises (D, z).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from aslm_core import motor, static
+from aslm_core.diagnosis.segment import Segment
+
+
+@dataclass
+class Context:
+    """The model being diagnosed.
+
+    Attributes
+    ----------
+    mode : {"identified", "user"}
+        ``identified``: D and the ZIP coefficients are free (re-fitted with each candidate).
+        ``user``: the user's model is frozen — D and the static part are fixed, only the operating
+        point (a constant per channel) is re-aligned; candidates add their own parameters on top.
+    d0 : ndarray
+        D of the model (identified: the plain fit on the training samples; user: the given one).
+    static_user : dict or None
+        The user's static coefficients (ZIP or exponential, see :func:`aslm_core.static.static_power`).
+    """
+
+    mode: str
+    d0: np.ndarray
+    static_user: dict | None = None
+    extras: dict = field(default_factory=dict)
+
+    @property
+    def free(self) -> bool:
+        return self.mode == "identified"
+
+
+@dataclass
+class Prediction:
+    """Model output of one candidate for given parameters.
+
+    Attributes
+    ----------
+    mp, mq : ndarray, shape (n,)
+        Parts of P and Q not linear in coefficients (motor, fixed user static) [pu].
+    xp, xq : ndarray, shape (n, k)
+        Columns entering P and Q linearly (static regressors first, then the candidate's extras).
+    """
+
+    mp: np.ndarray
+    mq: np.ndarray
+    xp: np.ndarray
+    xq: np.ndarray
+
+
+def simulate_motor(seg: Segment, d: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """P_im, Q_im of eq. 4–5 driven by the segment's voltage (RK4, steady-state start) [pu].
+
+    Returns None when D has no equilibrium or the trajectory diverges.
+    """
+    d = np.ascontiguousarray(d, dtype=np.float64)
+    v2 = seg.vd[0] ** 2 + seg.vq[0] ** 2
+    if d[0] * v2 <= 2.0 * d[1] * d[3] or d[1] <= 0 or d[2] <= 0:
+        return None
+    n = seg.n
+    p = np.empty(n)
+    q = np.empty(n)
+    x = np.empty((n, 3))
+    dummy = np.empty((1, 4))
+    ok = motor.simulate_kernel(seg.vd, seg.vq, seg.vdm, seg.vqm, d, seg.dt, seg.omega0, True, False, p, q,
+                               dummy, dummy, x, True, 0, p, q, dummy)
+    return (p, q) if ok else None
+
+
+def static_part(seg: Segment, ctx: Context, V: np.ndarray | None = None):
+    """Static load in the lower stage: fixed part and regressors for P and Q.
+
+    Identified mode: nothing fixed, regressors [1, V, V²] (eq. 6).  User mode: the user's static power is
+    fixed, the regressor is [1] (operating-point alignment).
+
+    Returns
+    -------
+    fp, fq : ndarray
+        Fixed static P, Q [pu].
+    sx : ndarray, shape (n, 3) or (n, 1)
+        Static regressors (the same for both channels).
+    """
+    V = seg.V if V is None else V
+    if ctx.free:
+        return np.zeros_like(V), np.zeros_like(V), static.regressors(V, "zip")
+    fp, fq = static.static_power(V, ctx.static_user)
+    return fp, fq, np.ones((V.shape[0], 1))
+
+
+class Candidate:
+    """Base class: the plain ZIP + IM model (no extension).
+
+    Subclasses set the class attributes and override :meth:`predict` (or :meth:`extra_columns`).
+
+    Attributes
+    ----------
+    name : str
+        Library name (the JSON ``name``).
+    nl_names, nl_units : tuple of str
+        The candidate's nonlinear parameters z (upper stage) and their units.
+    lin_p, lin_q : tuple of str
+        Names of the linear extra coefficients on P and on Q (lower stage).
+    lin_units : dict
+        Units of the linear coefficients.
+    signature : str
+        What in the residual makes this candidate plausible (shown in reports).
+    """
+
+    name = "plain"
+    nl_names: tuple[str, ...] = ()
+    nl_units: tuple[str, ...] = ()
+    lin_p: tuple[str, ...] = ()
+    lin_q: tuple[str, ...] = ()
+    lin_units: dict[str, str] = {}
+    signature = ""
+    max_nfev = 60
+
+    @property
+    def n_params(self) -> int:
+        """Parameters added to ZIP + IM (the penalty's k)."""
+        return len(self.nl_names) + len(self.lin_p) + len(self.lin_q)
+
+    def not_applicable(self, ctx: Context) -> str | None:
+        """Why the candidate cannot be tested against this model (None: it can)."""
+        return None
+
+    def starts(self, seg: Segment, ctx: Context) -> list[np.ndarray]:
+        """Initial z values (one upper-stage run per start)."""
+        return [np.zeros(0)]
+
+    def bounds(self, seg: Segment, ctx: Context) -> tuple[np.ndarray, np.ndarray]:
+        """Box bounds of z."""
+        return np.zeros(0), np.zeros(0)
+
+    def extra_columns(self, seg: Segment, d: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Linear extra columns for P and Q, shapes (n, len(lin_p)) and (n, len(lin_q))."""
+        n = seg.n
+        return np.zeros((n, 0)), np.zeros((n, 0))
+
+    def motor_power(self, seg: Segment, d: np.ndarray, z: np.ndarray):
+        """Motor P, Q [pu] (plain eq. 4–5 unless overridden); None on failure."""
+        return simulate_motor(seg, d)
+
+    def predict(self, seg: Segment, ctx: Context, d: np.ndarray, z: np.ndarray) -> Prediction | None:
+        """Model output for (D, z): motor + static + linear extras."""
+        m = self.motor_power(seg, d, z)
+        if m is None:
+            return None
+        fp, fq, sx = static_part(seg, ctx)
+        ep, eq = self.extra_columns(seg, d, z)
+        return Prediction(m[0] + fp, m[1] + fq, np.hstack([sx, ep]), np.hstack([sx, eq]))
+
+    def describe(self, params: dict[str, float], seg: Segment, ctx: Context) -> dict[str, float]:
+        """Derived quantities worth reporting (e.g. an exponent from a coefficient); default none."""
+        return {}

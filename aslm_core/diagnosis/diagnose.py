@@ -1,0 +1,370 @@
+"""Discrepancy diagnosis: locate the mismatch, attribute it to missing physics, prove it on held-out data.
+
+Method (DESIGN §3)
+------------------
+1. Split each window in time: the parameters are fitted on the first ``train_fraction`` (after the 1 s
+   initial-state transient), every comparison is made on the rest (held out).
+2. Plain model: ZIP + IM identified on the training samples (or the user's model, frozen but for its
+   operating point).  Its residual, over the whole window, gives the noise floor per channel (from the
+   band above 5 Hz) and the location of any excess (bands, coherence, time segments).
+3. Each candidate extends the plain model inside the hierarchical framework and is fitted on the training
+   samples, starting from the plain fit.
+4. Held-out test: the score statistic of the plain model's held-out residual against the candidate's
+   held-out correction (fitted on the training samples only, so under white measurement noise it is
+   N(0, 1) when the candidate is not needed), one-sided and Bonferroni-corrected over the candidates; and
+   a BIC-like penalty — the held-out Gaussian log-likelihood gain must exceed (k/2)·ln(n) for k added
+   parameters.  Candidates passing both are significant, ranked by the penalised gain.  A Diebold–Mariano
+   statistic (HAC variance) is reported alongside.
+5. Verdict: ``explained`` when the top significant candidate removes at least ``explained_fraction`` of
+   the held-out residual variance above the noise floor; ``unexplained`` when the residual exceeds the
+   floor (or a candidate is significant but explains too little) — then only the location is reported;
+   otherwise ``consistent``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from aslm_core.diagnosis import engine
+from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
+from aslm_core.diagnosis.locate import locate, noise_floor
+from aslm_core.diagnosis.playback import model_dict
+from aslm_core.diagnosis.segment import Segment, make_segment
+from aslm_core.identify import identify
+from aslm_core.params import DYNAMIC_NAMES
+from aslm_core.result import IdentifyConfig
+from aslm_core.window import Window
+
+_PLAIN = Candidate()
+
+
+@dataclass(frozen=True)
+class DiagnosisConfig:
+    """Options of :func:`diagnose`.
+
+    Attributes
+    ----------
+    train_fraction : float
+        Fraction of each window, from its start, used for fitting [-]; the rest is held out.
+    skip_s : float
+        Initial transient excluded from every objective [s].
+    alpha : float
+        Family-wise false-positive rate of the held-out test over all candidates [-].
+    explained_fraction : float
+        Share of the held-out excess residual variance (above the noise floor) the best candidate must
+        remove for ``explained`` [-].
+    lag_s : float
+        Newey–West bandwidth of the HAC variance [s].
+    candidates : tuple of str
+        Library members tried (default: all).
+    """
+
+    train_fraction: float = 0.65
+    skip_s: float = 1.0
+    alpha: float = 0.01
+    explained_fraction: float = 0.5
+    lag_s: float = 1.0
+    candidates: tuple[str, ...] = tuple(LIBRARY)
+
+
+@dataclass
+class DiagnosisReport:
+    """Outcome of a diagnosis (JSON via :meth:`to_dict`, DESIGN §4).
+
+    Attributes
+    ----------
+    verdict : {"explained", "consistent", "unexplained"}
+    cause : str or None
+        The named cause when ``explained``; None otherwise.
+    located : dict
+        Channels, bands [Hz] and time segments [s] with residual above the noise floor; the floor,
+        per-band spectrum ratios and coherences.
+    missing_physics : list of dict
+        Ranked candidates: name, parameters (with ``stderr``), improvement (held-out variance reduction per
+        channel), penalised gain [nats], dm_z, significant.
+    fit_before, fit_after : dict
+        Held-out FD (eq. 9) and residual RMS [pu] of P and Q, before (plain) and after (the named cause;
+        equal to before when nothing is named).
+    """
+
+    verdict: str
+    cause: str | None
+    located: dict
+    missing_physics: list[dict]
+    fit_before: dict
+    fit_after: dict
+    model: dict
+    noise: dict
+    held_out: dict
+    message: str
+    elapsed_s: float = 0.0
+    mode: str = "identified"
+    parameter_mismatch: dict | None = None
+    series: list = field(default_factory=list, repr=False)
+
+    def to_dict(self) -> dict:
+        """Plain JSON-serialisable dict (the time series for plots are left out)."""
+        return {
+            "verdict": self.verdict, "cause": self.cause, "located": self.located,
+            "missing_physics": self.missing_physics, "fit_before": self.fit_before, "fit_after": self.fit_after,
+            "model": self.model, "noise": self.noise, "held_out": self.held_out, "message": self.message,
+            "mode": self.mode, "parameter_mismatch": self.parameter_mismatch, "elapsed_s": self.elapsed_s,
+        }
+
+
+@dataclass
+class _WindowAnalysis:
+    seg: Segment
+    ctx: Context
+    sig: tuple[float, float]
+    plain: engine.Fit
+    located: dict
+    fits: dict
+    comps: dict
+    reidentified: engine.Fit | None = None
+    refit_comp: engine.Comparison | None = None
+
+
+def _plain_d(seg: Segment, previous, config: DiagnosisConfig) -> np.ndarray:
+    """ZIP + IM identified on the training samples only (the previous result as a warm start)."""
+    ks = seg.ks
+    w = Window(seg.t[:ks], seg.V[:ks], seg.theta[:ks], seg.P[:ks], seg.Q[:ks], f0=seg.f0, bus=seg.bus)
+    warm = None
+    if previous is not None:
+        warm = previous.d if hasattr(previous, "d") else np.array([previous["dynamic"][k] for k in DYNAMIC_NAMES])
+    cfg = IdentifyConfig(skip_s=config.skip_s, min_duration_s=2.0, n_starts=1 if warm is not None else 3)
+    return identify(w, warm_start=warm, config=cfg).d
+
+
+def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _WindowAnalysis:
+    seg = make_segment(window, skip_s=config.skip_s, train_fraction=config.train_fraction)
+    if model is None:
+        ctx = Context("identified", _plain_d(seg, previous, config))
+    else:
+        m = model_dict(model)
+        ctx = Context("user", np.array([m["dynamic"][k] for k in DYNAMIC_NAMES]), m["static"])
+    # Noise floor from the plain residual (unit weights first), then the weighted plain fit.
+    first = engine.evaluate(_PLAIN, seg, ctx, ctx.d0, np.zeros(0), (1.0, 1.0))
+    if not first.ok:
+        raise ValueError("the model has no motor equilibrium at the window's first sample")
+    win = slice(seg.k0, seg.ke)
+    rp, rq = (a[win] for a in first.residuals(seg))
+    floors = {"P": noise_floor(rp, seg.fs), "Q": noise_floor(rq, seg.fs)}
+    sig = (max(floors["P"]["sigma"], 1e-12), max(floors["Q"]["sigma"], 1e-12))
+    plain = engine.fit_candidate(_PLAIN, seg, ctx, sig)
+    rp, rq = (a[win] for a in plain.residuals(seg))
+    drivers = {"V": seg.V[win], "dVdt": seg.dvdt[win], "df": seg.dfreq[win]}
+    located = locate(rp, rq, seg.t[win], seg.fs, drivers, floors)
+    fits, comps = {}, {}
+    for name in config.candidates:
+        cand = LIBRARY[name]
+        if cand.not_applicable(ctx):
+            continue
+        f = engine.fit_candidate(cand, seg, ctx, sig, d_start=plain.d)
+        fits[name] = f
+        comps[name] = engine.compare(seg, plain, f, cand.n_params, sig, config.lag_s)
+    out = _WindowAnalysis(seg, ctx, sig, plain, located, fits, comps)
+    if not ctx.free:
+        ictx = Context("identified", _plain_d(seg, None, config))
+        re = engine.fit_candidate(_PLAIN, seg, ictx, sig)
+        out.reidentified = re
+        out.refit_comp = engine.compare(seg, plain, re, 4 + 5, sig, config.lag_s)
+    return out
+
+
+def _held_out_fit(seg: Segment, fit: engine.Fit) -> dict:
+    te = seg.test
+    rp, rq = (a[te] for a in fit.residuals(seg))
+    return {"fd_p": engine.fd(seg.P[te], fit.model_p[te]), "fd_q": engine.fd(seg.Q[te], fit.model_q[te]),
+            "rms_p": float(np.sqrt(np.mean(rp * rp))), "rms_q": float(np.sqrt(np.mean(rq * rq)))}
+
+
+def _mean_dicts(ds: list[dict]) -> dict:
+    return {k: float(np.mean([d[k] for d in ds])) for k in ds[0]}
+
+
+def _combine_params(analyses: list[_WindowAnalysis], name: str) -> tuple[dict, dict]:
+    """Inverse-variance mean of a candidate's parameters over windows."""
+    keys = [k for k in analyses[0].fits[name].params if not k.startswith("D.")]
+    val, se = {}, {}
+    for k in keys:
+        v = np.array([a.fits[name].params.get(k, np.nan) for a in analyses])
+        s = np.array([a.fits[name].stderr.get(k, np.inf) for a in analyses])
+        w = np.where(np.isfinite(s) & (s > 0), 1.0 / np.maximum(s, 1e-300) ** 2, 0.0)
+        if w.sum() > 0:
+            val[k] = float(np.sum(w * v) / w.sum())
+            se[k] = float(1.0 / math.sqrt(w.sum()))
+        else:
+            val[k], se[k] = float(np.nanmean(v)), float("inf")
+    return val, se
+
+
+def _locations(analyses: list[_WindowAnalysis]) -> dict:
+    if len(analyses) == 1:
+        return analyses[0].located
+    out = {"channels": sorted({c for a in analyses for c in a.located["channels"]}), "windows": []}
+    for a in analyses:
+        out["windows"].append(a.located)
+    out["bands"] = {c: sorted({tuple(b) for a in analyses for b in a.located["bands"].get(c, [])}) for c in out["channels"]}
+    out["bands"] = {c: [list(b) for b in v] for c, v in out["bands"].items()}
+    out["time_segments"] = {c: [[i, *s] for i, a in enumerate(analyses) for s in a.located["time_segments"].get(c, [])]
+                            for c in out["channels"]}
+    return out
+
+
+def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
+             config: DiagnosisConfig | None = None) -> DiagnosisReport:
+    """Diagnose the mismatch between a composite-load model and recordings.
+
+    Parameters
+    ----------
+    windows : Window or sequence of Window
+        One window, or several of the same bus (the evidence is accumulated: held-out statistics combined by
+        Stouffer's rule, log-likelihood gains summed, parameters averaged by inverse variance).
+    model : dict or IdentificationResult, optional
+        A user model ``{"dynamic": {a, b, H2, Tm}, "static": {...}}`` played back frozen (only its
+        operating point re-aligned).  Default: ZIP + IM identified from the windows' training samples.
+    previous : IdentificationResult or dict, optional
+        A previous identification of the bus (e.g. of the same window by the service): a warm start.
+    config : DiagnosisConfig, optional
+
+    Returns
+    -------
+    DiagnosisReport
+    """
+    t0 = time.perf_counter()
+    config = config or DiagnosisConfig()
+    wins = [windows] if isinstance(windows, Window) else list(windows)
+    if not wins:
+        raise ValueError("no window to diagnose")
+    analyses = [_analyse(w, model, previous, config) for w in wins]
+    m = len(analyses)
+    names = list(config.candidates)
+    tested = [n for n in names if not LIBRARY[n].not_applicable(analyses[0].ctx)]
+    zcrit = engine.dm_critical(config.alpha, max(len(tested), 1))
+    entries = []
+    for name in names:
+        cand = LIBRARY[name]
+        reason = cand.not_applicable(analyses[0].ctx)
+        if reason:
+            entries.append({"name": name, "parameters": {}, "stderr": {}, "derived": {}, "units": {},
+                            "improvement": {"p": 0.0, "q": 0.0}, "penalised_gain": -math.inf, "score_z": 0.0,
+                            "dm_z": 0.0, "n_params": cand.n_params, "significant": False,
+                            "signature": cand.signature, "tested": False, "note": reason})
+            continue
+        comps = [a.comps[name] for a in analyses]
+        z = float(sum(c.score_z for c in comps) / math.sqrt(m))
+        dmz = float(sum(c.dm_z for c in comps) / math.sqrt(m))
+        pg = float(sum(c.penalised_gain for c in comps))
+        params, se = _combine_params(analyses, name)
+        derived = {}
+        for a in analyses[:1]:
+            derived = cand.describe(a.fits[name].params, a.seg, a.ctx)
+        sig_ = bool(math.isfinite(z) and z > zcrit and pg > 0)
+        entries.append({
+            "name": name, "parameters": params, "stderr": se, "derived": derived,
+            "units": {**dict(zip(cand.nl_names, cand.nl_units, strict=True)), **cand.lin_units},
+            "improvement": {"p": float(np.mean([c.reduction_p for c in comps])),
+                            "q": float(np.mean([c.reduction_q for c in comps]))},
+            "penalised_gain": pg, "score_z": z, "dm_z": dmz, "n_params": cand.n_params, "significant": sig_,
+            "signature": cand.signature, "tested": True,
+        })
+    entries.sort(key=lambda e: -e["penalised_gain"] if math.isfinite(e["penalised_gain"]) else math.inf)
+    for e in entries:  # JSON has no infinity
+        if not math.isfinite(e["penalised_gain"]):
+            e["penalised_gain"] = None
+    before = _mean_dicts([_held_out_fit(a.seg, a.plain) for a in analyses])
+    located = _locations(analyses)
+    mismatch = bool(located["channels"])
+    best = next((e for e in entries if e["significant"]), None)
+    verdict, cause, after, message = "consistent", None, before, "residual consistent with the noise floor"
+    if best is not None:
+        frac = _explained_fraction(analyses, best["name"])
+        best["explained_fraction"] = frac
+        left = _remaining(analyses, best["name"])
+        best["remaining_excess_channels"] = left
+        if frac >= config.explained_fraction or not left:
+            verdict, cause = "explained", best["name"]
+            after = _mean_dicts([_held_out_fit(a.seg, a.fits[cause]) for a in analyses])
+            message = f"{cause} explains {100 * frac:.0f} % of the held-out excess residual variance"
+        else:
+            verdict = "unexplained"
+            message = (f"a real mismatch (in {', '.join(located['channels']) or 'the held-out fit'}); the best "
+                       f"candidate removes only {100 * frac:.0f} % of it, so no cause is named")
+    elif mismatch:
+        verdict = "unexplained"
+        message = "residual above the noise floor in " + ", ".join(
+            f"{c} ({', '.join(f'{b[0]:g}–{b[1]:g} Hz' for b in located['bands'][c])})" for c in located["channels"]
+        ) + "; no candidate explains it"
+    a0 = analyses[0]
+    plain_model = {"dynamic": dict(zip(DYNAMIC_NAMES, map(float, a0.plain.d), strict=True)), "mode": a0.ctx.mode}
+    mismatch_info = None
+    if a0.refit_comp is not None:
+        rc = a0.refit_comp
+        mismatch_info = {
+            "significant": bool(rc.score_z > zcrit and rc.penalised_gain > 0), "score_z": rc.score_z,
+            "improvement": {"p": rc.reduction_p, "q": rc.reduction_q},
+            "reidentified": {"dynamic": dict(zip(DYNAMIC_NAMES, map(float, a0.reidentified.d), strict=True))},
+        }
+    series = [_series(a, cause) for a in analyses]
+    return DiagnosisReport(
+        verdict=verdict, cause=cause, located=located, missing_physics=entries, fit_before=before,
+        fit_after=after, model=plain_model,
+        noise={"sigma_p": float(np.mean([a.sig[0] for a in analyses])), "sigma_q": float(np.mean([a.sig[1] for a in analyses]))},
+        held_out={"windows": m, "t_start": [float(a.seg.t[a.seg.ks]) for a in analyses],
+                  "t_end": [float(a.seg.t[a.seg.ke - 1]) for a in analyses],
+                  "n": int(sum(a.seg.ke - a.seg.ks for a in analyses)), "dm_critical": zcrit},
+        message=message, elapsed_s=time.perf_counter() - t0, mode=a0.ctx.mode,
+        parameter_mismatch=mismatch_info, series=series,
+    )
+
+
+def _explained_fraction(analyses: list[_WindowAnalysis], name: str) -> float:
+    """Share of the held-out weighted residual sum of squares above the noise expectation that a candidate removes."""
+    s0 = s1 = expected = 0.0
+    for a in analyses:
+        te = a.seg.test
+        for ch, sg in ((0, a.sig[0]), (1, a.sig[1])):
+            y = a.seg.P if ch == 0 else a.seg.Q
+            m0 = a.plain.model_p if ch == 0 else a.plain.model_q
+            m1 = a.fits[name].model_p if ch == 0 else a.fits[name].model_q
+            s0 += float(np.sum((y[te] - m0[te]) ** 2)) / sg**2
+            s1 += float(np.sum((y[te] - m1[te]) ** 2)) / sg**2
+            expected += te.stop - te.start
+    excess = s0 - expected
+    if excess <= 0.05 * expected:  # hardly any excess: a significant gain then explains it all
+        return 1.0 if s1 < s0 else 0.0
+    return float(min(max((s0 - s1) / excess, 0.0), 1.0))
+
+
+def _remaining(analyses: list[_WindowAnalysis], name: str) -> list[str]:
+    """Channels whose residual still exceeds the noise floor materially after the candidate."""
+    left = set()
+    for a in analyses:
+        win = slice(a.seg.k0, a.seg.ke)
+        rp, rq = (r[win] for r in a.fits[name].residuals(a.seg))
+        fl = {ch: {**a.located["noise_floor"][ch], "band": a.located["noise_floor"][ch]["band_hz"]}
+              for ch in ("P", "Q")}
+        loc = locate(rp, rq, a.seg.t[win], a.seg.fs, {}, fl)
+        left.update(loc["channels"])
+    return sorted(left)
+
+
+def _series(a: _WindowAnalysis, cause: str | None) -> dict:
+    """Time series for plots: measured, plain and (if any) explained model [pu]."""
+    after = a.fits[cause] if cause else None
+    return {"t": a.seg.t, "P": a.seg.P, "Q": a.seg.Q, "P_before": a.plain.model_p, "Q_before": a.plain.model_q,
+            "P_after": None if after is None else after.model_p, "Q_after": None if after is None else after.model_q,
+            "k0": a.seg.k0, "ks": a.seg.ks, "ke": a.seg.ke, "fs": a.seg.fs,
+            "drivers": {"V": a.seg.V, "dVdt": a.seg.dvdt, "df": a.seg.dfreq}}
+
+
+def diagnose_dict(windows: Window | Sequence[Window], previous=None, model=None,
+                  config: DiagnosisConfig | None = None) -> dict:
+    """Service entry point: the JSON report of one bus (see :func:`diagnose`)."""
+    return diagnose(windows, model, previous=previous, config=config).to_dict()

@@ -1,0 +1,128 @@
+"""One window made ready for diagnosis: uniform grid, bus-frequency deviation, train/test split.
+
+A diagnosis fits on the first part of a window and judges on the rest (time-ordered hold-out), so the
+motor states are simulated over the whole window while the linear coefficients and the parameters
+only ever see the training samples.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+
+from aslm_core import motor
+from aslm_core.preprocess import prepare
+from aslm_core.window import Window
+
+#: Cut-off of the zero-phase low-pass applied to the bus-frequency deviation [Hz] (passes the ambient
+#: band, 0.1–2 Hz, and removes the differentiation noise of dθ/dt).
+FREQ_LOWPASS_HZ = 5.0
+
+
+@dataclass
+class Segment:
+    """A prepared window with its split.
+
+    Attributes
+    ----------
+    t, V, theta, P, Q : ndarray
+        Uniform-grid channels [s, pu, rad, pu, pu].
+    dfreq : ndarray
+        Bus frequency deviation f − f0 [Hz] (recorded ``f`` if present, else dθ/dt/2π), low-passed.
+    dvdt : ndarray
+        dV/dt [pu/s] (central differences, low-passed like dfreq).
+    dt : float
+        Sample step [s].
+    f0 : float
+        Nominal frequency [Hz].
+    k0 : int
+        First sample of the objective (after the initial-state transient).
+    ks : int
+        First held-out sample.
+    ke : int
+        End (exclusive) of the held-out samples (a short guard before the window's end).
+    """
+
+    t: np.ndarray
+    V: np.ndarray
+    theta: np.ndarray
+    P: np.ndarray
+    Q: np.ndarray
+    dfreq: np.ndarray
+    dvdt: np.ndarray
+    dt: float
+    f0: float
+    k0: int
+    ks: int
+    ke: int
+    bus: str = ""
+
+    def __post_init__(self) -> None:
+        self.omega0 = motor.omega0_of(self.f0)
+        self.vd, self.vq, self.vdm, self.vqm = motor.dq_inputs(self.V, self.theta)
+
+    @property
+    def n(self) -> int:
+        return int(self.V.shape[0])
+
+    @property
+    def train(self) -> slice:
+        """Samples the parameters are fitted on."""
+        return slice(self.k0, self.ks)
+
+    @property
+    def test(self) -> slice:
+        """Held-out samples the candidates are judged on."""
+        return slice(self.ks, self.ke)
+
+    @property
+    def fs(self) -> float:
+        return 1.0 / self.dt
+
+
+def _lowpass(x: np.ndarray, fs: float, fc: float) -> np.ndarray:
+    if fc >= 0.45 * fs:
+        return x
+    sos = signal.butter(4, fc, fs=fs, output="sos")
+    return signal.sosfiltfilt(sos, x)
+
+
+def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float = 0.65,
+                 guard_s: float = 0.1) -> Segment:
+    """Prepare a window and split it in time.
+
+    Parameters
+    ----------
+    window : Window
+        Measurements (V [pu], θ [rad], P, Q [pu], optional f [Hz]).
+    skip_s : float
+        Initial transient excluded from every objective [s] (the motor starts from a steady state).
+    train_fraction : float
+        Fraction of the window (from its start) used for fitting [-]; the rest is held out.
+    guard_s : float
+        Samples at the very end left out of the held-out set [s] (room for time shifts).
+
+    Returns
+    -------
+    Segment
+    """
+    prep = prepare(window)
+    n = prep.V.shape[0]
+    dt = prep.dt
+    fs = 1.0 / dt
+    if window.f is not None and window.f.shape[0] == n and np.all(np.isfinite(window.f)):
+        df = np.asarray(window.f, float) - window.f0
+    else:
+        df = np.gradient(prep.theta, dt) / (2.0 * math.pi)
+    df = _lowpass(df - np.median(df), fs, FREQ_LOWPASS_HZ)
+    dvdt = _lowpass(np.gradient(prep.V, dt), fs, FREQ_LOWPASS_HZ)
+    k0 = min(int(math.ceil(skip_s / dt - 1e-9)), n // 4)
+    ks = int(round(train_fraction * n))
+    ke = n - max(1, int(round(guard_s / dt)))
+    if ks - k0 < 50 or ke - ks < 50:
+        raise ValueError(f"window too short to split: {n} samples")
+    return Segment(t=prep.t, V=prep.V, theta=prep.theta, P=prep.P, Q=prep.Q, dfreq=df, dvdt=dvdt, dt=dt,
+                   f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus)

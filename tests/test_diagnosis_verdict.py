@@ -1,0 +1,57 @@
+"""Verdicts: clean data are consistent; an effect outside the library is unexplained, never misnamed."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from aslm_core.diagnosis import diagnose, diagnose_dict
+from aslm_core.diagnosis.effects import apply_effect
+from aslm_core.synthetic import make_cases
+
+
+@pytest.fixture(scope="module")
+def cases():
+    return make_cases(4, level=2, seed=21, input_noise=False)
+
+
+def test_clean_cases_are_consistent(cases):
+    for c in cases:
+        rep = diagnose(c.window)
+        assert rep.verdict == "consistent", (c.window.bus, rep.message, rep.missing_physics[:1])
+        assert rep.cause is None and not any(e["significant"] for e in rep.missing_physics)
+
+
+@pytest.mark.parametrize("effect", ["load_cycling", "hysteresis"])
+def test_effect_outside_the_library_is_unexplained_with_its_location(cases, effect):
+    ec = apply_effect(cases[0], effect, seed=5)
+    assert min(ec.fd_plain.values()) >= 0.9
+    rep = diagnose(ec.window)
+    assert rep.verdict == "unexplained", rep.missing_physics[:2]
+    assert rep.cause is None
+    assert rep.located["channels"], "an unexplained mismatch must say where it is"
+    ch = rep.located["channels"][0]
+    assert rep.located["bands"][ch] and rep.located["time_segments"][ch]
+
+
+def test_report_dict_is_json_with_the_contract_fields(cases):
+    d = diagnose_dict(cases[1].window)
+    json.dumps(d)  # no NaN objects / numpy types
+    for k in ("verdict", "located", "missing_physics", "fit_before", "fit_after"):
+        assert k in d
+    assert {"channels", "bands", "time_segments"} <= set(d["located"])
+    assert {"fd_p", "fd_q"} <= set(d["fit_before"]) and {"fd_p", "fd_q"} <= set(d["fit_after"])
+    for e in d["missing_physics"]:
+        assert {"name", "parameters", "improvement", "significant"} <= set(e)
+
+
+def test_several_windows_accumulate_evidence(cases):
+    """A weak frequency dependence in three windows: combined evidence beats any one window's."""
+    ecs = [apply_effect(c, "frequency_dependence", 0.6, seed=9) for c in cases[:3]]
+    single = [next(e for e in diagnose(ec.window).missing_physics if e["name"] == "frequency_dependence")["score_z"]
+              for ec in ecs]
+    rep = diagnose([ec.window for ec in ecs])
+    e = next(e for e in rep.missing_physics if e["name"] == "frequency_dependence")
+    assert e["score_z"] > max(single)
+    assert rep.held_out["windows"] == 3
