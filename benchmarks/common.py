@@ -114,7 +114,13 @@ def _default(o):
 
 
 def write_section(name: str, body: str) -> None:
-    """Replace (or append) the block between ``<!-- BEGIN name -->`` and ``<!-- END name -->`` of the doc."""
+    """Replace (or append) the block between ``<!-- BEGIN name -->`` and ``<!-- END name -->`` of the doc.
+
+    Smoke runs (``--quick``, names ending in ``-quick``) leave the document alone: their numbers go to
+    ``docs/results/*_quick.json`` only.
+    """
+    if name.endswith("-quick"):
+        return
     DOC.parent.mkdir(parents=True, exist_ok=True)
     text = DOC.read_text() if DOC.exists() else "# Reproduction of the paper's case study\n"
     begin, end = f"<!-- BEGIN {name} -->", f"<!-- END {name} -->"
