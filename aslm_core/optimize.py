@@ -183,6 +183,29 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                 sol = np.linalg.solve(M, rhs)
                 for u in range(nf):
                     step[idx[u]] = sol[u]
+            # Predicted decrease of the full (unclipped) damped step: the convergence test.  A step cut
+            # short by a bound or the equilibrium constraint says nothing about convergence.
+            pred_full = 0.0
+            for u in range(4):
+                pred_full -= g[u] * step[u]
+                for v in range(4):
+                    pred_full -= 0.5 * step[u] * A[u, v] * step[v]
+            if scale * pred_full <= FTOL * cost:
+                converged = True  # the model promises less than the objective's rounding
+                break
+            for u in range(4):
+                trial[u] = min(max(d[u] + step[u], lower[u]), upper[u])
+            if not feasible(trial, lower, upper, vmin, margin):
+                # Moving into the equilibrium constraint: keep the part of the step along its boundary.
+                gc0 = vmin * vmin * (1.0 - margin)
+                gc1 = -2.0 * d[3]
+                gc3 = -2.0 * d[1]
+                into = gc0 * step[0] + gc1 * step[1] + gc3 * step[3]
+                if into < 0.0:
+                    f = into / (gc0 * gc0 + gc1 * gc1 + gc3 * gc3)
+                    step[0] -= f * gc0
+                    step[1] -= f * gc1
+                    step[3] -= f * gc3
             alpha = 1.0
             ok_feas = False
             for _b in range(25):
@@ -199,10 +222,10 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                     pred -= g[u] * su
                     for v in range(4):
                         pred -= 0.5 * su * A[u, v] * (trial[v] - d[v])
-                if scale * pred <= FTOL * cost:
-                    # The model promises less than the objective's rounding: we are at the optimum.
-                    converged = True
-                    break
+                if pred <= 0.0:
+                    lam *= nu
+                    nu *= 2.0
+                    continue
                 evals += 1
                 ok, rr_pt, rr_qt = _evaluate(trial, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2,
                                              X, G, BX, Ap_t, Aq_t, gp_t, gq_t, dummy1, dummy2)
@@ -217,6 +240,8 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                         for u in range(4):
                             moved = max(moved, abs(trial[u] - d[u]) / (abs(d[u]) + 1e-3))
                             d[u] = trial[u]
+                        if alpha < 1.0:
+                            moved = math.inf  # a cut-short step is no sign of convergence
                         cost = cost_t
                         rr_p = rr_pt
                         rr_q = rr_qt
