@@ -156,3 +156,19 @@ def test_batch_keeps_order_and_isolates_bad_windows(clean_cases):
     assert isinstance(out[0], IdentificationResult) and isinstance(out[2], IdentificationResult)
     assert isinstance(out[1], WindowError) and out[1].reason == "too_short"
     np.testing.assert_allclose(out[2].d, identify(windows[2]).d, rtol=1e-12)
+
+
+def test_every_random_start_reaches_the_global_optimum():
+    """The paper's §VI.C reliability test in small: LM from random feasible starts, one window per level."""
+    from aslm_core.identify import Problem, levenberg_marquardt
+    from aslm_core.preprocess import prepare
+
+    for level, seed in ((1, 31), (3, 32)):
+        c = make_cases(1, level=level, seed=seed, input_noise=False)[0]
+        problem = Problem(prepare(c.window), c.window.f0, IdentifyConfig())
+        rng = np.random.default_rng(seed)
+        runs = [levenberg_marquardt(problem, problem.random_start(rng)) for _ in range(25)]
+        best = min(runs, key=lambda r: r["cost"])
+        misses = [r for r in runs if np.abs(r["d"] / best["d"] - 1).sum() >= 0.1]
+        assert not misses, [(r["status"], r["iterations"], r["d"]) for r in misses]
+        assert all(r["status"] == "converged" for r in runs)
