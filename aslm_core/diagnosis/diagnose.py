@@ -5,8 +5,9 @@ Method (DESIGN §3)
 1. Split each window in time: the parameters are fitted on the first ``train_fraction`` (after the 1 s
    initial-state transient), every comparison is made on the rest (held out).
 2. Plain model: ZIP + IM identified on the training samples (or the user's model, frozen but for its
-   operating point).  Its residual, over the whole window, gives the noise floor per channel (from the
-   band above 5 Hz) and the location of any excess (bands, coherence, time segments).
+   operating point).  Its residual gives the noise floor per channel (from the band above 5 Hz); the
+   same model refitted on the whole window gives the location of any excess (bands, coherence, time
+   segments).
 3. Each candidate extends the plain model inside the hierarchical framework and is fitted on the training
    samples, starting from the plain fit.
 4. Held-out test: the score statistic of the plain model's held-out residual against the candidate's
@@ -26,7 +27,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -85,8 +86,9 @@ class DiagnosisReport:
         Channels, bands [Hz] and time segments [s] with residual above the noise floor; the floor,
         per-band spectrum ratios and coherences.
     missing_physics : list of dict
-        Ranked candidates: name, parameters (with ``stderr``), improvement (held-out variance reduction per
-        channel), penalised gain [nats], dm_z, significant.
+        Ranked candidates: name, parameters (with ``stderr``), improvement (held-out residual-variance
+        reduction per channel), excess_reduction (share of the held-out variance above the noise floor
+        removed, per channel), penalised gain [nats], score_z, dm_z, significant.
     fit_before, fit_after : dict
         Held-out FD (eq. 9) and residual RMS [pu] of P and Q, before (plain) and after (the named cause;
         equal to before when nothing is named).
@@ -157,7 +159,11 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
     floors = {"P": noise_floor(rp, seg.fs), "Q": noise_floor(rq, seg.fs)}
     sig = (max(floors["P"]["sigma"], 1e-12), max(floors["Q"]["sigma"], 1e-12))
     plain = engine.fit_candidate(_PLAIN, seg, ctx, sig)
-    rp, rq = (a[win] for a in plain.residuals(seg))
+    # Location uses the model identified from the whole window (the playback of DESIGN §3): a model fitted
+    # on the training part alone carries its extrapolation error into the held-out part.
+    full = replace(seg, ks=seg.ke)
+    whole = engine.fit_candidate(_PLAIN, full, ctx, sig, d_start=plain.d)
+    rp, rq = (a[win] for a in (whole if whole.ok else plain).residuals(seg))
     drivers = {"V": seg.V[win], "dVdt": seg.dvdt[win], "df": seg.dfreq[win]}
     located = locate(rp, rq, seg.t[win], seg.fs, drivers, floors)
     fits, comps = {}, {}
@@ -184,6 +190,11 @@ def _held_out_fit(seg: Segment, fit: engine.Fit) -> dict:
             "rms_p": float(np.sqrt(np.mean(rp * rp))), "rms_q": float(np.sqrt(np.mean(rq * rq)))}
 
 
+def _mean_or_none(xs: list) -> float | None:
+    xs = [x for x in xs if x is not None and math.isfinite(x)]
+    return float(np.mean(xs)) if xs else None
+
+
 def _mean_dicts(ds: list[dict]) -> dict:
     return {k: float(np.mean([d[k] for d in ds])) for k in ds[0]}
 
@@ -195,7 +206,9 @@ def _combine_params(analyses: list[_WindowAnalysis], name: str) -> tuple[dict, d
     for k in keys:
         v = np.array([a.fits[name].params.get(k, np.nan) for a in analyses])
         s = np.array([a.fits[name].stderr.get(k, np.inf) for a in analyses])
-        w = np.where(np.isfinite(s) & (s > 0), 1.0 / np.maximum(s, 1e-300) ** 2, 0.0)
+        ok = np.isfinite(s) & (s > 1e-150)
+        w = np.zeros_like(s)
+        w[ok] = 1.0 / s[ok] ** 2
         if w.sum() > 0:
             val[k] = float(np.sum(w * v) / w.sum())
             se[k] = float(1.0 / math.sqrt(w.sum()))
@@ -271,6 +284,7 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
             "units": {**dict(zip(cand.nl_names, cand.nl_units, strict=True)), **cand.lin_units},
             "improvement": {"p": float(np.mean([c.reduction_p for c in comps])),
                             "q": float(np.mean([c.reduction_q for c in comps]))},
+            "excess_reduction": {ch: _mean_or_none([getattr(c, f"excess_{ch}") for c in comps]) for ch in ("p", "q")},
             "penalised_gain": pg, "score_z": z, "dm_z": dmz, "n_params": cand.n_params, "significant": sig_,
             "signature": cand.signature, "tested": True,
         })

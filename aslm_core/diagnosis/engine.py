@@ -138,7 +138,7 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, sig: tuple[float,
             span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
             x0 = np.clip(x0, lo + 1e-6 * span, hi - 1e-6 * span)
             res = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale="jac", method="trf",
-                                         max_nfev=max_nfev or cand.max_nfev * max(1, x0.size), xtol=1e-8,
+                                         max_nfev=max_nfev or cand.max_nfev, xtol=1e-8,
                                          ftol=1e-9)
         nfev += int(res.nfev)
         if best is None or res.cost < best.cost:
@@ -251,6 +251,9 @@ class Comparison:
         gain − (k/2)·ln(n) (BIC-like penalty for the k added parameters) [nats].
     reduction_p, reduction_q : float
         Held-out residual-variance reduction 1 − SSR1/SSR0 per channel [-].
+    excess_p, excess_q : float or None
+        Share of the held-out residual variance *above the noise floor* removed, (SSR0 − SSR1)/(SSR0 − n·σ²)
+        per channel [-]; None when the channel has (almost) no excess to remove.
     n : int
         Held-out samples.
     """
@@ -262,6 +265,8 @@ class Comparison:
     reduction_p: float
     reduction_q: float
     n: int
+    excess_p: float | None = None
+    excess_q: float | None = None
 
 
 def compare(seg: Segment, plain: Fit, cand: Fit, k: int, sig: tuple[float, float], lag_s: float = 1.0) -> Comparison:
@@ -281,7 +286,11 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, sig: tuple[float, float
     score = num / den
     s0p, s0q, s1p, s1q = (float(r @ r) for r in (r0p, r0q, r1p, r1q))
     gain = 0.5 * n * (math.log(s0p / s1p) + math.log(s0q / s1q))
-    return Comparison(score, z, gain, gain - 0.5 * k * math.log(n), 1.0 - s1p / s0p, 1.0 - s1q / s0q, n)
+    ex = []
+    for s0, s1, sg in ((s0p, s1p, sig[0]), (s0q, s1q, sig[1])):
+        noise = n * sg * sg
+        ex.append((s0 - s1) / (s0 - noise) if s0 - noise > 0.05 * noise else None)
+    return Comparison(score, z, gain, gain - 0.5 * k * math.log(n), 1.0 - s1p / s0p, 1.0 - s1q / s0q, n, ex[0], ex[1])
 
 
 def dm_critical(alpha: float, m: int) -> float:

@@ -126,7 +126,7 @@ class Candidate:
     lin_q: tuple[str, ...] = ()
     lin_units: dict[str, str] = {}
     signature = ""
-    max_nfev = 60
+    max_nfev = 40  # upper-stage function evaluations per start (each iteration adds a Jacobian)
 
     @property
     def n_params(self) -> int:

@@ -29,7 +29,7 @@ class SecondMotor(Candidate):
     nl_names = ("a2", "b2", "H22", "Tm2")
     nl_units = ("1/s", "1/s", "s", "pu")
     signature = "single-motor residual coherent with V/dV/dt with a second dynamic (lag/resonance), P and Q"
-    max_nfev = 25
+    max_nfev = 20
 
     def starts(self, seg: Segment, ctx: Context) -> list[np.ndarray]:
         a, b, h, tm = ctx.d0

@@ -1,0 +1,224 @@
+"""Diagnosis benchmark: concealed effects on synthetic cases, three noise levels, confusion matrix.
+
+    .venv/bin/python benchmarks/diagnosis.py            # 12 cases per effect per level, 20 clean per level
+    .venv/bin/python benchmarks/diagnosis.py --quick    # ~2 min smoke run
+
+Each library effect (and two effects outside the library) is applied to synthetic ZIP + IM cases
+(``input_noise=False``: noise on P and Q at the level's SNR, paper eq. 10) by :mod:`aslm_core.diagnosis.effects`
+and concealed (plain-fit FD ≥ 0.9 on P and Q).  ``exponential_static`` is diagnosed against a user model
+(the true ZIP + IM with the old exponents) because it is not identifiable against a re-identified ZIP;
+clean cases are diagnosed both ways.  Results go to ``docs/results/diagnosis.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from collections import Counter, defaultdict
+from concurrent.futures import ProcessPoolExecutor
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from aslm_core.diagnosis.effects import LIBRARY_EFFECTS, OUTSIDE_EFFECTS  # noqa: E402
+
+RESULTS = ROOT / "docs" / "results" / "diagnosis.json"
+LEVELS = (1, 2, 3)
+# Where each effect acts (for the "variance reduced on the channels it acts on" check).
+CHANNELS = {"frequency_dependence": "PQ", "second_motor": "PQ", "speed_dependent_torque": "P",
+            "motor_stator_dynamics": "PQ", "measurement_skew": "PQ", "inverter_der": "Q", "exponential_static": "PQ"}
+MAIN_PARAM = {"frequency_dependence": ("Kpf", None), "second_motor": ("Tm2", None), "speed_dependent_torque": ("k", None),
+              "motor_stator_dynamics": ("inv_Xp", None), "measurement_skew": ("tau", None), "inverter_der": ("T", None),
+              "exponential_static": (None, "np")}
+
+
+@lru_cache(maxsize=64)
+def _base(level: int, i: int):
+    from aslm_core.synthetic import make_case
+
+    return make_case(10_000 * level + i, level=level, input_noise=False)
+
+
+def run_one(job: tuple[str, int, int]) -> dict:
+    """One diagnosis: (effect, level, case index) → record."""
+    from aslm_core.diagnosis import diagnose
+    from aslm_core.diagnosis.effects import apply_effect
+
+    effect, level, i = job
+    base = _base(level, i)
+    user = effect in ("exponential_static", "none_user")
+    ec = apply_effect(base, "none" if effect.startswith("none") else effect, seed=hash((effect, level, i)) % 2**31)
+    model = ec.model
+    if effect == "none_user":
+        model = {"dynamic": base.truth.dynamic, "static": base.truth.static_identifiable}
+    t0 = time.perf_counter()
+    rep = diagnose(ec.window, model)
+    elapsed = time.perf_counter() - t0
+    top = next((e for e in rep.missing_physics if e.get("tested", True)), None)
+    rec = {
+        "effect": effect, "level": level, "case": i, "snr_db": base.snr_db, "mode": "user" if user else "identified",
+        "verdict": rep.verdict, "cause": rep.cause, "top": top["name"] if top else None,
+        "top_significant": bool(top and top["significant"]), "fd_plain": ec.fd_plain, "conceal_scale": ec.scale,
+        "fit_before": rep.fit_before, "fit_after": rep.fit_after, "elapsed_s": elapsed,
+        "located": rep.located.get("channels", []), "truth": {k: float(v) for k, v in ec.truth.items()},
+    }
+    if rep.cause:
+        e = next(e for e in rep.missing_physics if e["name"] == rep.cause)
+        rec["improvement"] = e["improvement"]
+        rec["excess_reduction"] = e["excess_reduction"]
+        rec["parameters"] = {**e["parameters"], **e.get("derived", {})}
+        rec["stderr"] = e["stderr"]
+    return rec
+
+
+def _jobs(n_eff: int, n_clean: int, n_user: int) -> list[tuple[str, int, int]]:
+    jobs = []
+    for lvl in LEVELS:
+        for eff in (*LIBRARY_EFFECTS, *OUTSIDE_EFFECTS):
+            jobs += [(eff, lvl, i) for i in range(n_eff)]
+        jobs += [("none", lvl, i) for i in range(n_clean)]
+        jobs += [("none_user", lvl, i) for i in range(n_user)]
+    return jobs
+
+
+def summarise(recs: list[dict]) -> dict:
+    """Confusion matrix, accuracy per level, false-explained rate, improvements, timing."""
+    conf: dict[str, Counter] = defaultdict(Counter)
+    for r in recs:
+        pred = r["cause"] if r["verdict"] == "explained" else r["verdict"]
+        conf[r["effect"]][pred] += 1
+    acc = {}
+    for lvl in LEVELS:
+        lib = [r for r in recs if r["level"] == lvl and r["effect"] in LIBRARY_EFFECTS]
+        acc[lvl] = {
+            "named_correctly": float(np.mean([r["cause"] == r["effect"] for r in lib])) if lib else float("nan"),
+            "top_ranked": float(np.mean([r["top"] == r["effect"] for r in lib])) if lib else float("nan"),
+            "n": len(lib),
+            "per_effect": {e: float(np.mean([r["cause"] == e for r in lib if r["effect"] == e])) for e in LIBRARY_EFFECTS
+                           if any(r["effect"] == e for r in lib)},
+        }
+    clean = [r for r in recs if r["effect"] == "none"]
+    clean_user = [r for r in recs if r["effect"] == "none_user"]
+    wrong = [r for r in recs if r["verdict"] == "explained" and r["cause"] != r["effect"]]
+    outside = [r for r in recs if r["effect"] in OUTSIDE_EFFECTS]
+    imp = {}
+    for e in LIBRARY_EFFECTS:
+        ok = [r for r in recs if r["effect"] == e and r["cause"] == e]
+        if not ok:
+            continue
+        chans = CHANNELS[e]
+        red_ok = [all(r["improvement"][c.lower()] >= 0.5 for c in chans) for r in ok]
+        imp[e] = {
+            "n": len(ok),
+            "median_var_reduction_p": float(np.median([r["improvement"]["p"] for r in ok])),
+            "median_var_reduction_q": float(np.median([r["improvement"]["q"] for r in ok])),
+            "share_reduced_50pct_on_acting_channels": float(np.mean(red_ok)),
+            "median_excess_reduction": float(np.median([np.nanmean([np.nan if r["excess_reduction"][c.lower()] is None
+                                                                  else r["excess_reduction"][c.lower()] for c in chans])
+                                                       for r in ok])),
+            "median_fd_gain_p": float(np.median([r["fit_after"]["fd_p"] - r["fit_before"]["fd_p"] for r in ok])),
+            "median_fd_gain_q": float(np.median([r["fit_after"]["fd_q"] - r["fit_before"]["fd_q"] for r in ok])),
+            "share_fd_raised_on_acting_channels": float(np.mean(
+                [all(r["fit_after"][f"fd_{c.lower()}"] > r["fit_before"][f"fd_{c.lower()}"] for c in chans) for r in ok])),
+        }
+        key, dkey = MAIN_PARAM[e]
+        name = key or dkey
+        errs = [abs(r["parameters"].get(name, np.nan) / r["truth"][name] - 1.0) for r in ok if name in r["truth"]]
+        if errs:
+            imp[e][f"median_rel_error_{name}"] = float(np.nanmedian(errs))
+    times = np.array([r["elapsed_s"] for r in recs])
+    return {
+        "confusion": {k: dict(v) for k, v in conf.items()},
+        "accuracy": acc,
+        "clean_consistent": float(np.mean([r["verdict"] == "consistent" for r in clean])) if clean else float("nan"),
+        "clean_user_consistent": float(np.mean([r["verdict"] == "consistent" for r in clean_user])) if clean_user else float("nan"),
+        "false_explained_rate": len(wrong) / len(recs),
+        "false_explained_cases": [(r["effect"], r["level"], r["case"], r["cause"]) for r in wrong],
+        "outside_unexplained": float(np.mean([r["verdict"] == "unexplained" for r in outside])) if outside else float("nan"),
+        "outside_named": float(np.mean([r["verdict"] == "explained" for r in outside])) if outside else float("nan"),
+        "improvement_when_explained": imp,
+        "time_s": {"median": float(np.median(times)), "p95": float(np.percentile(times, 95)), "max": float(times.max())},
+        "n_cases": len(recs),
+        "concealed_share": float(np.mean([min(r["fd_plain"].values()) >= 0.9 for r in recs if r["fd_plain"]])),
+    }
+
+
+def markdown(s: dict) -> str:
+    cols = [*LIBRARY_EFFECTS, "consistent", "unexplained"]
+    short = {"frequency_dependence": "freq", "second_motor": "2nd mot", "speed_dependent_torque": "T(s)",
+             "motor_stator_dynamics": "stator", "measurement_skew": "skew", "inverter_der": "DER",
+             "exponential_static": "exp", "consistent": "consistent", "unexplained": "unexplained"}
+    lines = ["| true \\ verdict | " + " | ".join(short[c] for c in cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    for eff in (*LIBRARY_EFFECTS, *OUTSIDE_EFFECTS, "none", "none_user"):
+        row = s["confusion"].get(eff)
+        if row:
+            lines.append(f"| {eff} | " + " | ".join(str(row.get(c, 0)) for c in cols) + " |")
+    lines += ["", "| level | named correctly (explained, right cause) | top-ranked right | n |", "|---|---|---|---|"]
+    for lvl, a in s["accuracy"].items():
+        lines.append(f"| {lvl} | {100 * a['named_correctly']:.1f} % | {100 * a['top_ranked']:.1f} % | {a['n']} |")
+    lines += ["", "| effect | " + " | ".join(f"L{lvl}" for lvl in LEVELS) + " |", "|---" * (len(LEVELS) + 1) + "|"]
+    for e in LIBRARY_EFFECTS:
+        vals = [s["accuracy"][lvl]["per_effect"].get(e) for lvl in LEVELS]
+        lines.append(f"| {e} | " + " | ".join("-" if v is None else f"{100 * v:.0f} %" for v in vals) + " |")
+    lines += ["", f"- clean cases `consistent` (identified model): {100 * s['clean_consistent']:.1f} %",
+              f"- clean cases `consistent` (true model as user model): {100 * s['clean_user_consistent']:.1f} %",
+              f"- a cause named that is absent (`explained`, wrong name), all cases: {100 * s['false_explained_rate']:.1f} %",
+              f"- outside-library effects `unexplained`: {100 * s['outside_unexplained']:.1f} % (named: {100 * s['outside_named']:.1f} %)",
+              f"- time per diagnosis: median {s['time_s']['median']:.2f} s, p95 {s['time_s']['p95']:.2f} s, max {s['time_s']['max']:.2f} s",
+              f"- concealed (plain FD ≥ 0.9 on P and Q): {100 * s['concealed_share']:.1f} % of cases; {s['n_cases']} cases", "",
+              "| effect (when named) | n | median ΔVar P | median ΔVar Q | ≥50 % on acting channels | median excess removed | median ΔFD P | median ΔFD Q | FD raised | parameter error |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for e, v in s["improvement_when_explained"].items():
+        perr = next(((k.replace("median_rel_error_", ""), x) for k, x in v.items() if k.startswith("median_rel_error_")), None)
+        lines.append(f"| {e} | {v['n']} | {100 * v['median_var_reduction_p']:.0f} % | {100 * v['median_var_reduction_q']:.0f} % | "
+                     f"{100 * v['share_reduced_50pct_on_acting_channels']:.0f} % | {100 * v['median_excess_reduction']:.0f} % | "
+                     f"{v['median_fd_gain_p']:+.4f} | "
+                     f"{v['median_fd_gain_q']:+.4f} | {100 * v['share_fd_raised_on_acting_channels']:.0f} % | "
+                     + (f"{perr[0]}: {100 * perr[1]:.1f} %" if perr else "-") + " |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="1 case per effect per level, 2 clean per level")
+    p.add_argument("--per-level", type=int, default=12, help="cases per effect per level")
+    p.add_argument("--clean", type=int, default=20, help="clean cases per level")
+    p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    p.add_argument("--no-write", action="store_true")
+    args = p.parse_args(argv)
+    n_eff, n_clean, n_user = (1, 2, 1) if args.quick else (args.per_level, args.clean, max(4, args.clean // 3))
+    jobs = _jobs(n_eff, n_clean, n_user)
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=args.workers, initializer=_init) as pool:
+        recs = list(pool.map(run_one, jobs, chunksize=1))
+    wall = time.perf_counter() - t0
+    s = summarise(recs)
+    s["wall_s"] = wall
+    s["command"] = "benchmarks/diagnosis.py" + (" --quick" if args.quick else "")
+    s["machine"] = {"cpus": os.cpu_count(), "python": platform.python_version(), "workers": args.workers}
+    print(markdown(s))
+    print(f"\nwall {wall:.0f} s for {len(recs)} diagnoses ({args.workers} workers)")
+    if not args.no_write:
+        RESULTS.parent.mkdir(parents=True, exist_ok=True)
+        RESULTS.with_name("diagnosis_quick.json" if args.quick else "diagnosis.json").write_text(
+            json.dumps({"summary": s, "records": recs}, indent=1, default=float))
+    return 0
+
+
+def _init() -> None:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    from aslm_core import warmup
+
+    warmup()
+
+
+if __name__ == "__main__":
+    sys.exit(main())
