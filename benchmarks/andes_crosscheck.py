@@ -52,7 +52,11 @@ MOTOR = {"Sn": 25.0, "Vn": 138.0, "fn": 60.0, "xs": 0.1, "xr1": 0.1, "xm": 3.0, 
 SCENARIOS = {
     "model": {"rs": 1e-5, "c1": 0.2, "c2": 0.0, "c3": 0.0},
     "andes_default": {"rs": 0.01, "c1": 0.1, "c2": 0.02, "c3": 0.02},
+    # The two departures of andes_default one at a time (not in the default run).
+    "rs_only": {"rs": 0.01, "c1": 0.14, "c2": 0.0, "c3": 0.0},
+    "torque_only": {"rs": 1e-5, "c1": 0.1, "c2": 0.02, "c3": 0.02},
 }
+MAIN_SCENARIOS = ("model", "andes_default")
 F0 = 60.0
 FS = 100.0
 NAMES = ("a", "b", "H2", "Tm")
@@ -264,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
     args.tf = args.tf or (12.5 if args.quick else 16.0)
     args.tstep = args.tstep or (0.01 if args.quick else 0.005)
     windows = [(args.tf - 10.0, args.tf)] if args.quick else [(2.0, 12.0), (args.tf - 10.0, args.tf)]
-    scen = list(SCENARIOS) if args.scenario == "all" else [args.scenario]
+    scen = list(MAIN_SCENARIOS) if args.scenario == "all" else [args.scenario]
     config = IdentifyConfig()
     results = [run_scenario(s, tf=args.tf, tstep=args.tstep, amp=args.amp, seed=args.seed, windows=windows,
                             meas_snr_db=args.meas_snr_db, config=config) for s in scen]
