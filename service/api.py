@@ -105,14 +105,18 @@ def create_app(service: Service) -> FastAPI:
         return out
 
     @app.get("/buses/{bus}/parameters/latest", response_model=BusResult)
-    def latest(bus: str, ok: Annotated[bool, Query(description="latest successful result only")] = False
-               ) -> BusResult:
+    async def latest(bus: str, ok: Annotated[bool, Query(description="latest successful result only")] = False
+                     ) -> Response:
+        # Async and pre-serialised: answered on the event loop without a thread hop or re-validation,
+        # so it stays fast while a period is being computed.
+        js = service.latest_json.get(bus)
         res = service.latest.get(bus)
         if ok and (res is None or res.status != "ok"):
-            res = service.storage.latest(bus, ok_only=True)
-        if res is None:
+            older = service.storage.latest(bus, ok_only=True)
+            js = older.model_dump_json() if older is not None else None
+        if js is None:
             raise HTTPException(404, f"no result for bus {bus!r} yet")
-        return res
+        return Response(js, media_type="application/json")
 
     @app.get("/buses/{bus}/parameters", response_model=list[BusResult])
     def history(bus: str,

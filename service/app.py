@@ -56,6 +56,8 @@ class Service:
         self.metrics = ServiceMetrics(self.store)
         self.metrics.period_s.set(self.period_s)
         self.latest: dict[str, BusResult] = self.storage.latest_all()
+        # JSON of each bus's latest result, serialised once: REST "latest" and Zenoh share it.
+        self.latest_json: dict[str, str] = {b: r.model_dump_json() for b, r in self.latest.items()}
         self.warm_starts: dict[str, list[float]] = {
             bus: [r.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
             for bus, r in self.storage.latest_all(ok_only=True).items() if r.parameters is not None
@@ -157,12 +159,14 @@ class Service:
     def _on_results(self, batch: list[BusResult]) -> None:
         # Persist first (history survives a crash), then publish; a failing publication is logged only.
         self.storage.save_results(batch)
-        for res in batch:
+        payloads = [res.model_dump_json() for res in batch]
+        for res, js in zip(batch, payloads, strict=True):
             self.latest[res.bus] = res
+            self.latest_json[res.bus] = js
         self.metrics.results(batch)
-        for res in batch:
+        for res, js in zip(batch, payloads, strict=True):
             try:
-                self.publisher.publish(res)
+                self.publisher.publish(res, js)
             except Exception:  # noqa: BLE001 - one bus's publication never stops the others
                 self.metrics.request_errors.labels("publish").inc()
                 log.exception("publishing %s failed", res.bus)

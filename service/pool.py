@@ -19,6 +19,7 @@ from concurrent.futures import Future
 from multiprocessing.connection import Connection, wait
 from typing import Protocol
 
+from service import _worker_boot
 from service.worker import TaskOutcome, WindowTask, resolve, run_task
 
 log = logging.getLogger(__name__)
@@ -32,8 +33,8 @@ class Executor(Protocol):
     def close(self) -> None: ...
 
 
-def _worker_main(conn: Connection, fn_path: str) -> None:
-    """Body of a worker process: receive tasks until None or EOF."""
+def worker_loop(conn: Connection, fn_path: str) -> None:
+    """Body of a worker process (started by :func:`service._worker_boot.main`): tasks until None or EOF."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     try:
         resolve(fn_path)  # import numerics once, before the first task
@@ -151,7 +152,8 @@ class LocalPool:
 
     def _spawn(self) -> _Worker:
         parent, child = self._ctx.Pipe()
-        proc = self._ctx.Process(target=_worker_main, args=(child, self.fn_path), name="aslm-worker", daemon=True)
+        proc = self._ctx.Process(target=_worker_boot.main, args=(child, self.fn_path), name="aslm-worker",
+                                 daemon=True)
         proc.start()
         child.close()
         return _Worker(proc, parent)

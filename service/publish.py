@@ -35,15 +35,18 @@ class ResultPublisher:
         self.queryable = session.declare_queryable(f"{prefix}/params/**", self._on_query)
         self.token = session.liveliness().declare_token(f"{prefix}/service/{instance}")
 
-    def publish(self, result: BusResult) -> None:
-        """Put one result (JSON, reliable, blocking congestion control: never dropped)."""
+    def publish(self, result: BusResult, payload: str | None = None) -> None:
+        """Put one result (JSON, reliable, blocking congestion control: never dropped).
+
+        ``payload`` is the result's JSON if the caller has it already.
+        """
         pub = self._publishers.get(result.bus)
         if pub is None:
             pub = self._publishers[result.bus] = self.session.declare_publisher(
                 f"{self.prefix}/params/{result.bus}", encoding=zenoh.Encoding.APPLICATION_JSON,
                 congestion_control=zenoh.CongestionControl.BLOCK, reliability=zenoh.Reliability.RELIABLE,
             )
-        pub.put(result.model_dump_json())
+        pub.put(payload if payload is not None else result.model_dump_json())
         self.published += 1
 
     def _on_query(self, query: zenoh.Query) -> None:
