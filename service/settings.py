@@ -64,7 +64,10 @@ class ServiceSettings(BaseSettings):
     # --- zenoh ---------------------------------------------------------------------------------
     zenoh_mode: Literal["peer", "client", "router"] = Field("peer", description="Zenoh session mode")
     zenoh_connect: list[str] = Field(default_factory=list, description="Zenoh endpoints to connect to")
-    zenoh_listen: list[str] = Field(default_factory=list, description="Zenoh endpoints to listen on")
+    zenoh_listen: list[str] = Field(
+        default_factory=lambda: ["tcp/127.0.0.1:7447"],
+        description="Zenoh endpoints to listen on (default loopback only; [] in client mode)",
+    )
     zenoh_multicast_scouting: bool = Field(False, description="Zenoh multicast scouting (off: explicit endpoints)")
     zenoh_config_file: Path | None = Field(
         None, description="Zenoh JSON5 config (TLS certificates, ...); the fields above override it",
