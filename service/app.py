@@ -174,3 +174,4 @@ class Service:
     def _on_period(self, summary: PeriodSummary) -> None:
         self.storage.save_period(summary)
         self.metrics.period(summary)
+        self.storage.purge(summary.period - 86400.0 * self.settings.retention_days)

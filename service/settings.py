@@ -61,6 +61,7 @@ class ServiceSettings(BaseSettings):
     )
     # --- storage -------------------------------------------------------------------------------
     storage_url: str = Field("aslm.sqlite", description="SQLite file path or sqlite:///path URL")
+    retention_days: float = Field(90.0, description="Results and periods older than this are deleted [days]")
     # --- zenoh ---------------------------------------------------------------------------------
     zenoh_mode: Literal["peer", "client", "router"] = Field("peer", description="Zenoh session mode")
     zenoh_connect: list[str] = Field(default_factory=list, description="Zenoh endpoints to connect to")
@@ -99,7 +100,7 @@ class ServiceSettings(BaseSettings):
         return tuple(sources)
 
     # --- validation ------------------------------------------------------------------------------
-    @field_validator("period_s", "window_s", "frame_rate", "task_timeout_s", "f0", "max_gap_s")
+    @field_validator("period_s", "window_s", "frame_rate", "task_timeout_s", "f0", "max_gap_s", "retention_days")
     @classmethod
     def _positive(cls, v: float, info) -> float:
         if not v > 0:

@@ -25,6 +25,7 @@ CREATE TABLE IF NOT EXISTS results (
     body TEXT NOT NULL
 );
 CREATE INDEX IF NOT EXISTS results_bus_period ON results (bus, period);
+CREATE INDEX IF NOT EXISTS results_period ON results (period);
 CREATE TABLE IF NOT EXISTS periods (
     period REAL PRIMARY KEY,
     body TEXT NOT NULL
@@ -117,6 +118,15 @@ class Storage:
         with self._lock:
             rows = self._db.execute("SELECT body FROM periods ORDER BY period DESC LIMIT ?", (limit,)).fetchall()
         return [PeriodSummary.model_validate_json(r[0]) for r in rows]
+
+    def purge(self, before: float) -> int:
+        """Delete results and periods with ``period < before`` [s]; returns the results deleted."""
+        with self._lock:
+            self._db.execute("BEGIN")
+            n = self._db.execute("DELETE FROM results WHERE period < ?", (before,)).rowcount
+            self._db.execute("DELETE FROM periods WHERE period < ?", (before,))
+            self._db.execute("COMMIT")
+        return n
 
     # --- configuration -------------------------------------------------------------------------------
     def set_config(self, values: dict[str, Any]) -> None:

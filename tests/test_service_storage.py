@@ -37,3 +37,14 @@ def test_history_survives_reopen(tmp_path):
     assert st.periods()[0].n_failed == 1
     assert st.latest("nope") is None
     st.close()
+
+
+def test_purge_removes_only_old_results(tmp_path):
+    st = Storage(tmp_path / "aslm.sqlite")
+    st.save_results([result("b1", 60.0), result("b1", 120.0), result("b2", 60.0)])
+    st.save_period(PeriodSummary(period=60, period_s=60, n_ok=2, n_failed=0, n_skipped=0, latency_s=0.1,
+                                 completed_at=61))
+    assert st.purge(before=100.0) == 2
+    assert [r.period for r in st.history("b1")] == [120.0]
+    assert st.history("b2") == [] and st.periods() == []
+    st.close()
