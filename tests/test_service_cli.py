@@ -29,8 +29,8 @@ def test_serve_refuses_invalid_settings_with_clear_message():
 
 def test_demo_runs_one_period_and_exits():
     pytest.importorskip("aslm_core.synthetic")
-    r = aslm("demo", "--periods", "1", "--period", "12", "--buses", "4", "--port", "0", "--duration", "100",
-             timeout=150)
+    r = aslm("demo", "--periods", "1", "--period", "12", "--buses", "4", "--port", "0", "--duration", "200",
+             timeout=260)
     assert r.returncode == 0, r.stderr
     assert "REST: http://127.0.0.1:" in r.stdout
     assert "ok=4 failed=0" in r.stdout

@@ -35,7 +35,7 @@ def test_fleet_to_parameters_over_rest_and_zenoh(tmp_path):
         pub = FramePublisher(sess, "aslm")
         rep = FleetReplayer(pub, fleet, batch_s=0.2).start()
         try:
-            done = wait_for(lambda: [p for p in periods(svc.url) if p["n_ok"] == N_BUSES], 90, 0.5)[0]
+            done = wait_for(lambda: [p for p in periods(svc.url) if p["n_ok"] == N_BUSES], 150, 0.5)[0]
         finally:
             rep.stop()
         assert rep.error is None

@@ -131,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
               "of data. Ctrl-C to stop.", flush=True)
         seen: set[float] = set()
         with_results = 0
+        status = 0
         while not stop.wait(0.5):
             if rep.error is not None:
                 print(f"aslm demo: replayer failed: {rep.error}", file=sys.stderr)
@@ -152,6 +153,10 @@ def run(args: argparse.Namespace) -> int:
             if args.periods is not None and with_results >= args.periods:
                 break
             if args.duration is not None and time.time() - started >= args.duration:
+                if args.periods is not None and with_results < args.periods:
+                    print(f"aslm demo: only {with_results} of {args.periods} periods with results within "
+                          f"--duration {args.duration:g} s", file=sys.stderr)
+                    status = 1
                 break
     finally:
         if rep is not None:
@@ -162,4 +167,4 @@ def run(args: argparse.Namespace) -> int:
         if tmp is not None:
             tmp.cleanup()
     print("aslm demo: stopped", flush=True)
-    return 0
+    return status
