@@ -108,6 +108,10 @@ class LocalPool:
         """pid → bus of the workers currently running a task."""
         return {w.process.pid: w.bus for w in list(self._workers) if w.future is not None}
 
+    def pids(self) -> list[int]:
+        """Process ids of the current workers."""
+        return [w.process.pid for w in list(self._workers)]
+
     def wait_ready(self, timeout: float = 60.0) -> bool:
         """Block until every worker has imported its function (startup), False on timeout."""
         end = time.monotonic() + timeout

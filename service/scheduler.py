@@ -181,11 +181,15 @@ class Scheduler:
             for fut in finished:
                 bus, cut, warm = pending.pop(fut)
                 outcome: TaskOutcome = fut.result()
-                if outcome.ok:
-                    res = self._record(bus, boundary, period_s, "ok", None, cut, warm, outcome)
-                    self.warm_starts[bus] = [res.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
-                else:
-                    res = self._record(bus, boundary, period_s, "failed", outcome.reason, cut, warm, outcome)
+                try:
+                    if outcome.ok:
+                        res = self._record(bus, boundary, period_s, "ok", None, cut, warm, outcome)
+                        self.warm_starts[bus] = [res.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
+                    else:
+                        res = self._record(bus, boundary, period_s, "failed", outcome.reason, cut, warm, outcome)
+                except Exception as exc:  # noqa: BLE001 - e.g. a non-finite D: fails this bus only
+                    log.warning("bus %s: unusable result: %s", bus, exc)
+                    res = self._record(bus, boundary, period_s, "failed", "bad_result", cut, warm)
                 batch.append(res)
             # Report in groups (one SQLite transaction each) rather than one by one.
             if batch and (not pending or len(batch) >= 64 or time.monotonic() - last_emit > 0.25):

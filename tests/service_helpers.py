@@ -119,3 +119,11 @@ class NoiseStreamer:
         self._stop.set()
         self._thread.join(5)
         self.pub.close()
+
+
+def nan_for_b02_identify(task) -> dict:
+    """Returns a non-finite D for bus b02 (an identifier bug), normal results for the others."""
+    out = fake_identify(task)
+    if task.bus == "b02":
+        out["dynamic"]["a"] = float("nan")
+    return out

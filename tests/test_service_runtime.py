@@ -120,3 +120,11 @@ def test_bad_input_on_the_wire_is_counted_and_others_unaffected(running):
     assert r.status_code == 404 and "diagnosis" in r.json()["detail"]
     assert httpx.get(f"{svc.url}/buses/nope/parameters/latest").status_code == 404
     assert httpx.get(f"{svc.url}/health").json()["status"] == "ok"
+
+
+def test_unusable_result_fails_that_bus_only(running):
+    svc, _, _ = running(period_s=3.0, identify_fn="service_helpers:nan_for_b02_identify")
+    p = wait_for(lambda: [p for p in periods(svc.url) if p["n_ok"] + p["n_failed"] == 3], 30)[0]
+    assert (p["n_ok"], p["n_failed"]) == (2, 1)
+    b02 = httpx.get(f"{svc.url}/buses/b02/parameters/latest").json()
+    assert (b02["status"], b02["reason"]) == ("failed", "bad_result")
