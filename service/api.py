@@ -104,7 +104,7 @@ def create_app(service: Service) -> FastAPI:
             ))
         return out
 
-    @app.get("/buses/{bus}/parameters/latest", response_model=BusResult)
+    @app.get("/buses/{bus:path}/parameters/latest", response_model=BusResult)
     async def latest(bus: str, ok: Annotated[bool, Query(description="latest successful result only")] = False
                      ) -> Response:
         # Async and pre-serialised: answered on the event loop without a thread hop or re-validation,
@@ -118,14 +118,14 @@ def create_app(service: Service) -> FastAPI:
             raise HTTPException(404, f"no result for bus {bus!r} yet")
         return Response(js, media_type="application/json")
 
-    @app.get("/buses/{bus}/parameters", response_model=list[BusResult])
+    @app.get("/buses/{bus:path}/parameters", response_model=list[BusResult])
     def history(bus: str,
                 since: Annotated[float | None, Query(description="earliest period, UTC [s]")] = None,
                 until: Annotated[float | None, Query(description="latest period, UTC [s]")] = None,
                 limit: Annotated[int, Query(ge=1, le=10000)] = 100) -> list[BusResult]:
         return service.storage.history(bus, since, until, limit)
 
-    @app.get("/buses/{bus}/diagnosis/latest")
+    @app.get("/buses/{bus:path}/diagnosis/latest")
     def diagnosis(bus: str) -> None:
         raise HTTPException(404, f"no diagnosis for bus {bus!r}: the service does not run discrepancy "
                                  "diagnosis yet (use `aslm diagnose FILE` offline)")

@@ -83,7 +83,8 @@ class Service:
 
         self.session = zenoh.open(from_settings(s))
         self.publisher = ResultPublisher(self.session, s.prefix, s.instance, lambda: self.latest.copy())
-        self.ingest = Ingest(self.session, s.prefix, self.store, max_future_s=s.max_future_s, f0=s.f0)
+        self.ingest = Ingest(self.session, s.prefix, self.store, max_future_s=s.max_future_s, f0=s.f0,
+                             keys=s.pmu_keys)
         rules = QualityRules(s.window_s, s.frame_rate, s.min_coverage, s.max_gap_s, s.min_v_std)
         self.scheduler = Scheduler(
             self.store, self.executor, rules, late_s=s.late_s, f0=s.f0, period_s=lambda: self.period_s,

@@ -55,18 +55,22 @@ class Ingest:
     prefix : str
         Key-expression prefix.
     store : BufferStore
+    keys : str
+        Key expression below ``{prefix}/pmu/`` to subscribe to (default ``**``: all buses).
     max_future_s, f0 : float
         Passed to :func:`handle_message`.
     """
 
     def __init__(self, session: zenoh.Session, prefix: str, store: BufferStore, *, max_future_s: float,
-                 f0: float) -> None:
+                 f0: float, keys: str = "**") -> None:
         self.store = store
         self._skip = len(prefix) + len("/pmu/")
         self._max_future_s = max_future_s
         self._f0 = f0
         self.internal_errors = 0
-        self.subscriber = session.declare_subscriber(f"{prefix}/pmu/**", self._on_sample)
+        # keys narrows the subscription (sharding buses between instances); the bus name stays the full
+        # remainder after {prefix}/pmu/.
+        self.subscriber = session.declare_subscriber(f"{prefix}/pmu/{keys}", self._on_sample)
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         try:

@@ -40,6 +40,9 @@ class ServiceSettings(BaseSettings):
 
     # --- topics and timing -------------------------------------------------------------------
     prefix: str = Field("aslm", description="Zenoh key-expression prefix (aslm/pmu/**, aslm/params/**, ...)")
+    pmu_keys: str = Field(
+        "**", description="Key expression below {prefix}/pmu/ this instance ingests (shards buses, e.g. 'north/**')",
+    )
     period_s: float = Field(900.0, description="Identification period T [s], aligned to the wall clock")
     window_s: float = Field(10.0, description="Identification window length [s]")
     frame_rate: float = Field(50.0, description="Nominal PMU frame rate [frames/s]")
@@ -140,6 +143,13 @@ class ServiceSettings(BaseSettings):
     def _prefix(cls, v: str) -> str:
         if not _KEY_CHUNK.match(v):
             raise ValueError(f"prefix must be a plain key expression without wildcards (got {v!r})")
+        return v
+
+    @field_validator("pmu_keys")
+    @classmethod
+    def _pmu_keys(cls, v: str) -> str:
+        if not v or v.startswith("/") or v.endswith("/") or " " in v:
+            raise ValueError(f"pmu_keys must be a relative key expression like '**' or 'north/**' (got {v!r})")
         return v
 
     @field_validator("http_port")

@@ -25,9 +25,10 @@ def running(tmp_path):
 
     def start(**overrides):
         zport = free_port()
+        buses = overrides.pop("buses", BUSES)
         svc = Service(settings_for(tmp_path, zport, **{**FAST, **overrides})).start()
         sess = client_session(zport)
-        stream = NoiseStreamer(sess, overrides.get("buses", BUSES)).start()
+        stream = NoiseStreamer(sess, buses).start()
         made.append((svc, sess, stream))
         return svc, sess, stream
 
@@ -128,3 +129,11 @@ def test_unusable_result_fails_that_bus_only(running):
     assert (p["n_ok"], p["n_failed"]) == (2, 1)
     b02 = httpx.get(f"{svc.url}/buses/b02/parameters/latest").json()
     assert (b02["status"], b02["reason"]) == ("failed", "bad_result")
+
+
+def test_instance_ingests_only_its_shard(running):
+    svc, _, _ = running(period_s=3.0, pmu_keys="north/**", buses=["north/b1", "north/b2", "south/b3"])
+    p = wait_for(lambda: [p for p in periods(svc.url) if p["n_ok"] == 2], 30)[0]
+    assert p["n_ok"] + p["n_failed"] + p["n_skipped"] == 2
+    assert [b["bus"] for b in httpx.get(f"{svc.url}/buses").json()] == ["north/b1", "north/b2"]
+    assert httpx.get(f"{svc.url}/buses/north/b1/parameters/latest").json()["status"] == "ok"
