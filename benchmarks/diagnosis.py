@@ -18,6 +18,7 @@ import os
 import platform
 import sys
 import time
+import zlib
 from collections import Counter, defaultdict
 from concurrent.futures import ProcessPoolExecutor
 from functools import lru_cache
@@ -55,7 +56,8 @@ def run_one(job: tuple[str, int, int]) -> dict:
     effect, level, i = job
     base = _base(level, i)
     user = effect in ("exponential_static", "none_user")
-    ec = apply_effect(base, "none" if effect.startswith("none") else effect, seed=hash((effect, level, i)) % 2**31)
+    seed = zlib.crc32(f"{effect}/{level}/{i}".encode())  # deterministic (str hash() is salted per process)
+    ec = apply_effect(base, "none" if effect.startswith("none") else effect, seed=seed)
     model = ec.model
     if effect == "none_user":
         model = {"dynamic": base.truth.dynamic, "static": base.truth.static_identifiable}
@@ -121,7 +123,7 @@ def summarise(recs: list[dict]) -> dict:
             "median_var_reduction_p": float(np.median([r["improvement"]["p"] for r in ok])),
             "median_var_reduction_q": float(np.median([r["improvement"]["q"] for r in ok])),
             "share_reduced_50pct_on_acting_channels": float(np.mean(red_ok)),
-            "median_excess_reduction": float(np.median([np.nanmean([np.nan if r["excess_reduction"][c.lower()] is None
+            "median_excess_reduction": float(np.nanmedian([np.nanmean([np.nan if r["excess_reduction"][c.lower()] is None
                                                                   else r["excess_reduction"][c.lower()] for c in chans])
                                                        for r in ok])),
             "median_fd_gain_p": float(np.median([r["fit_after"]["fd_p"] - r["fit_before"]["fd_p"] for r in ok])),

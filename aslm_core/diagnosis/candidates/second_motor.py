@@ -6,8 +6,9 @@ Two transformed third-order motors (eq. 4–5) driven by the same voltage, each 
 
     P = P_ZIP(V) + P_im(D) + P_im(D2),    Q = Q_ZIP(V) + Q_im(D) + Q_im(D2)
 
-(the second motor's V²/X'2 joins the static Qz like the first one's).  D2 has the units and box of D:
-a2 [1/s], b2 [1/s], H22 [s], Tm2 [pu], with a2·V² > 2·b2·Tm2.  Four nonlinear parameters, fitted in the
+(the second motor's V²/X'2 joins the static Qz like the first one's).  D2 has the units of D: a2 [1/s],
+b2 [1/s], H22 [s], Tm2 [pu], with a2·V² > 2·b2·Tm2; its box is the paper's with a2 ≥ 1 and H22 ≥ 0.05
+(a smaller group has proportionally smaller a and H2 on the system base).  Four nonlinear parameters, fitted in the
 upper stage together with D from a few starts that split the load torque between a faster and a slower
 group.
 
@@ -23,6 +24,9 @@ from aslm_core.diagnosis.candidates.base import Candidate, Context, simulate_mot
 from aslm_core.diagnosis.segment import Segment
 from aslm_core.params import dynamic_bounds
 
+A2_MIN = 1.0  # [1/s]
+H22_MIN = 0.05  # [s]
+
 
 class SecondMotor(Candidate):
     name = "second_motor"
@@ -32,17 +36,24 @@ class SecondMotor(Candidate):
     max_nfev = 20
 
     def starts(self, seg: Segment, ctx: Context) -> list[np.ndarray]:
+        # A smaller group is a scaled copy: on the system base a, H2 and Tm scale with the rating, b does
+        # not.  Start from a third of the first motor, once faster and once slower.
         a, b, h, tm = ctx.d0
-        lo, hi = dynamic_bounds(float(np.mean(seg.P)))
+        lo, hi = self.bounds(seg, ctx)
+        r = 0.35
         out = []
-        for fb, fh in ((2.5, 0.4), (0.4, 2.5)):
-            z = np.array([a, np.clip(b * fb, lo[1], hi[1]), np.clip(h * fh, lo[2], hi[2]), 0.3 * max(tm, 1e-3)])
+        for fb, fh in ((2.0, 0.5), (0.5, 2.0)):
+            z = np.clip(np.array([a * r, b * fb, h * r * fh, tm * r]), lo + 1e-6, hi - 1e-6)
             z[3] = min(z[3], 0.45 * z[0] * float(np.min(seg.V)) ** 2 / z[1])
             out.append(z)
         return out
 
     def bounds(self, seg: Segment, ctx: Context):
+        # D2 is a *part* of the load: a and H2 on the system base scale with its rating, so the paper's
+        # box (for the aggregate motor) is opened downwards for a2 and H22.
         lo, hi = dynamic_bounds(float(np.mean(seg.P)))
+        lo = lo.copy()
+        lo[0], lo[2] = A2_MIN, H22_MIN
         return lo, np.maximum(hi, lo + 1e-6)
 
     def motor_power(self, seg: Segment, d: np.ndarray, z: np.ndarray):
