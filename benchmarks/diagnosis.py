@@ -154,6 +154,7 @@ def summarise(recs: list[dict]) -> dict:
 
 
 def markdown(s: dict) -> str:
+    s = {**s, "accuracy": {int(k): v for k, v in s["accuracy"].items()}}  # JSON turns the level keys into str
     cols = [*LIBRARY_EFFECTS, "consistent", "unexplained"]
     short = {"frequency_dependence": "freq", "second_motor": "2nd mot", "speed_dependent_torque": "T(s)",
              "motor_stator_dynamics": "stator", "measurement_skew": "skew", "inverter_der": "DER",
