@@ -108,6 +108,18 @@ def test_bad_input_on_the_wire_is_counted_and_others_unaffected(running):
              encoding=zenoh.Encoding.APPLICATION_JSON)
     sess.put(key + "b01", json.dumps({"t": [1.0], "V": [float("nan")], "theta": [0], "P": [1], "Q": [0]}).replace(
         "NaN", "null"), encoding=zenoh.Encoding.APPLICATION_JSON)
+    import time as _time
+
+    now = _time.time()
+    fresh = {"t": [now - 1.0 + k / 50 for k in range(10)], "V": [1.0] * 10, "theta": [0.0] * 10,
+             "P": [0.5] * 10, "Q": [0.1] * 10}
+    old = {**fresh, "t": [x - 30.0 for x in fresh["t"]]}
+    swapped = {**fresh, "t": [x + 0.5 for x in fresh["t"]][::-1]}  # newer, reversed: reordered, kept
+    for obj in (fresh, fresh, old, swapped):  # 2nd: duplicates; 3rd: late (30 s > late_s)
+        sess.put(key + "dup", json.dumps(obj), encoding=zenoh.Encoding.APPLICATION_JSON)
+    dup = wait_for(lambda: [b for b in httpx.get(f"{svc.url}/buses").json()
+                            if b["bus"] == "dup" and b["frames_buffered"] == 20], 10)[0]
+    assert dup["frames_dropped"] == {"duplicate": 10, "late": 10}
     info = wait_for(lambda: {b["bus"]: b for b in httpx.get(f"{svc.url}/buses").json()
                              if b["bus"] == "junk" and sum(b["messages_dropped"].values()) == 4}, 10)
     assert info["junk"]["messages_dropped"] == {"malformed_json": 1, "bad_header": 1, "unknown_encoding": 1,
