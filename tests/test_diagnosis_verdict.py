@@ -55,3 +55,15 @@ def test_several_windows_accumulate_evidence(cases):
     e = next(e for e in rep.missing_physics if e["name"] == "frequency_dependence")
     assert e["score_z"] > max(single)
     assert rep.held_out["windows"] == 3
+
+
+def test_service_entry_point_with_a_previous_identification(cases):
+    """What the service calls: the worker's identification of the same window as a warm start."""
+    from aslm_core import identify
+
+    ec = apply_effect(cases[2], "measurement_skew", 0.03, seed=3)
+    prev = identify(ec.window)
+    d = diagnose_dict(ec.window, previous=prev)
+    assert d["verdict"] == "explained" and d["cause"] == "measurement_skew"
+    d2 = diagnose_dict(ec.window, previous=prev.to_dict())
+    assert d2["cause"] == "measurement_skew"
