@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import threading
 import time
@@ -18,6 +19,7 @@ from service.publish import ResultPublisher
 from service.scheduler import QualityRules, Scheduler
 from service.settings import ServiceSettings, check_period
 from service.storage import Storage
+from service.worker import TaskOutcome
 from service.zenoh_config import from_settings
 
 log = logging.getLogger(__name__)
@@ -58,6 +60,7 @@ class Service:
         self.latest: dict[str, BusResult] = self.storage.latest_all()
         # JSON of each bus's latest result, serialised once: REST "latest" and Zenoh share it.
         self.latest_json: dict[str, str] = {b: r.model_dump_json() for b, r in self.latest.items()}
+        self.latest_diagnosis_json: dict[str, str] = self.storage.latest_diagnoses()
         self.warm_starts: dict[str, list[float]] = {
             bus: [r.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
             for bus, r in self.storage.latest_all(ok_only=True).items() if r.parameters is not None
@@ -89,7 +92,8 @@ class Service:
         self.scheduler = Scheduler(
             self.store, self.executor, rules, late_s=s.late_s, f0=s.f0, period_s=lambda: self.period_s,
             on_results=self._on_results, on_period=self._on_period, warm_starts=self.warm_starts,
-            options={"n_starts": s.n_starts},
+            options={"n_starts": s.n_starts, "lowpass_hz": s.lowpass_hz},
+            diagnose_every=s.diagnose_every, on_diagnosis=self._on_diagnosis,
         )
         self.scheduler.start()
         if self.rest:
@@ -159,8 +163,8 @@ class Service:
     # --- results --------------------------------------------------------------------------------------
     def _on_results(self, batch: list[BusResult]) -> None:
         # Persist first (history survives a crash), then publish; a failing publication is logged only.
-        self.storage.save_results(batch)
-        payloads = [res.model_dump_json() for res in batch]
+        payloads = [res.model_dump_json() for res in batch]  # serialised once: SQLite, REST, Zenoh
+        self.storage.save_results(batch, payloads)
         for res, js in zip(batch, payloads, strict=True):
             self.latest[res.bus] = res
             self.latest_json[res.bus] = js
@@ -171,6 +175,20 @@ class Service:
             except Exception:  # noqa: BLE001 - one bus's publication never stops the others
                 self.metrics.request_errors.labels("publish").inc()
                 log.exception("publishing %s failed", res.bus)
+
+    def _on_diagnosis(self, bus: str, period: float, outcome: TaskOutcome) -> None:
+        # Persist, keep as latest, publish on {prefix}/diagnosis/{bus}; a failed diagnosis is recorded too.
+        report = outcome.value if outcome.ok else {"verdict": "failed", "reason": outcome.reason,
+                                                   "message": outcome.message}
+        js = json.dumps({"bus": bus, "period": period, **report})
+        self.storage.save_diagnosis(bus, period, js)
+        self.latest_diagnosis_json[bus] = js
+        self.metrics.diagnoses.labels(report.get("verdict", "failed")).inc()
+        try:
+            self.publisher.publish_diagnosis(bus, js)
+        except Exception:  # noqa: BLE001 - publication trouble is logged, never fatal
+            self.metrics.request_errors.labels("publish").inc()
+            log.exception("publishing the diagnosis of %s failed", bus)
 
     def _on_period(self, summary: PeriodSummary) -> None:
         self.storage.save_period(summary)

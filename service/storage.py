@@ -30,6 +30,12 @@ CREATE TABLE IF NOT EXISTS periods (
     period REAL PRIMARY KEY,
     body TEXT NOT NULL
 );
+CREATE TABLE IF NOT EXISTS diagnoses (
+    bus TEXT NOT NULL,
+    period REAL NOT NULL,
+    body TEXT NOT NULL,
+    PRIMARY KEY (bus, period)
+);
 CREATE TABLE IF NOT EXISTS config (
     key TEXT PRIMARY KEY,
     value TEXT NOT NULL,
@@ -64,9 +70,10 @@ class Storage:
             self._db.close()
 
     # --- results -----------------------------------------------------------------------------------
-    def save_results(self, results: list[BusResult]) -> None:
-        """Append results in one transaction."""
-        rows = [(r.bus, r.period, r.status, r.completed_at, r.model_dump_json()) for r in results]
+    def save_results(self, results: list[BusResult], bodies: list[str] | None = None) -> None:
+        """Append results in one transaction; ``bodies`` are their JSON if the caller has it already."""
+        bodies = bodies if bodies is not None else [r.model_dump_json() for r in results]
+        rows = [(r.bus, r.period, r.status, r.completed_at, b) for r, b in zip(results, bodies, strict=True)]
         with self._lock:
             self._db.execute("BEGIN")
             self._db.executemany(
@@ -129,6 +136,21 @@ class Storage:
         return n
 
     # --- configuration -------------------------------------------------------------------------------
+    # --- diagnoses -------------------------------------------------------------------------------
+    def save_diagnosis(self, bus: str, period: float, report_json: str) -> None:
+        """Store one diagnosis report (JSON) of a bus for a period (replacing an earlier one)."""
+        with self._lock:
+            self._db.execute("INSERT OR REPLACE INTO diagnoses (bus, period, body) VALUES (?, ?, ?)",
+                             (bus, period, report_json))
+
+    def latest_diagnoses(self) -> dict[str, str]:
+        """bus → JSON of its most recent diagnosis report."""
+        with self._lock:
+            rows = self._db.execute(
+                "SELECT d.bus, d.body FROM diagnoses d JOIN (SELECT bus, MAX(period) AS p FROM diagnoses "
+                "GROUP BY bus) m ON d.bus = m.bus AND d.period = m.p").fetchall()
+        return dict(rows)
+
     def set_config(self, values: dict[str, Any]) -> None:
         """Persist run-time configuration changes (JSON values)."""
         now = time.time()
