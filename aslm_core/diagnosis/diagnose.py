@@ -14,7 +14,10 @@ Method (DESIGN §3)
    held-out correction (fitted on the training samples only, so under white measurement noise it is
    N(0, 1) when the candidate is not needed), one-sided and Bonferroni-corrected over the candidates; and
    a BIC-like penalty — the held-out Gaussian log-likelihood gain must exceed (k/2)·ln(n) for k added
-   parameters.  Candidates passing both are significant, ranked by the penalised gain.  A Diebold–Mariano
+   parameters.  Candidates passing both — and whose own magnitude (the parameter that is zero when the
+   physics is absent, e.g. the second motor's torque) is at least 2 standard errors from zero (1 for the
+   second motor, whose torque trades off against the first's) — are
+   significant, ranked by the penalised gain.  A Diebold–Mariano
    statistic (HAC variance) is reported alongside.
 5. Verdict: ``explained`` when the top significant candidate removes at least ``explained_fraction`` of
    the held-out residual variance above the noise floor; ``unexplained`` when the residual exceeds the
@@ -278,14 +281,16 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         derived = {}
         for a in analyses[:1]:
             derived = cand.describe(a.fits[name].params, a.seg, a.ctx)
-        sig_ = bool(math.isfinite(z) and z > zcrit and pg > 0)
+        mag_z = max((abs(params[k]) / se[k] if se.get(k, math.inf) > 0 else math.inf for k in cand.magnitude
+                     if k in params and math.isfinite(se.get(k, math.inf))), default=0.0)
+        sig_ = bool(math.isfinite(z) and z > zcrit and pg > 0 and mag_z >= cand.magnitude_z_min)
         entries.append({
             "name": name, "parameters": params, "stderr": se, "derived": derived,
             "units": {**dict(zip(cand.nl_names, cand.nl_units, strict=True)), **cand.lin_units},
             "improvement": {"p": float(np.mean([c.reduction_p for c in comps])),
                             "q": float(np.mean([c.reduction_q for c in comps]))},
             "excess_reduction": {ch: _mean_or_none([getattr(c, f"excess_{ch}") for c in comps]) for ch in ("p", "q")},
-            "penalised_gain": pg, "score_z": z, "dm_z": dmz, "n_params": cand.n_params, "significant": sig_,
+            "penalised_gain": pg, "score_z": z, "dm_z": dmz, "magnitude_z": float(min(mag_z, 1e6)), "n_params": cand.n_params, "significant": sig_,
             "signature": cand.signature, "tested": True,
         })
     entries.sort(key=lambda e: -e["penalised_gain"] if math.isfinite(e["penalised_gain"]) else math.inf)

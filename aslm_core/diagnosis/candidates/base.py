@@ -117,6 +117,12 @@ class Candidate:
         Units of the linear coefficients.
     signature : str
         What in the residual makes this candidate plausible (shown in reports).
+    magnitude : tuple of str
+        The parameters that are zero when the physics is absent (e.g. the second motor's torque); a
+        candidate is only named if at least one of them is at least ``magnitude_z_min`` standard errors
+        from zero.
+    magnitude_z_min : float
+        That threshold [-] (2 by default).
     """
 
     name = "plain"
@@ -126,6 +132,8 @@ class Candidate:
     lin_q: tuple[str, ...] = ()
     lin_units: dict[str, str] = {}
     signature = ""
+    magnitude: tuple[str, ...] = ()
+    magnitude_z_min = 2.0
     max_nfev = 40  # upper-stage function evaluations per start (each iteration adds a Jacobian)
 
     @property

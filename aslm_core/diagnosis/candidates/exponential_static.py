@@ -32,6 +32,7 @@ from aslm_core.diagnosis.segment import Segment
 
 class ExponentialStatic(Candidate):
     name = "exponential_static"
+    magnitude = ("cP", "cQ")
     lin_p = ("cP",)
     lin_q = ("cQ",)
     lin_units = {"cP": "pu", "cQ": "pu", "np": "-", "nq": "-"}

@@ -26,6 +26,7 @@ from aslm_core.diagnosis.segment import Segment
 
 class FrequencyDependence(Candidate):
     name = "frequency_dependence"
+    magnitude = ("Kpf", "Kqf")
     lin_p = ("Kpf",)
     lin_q = ("Kqf",)
     lin_units = {"Kpf": "pu/Hz", "Kqf": "pu/Hz"}

@@ -37,6 +37,7 @@ def lagged(V: np.ndarray, T: float, dt: float) -> np.ndarray:
 
 class InverterDER(Candidate):
     name = "inverter_der"
+    magnitude = ("Kp", "Kq")
     nl_names = ("T",)
     nl_units = ("s",)
     lin_p = ("Kp",)

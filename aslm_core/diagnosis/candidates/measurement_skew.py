@@ -56,6 +56,7 @@ def shift(t: np.ndarray, y: np.ndarray, tau: float) -> np.ndarray:
 
 class MeasurementSkew(Candidate):
     name = "measurement_skew"
+    magnitude = ("tau",)
     nl_names = ("tau",)
     nl_units = ("s",)
     signature = "residual ≈ −τ·dP/dt on both channels (in quadrature with P and Q)"

@@ -37,6 +37,7 @@ from aslm_core.diagnosis.segment import Segment
 
 class MotorStatorDynamics(Candidate):
     name = "motor_stator_dynamics"
+    magnitude = ("inv_Xp",)
     nl_names = ("inv_Xp",)
     nl_units = ("1/pu",)
     signature = "Q residual ∝ Δf and P residual ∝ dV/dt in the ratio a fifth-order motor fixes (one 1/X')"

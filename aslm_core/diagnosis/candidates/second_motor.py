@@ -30,6 +30,11 @@ H22_MIN = 0.05  # [s]
 
 class SecondMotor(Candidate):
     name = "second_motor"
+    magnitude = ("Tm2",)
+    # Tm and Tm2 trade off (their sum is well determined, the split is not), which inflates se(Tm2): a
+    # zero-torque "motor" (a pure lagged reactive element, e.g. soaking up a stator resistance) is still
+    # rejected at 1 se.
+    magnitude_z_min = 1.0
     nl_names = ("a2", "b2", "H22", "Tm2")
     nl_units = ("1/s", "1/s", "s", "pu")
     signature = "single-motor residual coherent with V/dV/dt with a second dynamic (lag/resonance), P and Q"
