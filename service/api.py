@@ -126,9 +126,14 @@ def create_app(service: Service) -> FastAPI:
         return service.storage.history(bus, since, until, limit)
 
     @app.get("/buses/{bus:path}/diagnosis/latest")
-    def diagnosis(bus: str) -> None:
-        raise HTTPException(404, f"no diagnosis for bus {bus!r}: the service does not run discrepancy "
-                                 "diagnosis yet (use `aslm diagnose FILE` offline)")
+    async def diagnosis(bus: str) -> Response:
+        """The bus's latest discrepancy diagnosis (DESIGN §3: verdict, located, missing_physics, fit)."""
+        js = service.latest_diagnosis_json.get(bus)
+        if js is None:
+            every = service.settings.diagnose_every
+            when = f"every {every} periods" if every else "never (diagnose_every = 0)"
+            raise HTTPException(404, f"no diagnosis for bus {bus!r} yet: the service diagnoses {when}")
+        return Response(js, media_type="application/json")
 
     @app.get("/periods", response_model=list[PeriodSummary])
     def periods(limit: Annotated[int, Query(ge=1, le=1000)] = 20) -> list[PeriodSummary]:

@@ -57,6 +57,7 @@ class ServiceMetrics:
         self.period_s = Gauge("aslm_period_seconds", "Period T in force", registry=r)
         self.last_period = Gauge("aslm_last_period_timestamp_seconds", "Boundary of the last completed period",
                                  registry=r)
+        self.diagnoses = Counter("aslm_diagnoses", "Discrepancy diagnoses by verdict", ["verdict"], registry=r)
         self.request_errors = Counter("aslm_internal_errors", "Internal errors caught, by place", ["where"],
                                       registry=r)
 

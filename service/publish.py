@@ -49,6 +49,17 @@ class ResultPublisher:
         pub.put(payload if payload is not None else result.model_dump_json())
         self.published += 1
 
+    def publish_diagnosis(self, bus: str, payload: str) -> None:
+        """Put one diagnosis report (JSON) on ``{prefix}/diagnosis/{bus}`` (reliable, blocking)."""
+        key = f"{self.prefix}/diagnosis/{bus}"
+        pub = self._publishers.get(key)
+        if pub is None:
+            pub = self._publishers[key] = self.session.declare_publisher(
+                key, encoding=zenoh.Encoding.APPLICATION_JSON,
+                congestion_control=zenoh.CongestionControl.BLOCK, reliability=zenoh.Reliability.RELIABLE,
+            )
+        pub.put(payload)
+
     def _on_query(self, query: zenoh.Query) -> None:
         try:
             asked = query.key_expr

@@ -95,12 +95,18 @@ class Scheduler:
         bus → D [a, b, H2, Tm] of its previous successful result (kept up to date here).
     options : dict
         :class:`aslm_core.IdentifyConfig` keyword arguments for every task.
+    diagnose_every : int
+        Diagnose every bus identified in every k-th period run (0: never); diagnoses are queued after
+        the period's identifications and reported asynchronously through ``on_diagnosis``.
+    on_diagnosis : callable
+        Called with (bus, period, :class:`TaskOutcome`) of each finished diagnosis.
     """
 
     def __init__(self, store: BufferStore, executor: Executor, rules: QualityRules, *, late_s: float,
                  f0: float, period_s: Callable[[], float], on_results: Callable[[list[BusResult]], None],
                  on_period: Callable[[PeriodSummary], None], warm_starts: dict[str, list[float]],
-                 options: dict | None = None) -> None:
+                 options: dict | None = None, diagnose_every: int = 0,
+                 on_diagnosis: Callable[[str, float, TaskOutcome], None] | None = None) -> None:
         self.store = store
         self.executor = executor
         self.rules = rules
@@ -111,6 +117,9 @@ class Scheduler:
         self.on_period = on_period
         self.warm_starts = warm_starts
         self.options = options or {}
+        self.diagnose_every = diagnose_every
+        self.on_diagnosis = on_diagnosis
+        self.periods_run = 0
         self._stop = threading.Event()
         self._replan = threading.Event()
         self._thread: threading.Thread | None = None
@@ -161,6 +170,7 @@ class Scheduler:
         # concurrent.futures.wait() on all pending futures after each completion is O(n²) per period.
         completed: queue.SimpleQueue[Future] = queue.SimpleQueue()
         skipped: list[BusResult] = []
+        identified: dict[str, tuple[Cut, dict]] = {}
         for bus in self.store.buses():
             buf = self.store.buffer(bus, create=False)
             if buf is None:
@@ -197,6 +207,7 @@ class Scheduler:
                     if outcome.ok:
                         res = self._record(bus, boundary, period_s, "ok", None, cut, warm, outcome)
                         self.warm_starts[bus] = [res.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
+                        identified[bus] = (cut, outcome.value)
                     else:
                         res = self._record(bus, boundary, period_s, "failed", outcome.reason, cut, warm, outcome)
                 except Exception as exc:  # noqa: BLE001 - e.g. a non-finite D: fails this bus only
@@ -216,9 +227,26 @@ class Scheduler:
         )
         self.on_period(summary)
         self.running_period = None
+        self.periods_run += 1
+        if self.diagnose_every > 0 and self.on_diagnosis is not None and self.periods_run % self.diagnose_every == 0:
+            self._submit_diagnoses(boundary, identified)
         log.info("period %.0f: %d ok, %d failed, %d skipped in %.2f s", boundary, summary.n_ok, summary.n_failed,
                  summary.n_skipped, summary.latency_s)
         return summary
+
+    def _submit_diagnoses(self, boundary: float, identified: dict[str, tuple[Cut, dict]]) -> None:
+        """Queue the discrepancy diagnosis of each bus identified this period (results come back async)."""
+        for bus, (cut, value) in identified.items():
+            task = WindowTask(bus=bus, t=cut.t, V=cut.V, theta=cut.theta, P=cut.P, Q=cut.Q, f=cut.f, f0=self.f0,
+                              fn="service.worker:diagnose_window", previous=value)
+            fut = self.executor.submit(task)
+            fut.add_done_callback(lambda f, bus=bus: self._diagnosed(bus, boundary, f))
+
+    def _diagnosed(self, bus: str, boundary: float, fut: Future) -> None:
+        try:
+            self.on_diagnosis(bus, boundary, fut.result())
+        except Exception:  # noqa: BLE001 - one bus's diagnosis never stops the others
+            log.exception("reporting the diagnosis of %s failed", bus)
 
     def _emit(self, batch: list[BusResult], done: list[BusResult]) -> None:
         try:

@@ -58,6 +58,11 @@ class ServiceSettings(BaseSettings):
     executor: str = Field("local", description="'local' (process pool) or a Dask scheduler address tcp://host:port")
     task_timeout_s: float = Field(60.0, description="Per-window identification timeout [s]")
     n_starts: int = Field(3, description="Random starts of the identifier besides the warm start")
+    lowpass_hz: float | None = Field(
+        2.0, description="Causal low-pass of V, θ, P, Q before identification [Hz] (None: off); it keeps "
+                         "PMU noise on V and θ from biasing D (errors in variables), see docs/reproduction.md",
+    )
+    diagnose_every: int = Field(4, description="Discrepancy diagnosis of every bus each k-th period (0: off)")
     identify_fn: str = Field(
         "service.worker:identify_window",
         description="module:function run in the workers (a seam for tests and alternative identifiers)",
@@ -117,7 +122,14 @@ class ServiceSettings(BaseSettings):
             raise ValueError(f"{info.field_name} must be >= 0 (got {v})")
         return v
 
-    @field_validator("workers", "n_starts")
+    @field_validator("lowpass_hz")
+    @classmethod
+    def _cutoff(cls, v: float | None) -> float | None:
+        if v is not None and not v > 0:
+            raise ValueError(f"lowpass_hz must be > 0 Hz or null (got {v})")
+        return v
+
+    @field_validator("workers", "n_starts", "diagnose_every")
     @classmethod
     def _count(cls, v: int, info) -> int:
         if v < (1 if info.field_name == "workers" else 0):

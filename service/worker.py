@@ -31,6 +31,10 @@ class WindowTask:
         Previous period's D = [a, b, H2, Tm] of the bus.
     options : dict
         Keyword arguments of :class:`aslm_core.IdentifyConfig` (e.g. ``n_starts``).
+    fn : str or None
+        ``module:function`` to run instead of the pool's (e.g. the diagnosis).
+    previous : dict or None
+        The bus's identification of this window (``IdentificationResult.to_dict()``), for the diagnosis.
     """
 
     bus: str
@@ -43,6 +47,8 @@ class WindowTask:
     f0: float = 50.0
     warm_start: list[float] | None = None
     options: dict[str, Any] = field(default_factory=dict)
+    fn: str | None = None
+    previous: dict | None = None
 
 
 @dataclass
@@ -75,6 +81,22 @@ def identify_window(task: WindowTask) -> dict:
     return identify(window, warm_start=warm, config=IdentifyConfig(**task.options)).to_dict()
 
 
+def diagnose_window(task: WindowTask) -> dict:
+    """Worker function of the discrepancy diagnosis (DESIGN §3) of the task's window.
+
+    Returns
+    -------
+    dict
+        The JSON-ready report of :func:`aslm_core.diagnosis.diagnose_dict`, warm-started from the
+        window's identification in ``task.previous``.
+    """
+    from aslm_core import Window
+    from aslm_core.diagnosis import diagnose_dict
+
+    window = Window(t=task.t, V=task.V, theta=task.theta, P=task.P, Q=task.Q, f=task.f, f0=task.f0, bus=task.bus)
+    return diagnose_dict(window, previous=task.previous)
+
+
 _FN_CACHE: dict[str, Callable[[WindowTask], dict]] = {}
 
 
@@ -91,7 +113,7 @@ def run_task(fn_path: str, task: WindowTask) -> TaskOutcome:
     """Run one task, turning every exception into a failed outcome with a reason."""
     t0 = time.perf_counter()
     try:
-        value = resolve(fn_path)(task)
+        value = resolve(task.fn or fn_path)(task)
         return TaskOutcome(ok=True, value=value, elapsed_s=time.perf_counter() - t0)
     except Exception as exc:  # noqa: BLE001 - any failure fails this bus only
         reason = getattr(exc, "reason", None)

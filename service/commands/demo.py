@@ -8,6 +8,7 @@ port if taken).  Ctrl-C stops cleanly; ``--periods``/``--duration`` stop by them
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import socket
 import sys
@@ -31,6 +32,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--level", type=int, default=2, help="measurement-noise level (default 2)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--periods", type=int, default=None, help="exit after N periods with results")
+    p.add_argument("--diagnose-every", type=int, default=2,
+                   help="discrepancy diagnosis of every bus each k-th period (default 2; 0: off)")
     p.add_argument("--duration", type=float, default=None, help="exit after this many seconds")
     p.add_argument("--port", type=int, default=8080, help="REST port (default 8080; any free port if taken)")
     p.add_argument("--out", default=None, help="directory for the SQLite file (default: a temporary one)")
@@ -79,6 +82,18 @@ def format_period(summary, results: dict, truth: dict) -> str:
     return "\n".join(lines)
 
 
+def format_diagnoses(reports: dict[str, str]) -> str:
+    """One line per bus: the verdict of its latest discrepancy diagnosis and what it names."""
+    lines = ["discrepancy diagnosis (held-out fit of the identified model):"]
+    for bus in sorted(reports):
+        rep = json.loads(reports[bus])
+        named = [m["name"] for m in rep.get("missing_physics", []) if m.get("significant")]
+        fit = rep.get("fit_before") or {}
+        fd = "  ".join(f"{k}={v:.3f}" for k, v in fit.items() if isinstance(v, float))
+        lines.append(f"  {bus:8s} {rep.get('verdict', '?'):12s} {', '.join(named) or '-':24s} {fd}")
+    return "\n".join(lines)
+
+
 def run(args: argparse.Namespace) -> int:
     setup_logging(args.log_level)
     import zenoh
@@ -105,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
             workers=args.workers, storage_url=str(out / "aslm-demo.sqlite"), http_host="127.0.0.1",
             http_port=http_port, zenoh_mode="peer", zenoh_listen=[f"tcp/127.0.0.1:{zport}"], zenoh_connect=[],
             zenoh_multicast_scouting=False, executor="local", instance="demo",
+            diagnose_every=args.diagnose_every,
         )
     except SettingsError as exc:
         print(f"aslm demo: {exc}", file=sys.stderr)
@@ -130,6 +146,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"streaming; first results after the first {args.period:g} s boundary with {args.window:g} s "
               "of data. Ctrl-C to stop.", flush=True)
         seen: set[float] = set()
+        diagnosed: dict[str, str] = {}
         with_results = 0
         status = 0
         while not stop.wait(0.5):
@@ -150,6 +167,10 @@ def run(args: argparse.Namespace) -> int:
                 with_results += 1
                 print(format_period(summary, results, truth), flush=True)
                 print(f"  results received over Zenoh so far: {received['n']}", flush=True)
+            fresh = {b: js for b, js in svc.latest_diagnosis_json.items() if diagnosed.get(b) != js}
+            if fresh:
+                diagnosed.update(fresh)
+                print(format_diagnoses(fresh), flush=True)
             if args.periods is not None and with_results >= args.periods:
                 break
             if args.duration is not None and time.time() - started >= args.duration:
