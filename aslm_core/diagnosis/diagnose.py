@@ -385,5 +385,21 @@ def _series(a: _WindowAnalysis, cause: str | None) -> dict:
 
 def diagnose_dict(windows: Window | Sequence[Window], previous=None, model=None,
                   config: DiagnosisConfig | None = None) -> dict:
-    """Service entry point: the JSON report of one bus (see :func:`diagnose`)."""
+    """Service entry point: the JSON report of one bus (see :func:`diagnose`).
+
+    Parameters
+    ----------
+    windows : Window or sequence of Window
+        The bus's window of the period, or several of its recent windows (evidence accumulated).
+    previous : IdentificationResult or dict, optional
+        The identification of the same window (or the previous one): a warm start.
+    model : dict, optional
+        A user model to diagnose against instead of the identified one.
+    config : DiagnosisConfig, optional
+
+    Returns
+    -------
+    dict
+        :meth:`DiagnosisReport.to_dict` — JSON-ready (DESIGN §4 fields plus ``cause``, ``noise``, ...).
+    """
     return diagnose(windows, model, previous=previous, config=config).to_dict()

@@ -202,6 +202,12 @@ def original_motor_power(t, V, theta, *, X, Xp, Td0, H2, Tm, k=0.0, Rs=0.0, fift
 
     Parameters
     ----------
+    t : ndarray
+        Uniform sample times [s].
+    V : ndarray
+        Voltage magnitude [pu].
+    theta : ndarray
+        Unwrapped voltage angle [rad].
     X, Xp : float
         Open-circuit and transient reactance [pu].
     Td0 : float
@@ -379,6 +385,8 @@ def apply_effect(case: SyntheticCase, name: str, magnitude: float | None = None,
         Seed of the effect's own random draws.
     conceal : bool
         Reduce the magnitude (×0.7 per try) until the plain fit has FD ≥ 0.9 on P and Q.
+    max_tries : int
+        Reductions tried before giving up (the last one is returned, flagged by ``fd_plain``).
 
     Returns
     -------
@@ -413,6 +421,24 @@ def apply_effect(case: SyntheticCase, name: str, magnitude: float | None = None,
 
 
 def make_effect_cases(name: str, n: int, *, level: int, seed: int = 0, f0: float = 50.0) -> list[EffectCase]:
-    """n concealed cases of one effect at a noise level (case i: synthetic seed (seed, i))."""
+    """Concealed cases of one effect at a noise level.
+
+    Parameters
+    ----------
+    name : str
+        Effect (see :func:`apply_effect`).
+    n : int
+        Number of cases.
+    level : int
+        Noise level of :data:`aslm_core.synthetic.NOISE_LEVELS`.
+    seed : int
+        Seed of the synthetic cases (``make_cases(n, seed=seed)``) and of the effects.
+    f0 : float
+        Nominal frequency [Hz].
+
+    Returns
+    -------
+    list of EffectCase
+    """
     cases = syn.make_cases(n, level=level, seed=seed, input_noise=False, f0=f0)
     return [apply_effect(c, name, seed=seed * 100003 + i) for i, c in enumerate(cases)]

@@ -59,6 +59,21 @@ def noise_floor(r: np.ndarray, fs: float, from_hz: float = FLOOR_FROM_HZ) -> dic
 def band_excess(r: np.ndarray, fs: float, floor: dict, *, alpha: float = 0.01, n_tests: int = 8) -> list[dict]:
     """Residual power per band against the floor, with an F test.
 
+    Parameters
+    ----------
+    r : ndarray
+        Residual [pu].
+    fs : float
+        Sample rate [Hz].
+    floor : dict
+        From :func:`noise_floor` (``psd`` [pu²/Hz], ``bins``).
+    alpha : float
+        Family-wise significance level [-].
+    n_tests : int
+        Number of tests the Bonferroni correction divides ``alpha`` by.
+
+    Notes
+    -----
     Under white noise the band mean of m periodogram bins over the floor's mean of M bins is
     F(2m, 2M)-distributed; a band is significant at ``alpha`` Bonferroni-corrected over ``n_tests``.
 
@@ -89,6 +104,19 @@ def coherence(r: np.ndarray, drivers: dict[str, np.ndarray], fs: float, band: tu
               alpha: float = 0.01) -> dict:
     """Magnitude-squared coherence of a residual with each driver (Welch, Hann, 50 % overlap).
 
+    Parameters
+    ----------
+    r : ndarray
+        Residual [pu].
+    drivers : dict
+        Name → signal of the same length (e.g. V [pu], dV/dt [pu/s], Δf [Hz]).
+    fs : float
+        Sample rate [Hz].
+    band : (float, float)
+        Band the coherence is summarised over [Hz].
+    alpha : float
+        False-alarm probability of the reported threshold [-].
+
     Returns
     -------
     dict
@@ -111,6 +139,23 @@ def coherence(r: np.ndarray, drivers: dict[str, np.ndarray], fs: float, band: tu
 def time_segments(r: np.ndarray, t: np.ndarray, fs: float, floor: dict, *, band: tuple[float, float] = (0.05, 5.0),
                   win_s: float = 1.0, alpha: float = 0.001) -> list[list[float]]:
     """Time intervals where the residual's ambient-band power exceeds what the noise floor allows.
+
+    Parameters
+    ----------
+    r : ndarray
+        Residual [pu].
+    t : ndarray
+        Sample times [s].
+    fs : float
+        Sample rate [Hz].
+    floor : dict
+        From :func:`noise_floor`.
+    band : (float, float)
+        Only ``band[1]`` is used: the low-pass cut-off [Hz].
+    win_s : float
+        Moving-average window [s].
+    alpha : float
+        Per-window false-alarm probability of the threshold [-].
 
     The residual is linearly detrended and low-passed (zero phase, 4th order) at ``band[1]``; its moving
     mean square over ``win_s`` is compared with the floor's variance in [0, band[1]] times the chi-square
