@@ -62,7 +62,10 @@ class ServiceSettings(BaseSettings):
         2.0, description="Causal low-pass of V, θ, P, Q before identification [Hz] (None: off); it keeps "
                          "PMU noise on V and θ from biasing D (errors in variables), see docs/reproduction.md",
     )
-    diagnose_every: int = Field(4, description="Discrepancy diagnosis of every bus each k-th period (0: off)")
+    diagnose_every: int = Field(
+        0, description="Discrepancy diagnosis of every identified bus each k-th period (0: off). Off by default: "
+                       "with PMU noise on V and θ the diagnosis names causes that are not there (docs/diagnosis.md)",
+    )
     identify_fn: str = Field(
         "service.worker:identify_window",
         description="module:function run in the workers (a seam for tests and alternative identifiers)",
