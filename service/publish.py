@@ -35,30 +35,28 @@ class ResultPublisher:
         self.queryable = session.declare_queryable(f"{prefix}/params/**", self._on_query)
         self.token = session.liveliness().declare_token(f"{prefix}/service/{instance}")
 
-    def publish(self, result: BusResult, payload: str | None = None) -> None:
-        """Put one result (JSON, reliable, blocking congestion control: never dropped).
-
-        ``payload`` is the result's JSON if the caller has it already.
-        """
-        pub = self._publishers.get(result.bus)
-        if pub is None:
-            pub = self._publishers[result.bus] = self.session.declare_publisher(
-                f"{self.prefix}/params/{result.bus}", encoding=zenoh.Encoding.APPLICATION_JSON,
-                congestion_control=zenoh.CongestionControl.BLOCK, reliability=zenoh.Reliability.RELIABLE,
-            )
-        pub.put(payload if payload is not None else result.model_dump_json())
-        self.published += 1
-
-    def publish_diagnosis(self, bus: str, payload: str) -> None:
-        """Put one diagnosis report (JSON) on ``{prefix}/diagnosis/{bus}`` (reliable, blocking)."""
-        key = f"{self.prefix}/diagnosis/{bus}"
+    def _publisher(self, key: str) -> zenoh.Publisher:
+        """The JSON publisher of one key, declared once (reliable, blocking congestion control)."""
         pub = self._publishers.get(key)
         if pub is None:
             pub = self._publishers[key] = self.session.declare_publisher(
                 key, encoding=zenoh.Encoding.APPLICATION_JSON,
                 congestion_control=zenoh.CongestionControl.BLOCK, reliability=zenoh.Reliability.RELIABLE,
             )
-        pub.put(payload)
+        return pub
+
+    def publish(self, result: BusResult, payload: str | None = None) -> None:
+        """Put one result on ``{prefix}/params/{bus}`` (never dropped).
+
+        ``payload`` is the result's JSON if the caller has it already.
+        """
+        self._publisher(f"{self.prefix}/params/{result.bus}").put(
+            payload if payload is not None else result.model_dump_json())
+        self.published += 1
+
+    def publish_diagnosis(self, bus: str, payload: str) -> None:
+        """Put one diagnosis report (JSON) on ``{prefix}/diagnosis/{bus}`` (never dropped)."""
+        self._publisher(f"{self.prefix}/diagnosis/{bus}").put(payload)
 
     def _on_query(self, query: zenoh.Query) -> None:
         try:
