@@ -251,7 +251,7 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
-def normal_equations(X, basis2, G, BX):
+def normal_equations(X, basis2, G):
     """Projected residual norms and normal equations of both channels from the rows of X.
 
     X rows are [yp, mp(4), yq, mq(4)] shifted by the first row (so that centring loses few digits);
@@ -268,7 +268,6 @@ def normal_equations(X, basis2, G, BX):
     for u in range(10):
         for v in range(10):
             G[u, v] = gram[u, v] - colsum[u] * colsum[v] / l - bx[0, u] * bx[0, v] - bx[1, u] * bx[1, v]
-    BX[:, :] = bx
 
 
 def steady_state(V0: float, theta0: float, d: np.ndarray, omega0: float) -> np.ndarray:

@@ -92,13 +92,13 @@ def _weights_rr(rr_p, rr_q, objective, l):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _evaluate(d, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2, X, G, BX, Ap, Aq, gp, gq, d1, d2):
+def _evaluate(d, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2, X, G, Ap, Aq, gp, gq, d1, d2):
     """Simulation with sensitivities + normal equations of both channels; returns (ok, ‖r_p‖², ‖r_q‖²)."""
     ok = simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, True, d1, d1, d2, d2, d2, False, k0, p_meas,
                          q_meas, X)
     if not ok:
         return False, 0.0, 0.0
-    normal_equations(X, basis2, G, BX)
+    normal_equations(X, basis2, G)
     for u in range(4):
         gp[u] = -G[1 + u, 0]
         gq[u] = -G[6 + u, 5]
@@ -120,7 +120,6 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
     l = p_meas.shape[0]
     X = np.empty((l, 10))
     G = np.empty((10, 10))
-    BX = np.empty((2, 10))
     Ap = np.empty((4, 4))
     Aq = np.empty((4, 4))
     gp = np.empty(4)
@@ -139,7 +138,7 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
     idx = np.empty(4, dtype=np.int64)
     evals = 1
     ok, rr_p, rr_q = _evaluate(d, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2, X, G,
-                               BX, Ap, Aq, gp, gq, dummy1, dummy2)
+                               Ap, Aq, gp, gq, dummy1, dummy2)
     if not ok:
         out_d[:] = d
         return math.inf, 0, evals, 3
@@ -228,7 +227,7 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                     continue
                 evals += 1
                 ok, rr_pt, rr_qt = _evaluate(trial, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2,
-                                             X, G, BX, Ap_t, Aq_t, gp_t, gq_t, dummy1, dummy2)
+                                             X, G, Ap_t, Aq_t, gp_t, gq_t, dummy1, dummy2)
                 if ok:
                     cost_t = _cost_rr(rr_pt, rr_qt, objective, l)
                     if cost_t < cost:

@@ -66,6 +66,13 @@ class TaskOutcome:
     elapsed_s: float = 0.0
 
 
+def task_window(task: WindowTask):
+    """The task's samples as an :class:`aslm_core.Window`."""
+    from aslm_core import Window
+
+    return Window(t=task.t, V=task.V, theta=task.theta, P=task.P, Q=task.Q, f=task.f, f0=task.f0, bus=task.bus)
+
+
 def identify_window(task: WindowTask) -> dict:
     """Default worker function: :func:`aslm_core.identify` on the task's window.
 
@@ -74,9 +81,9 @@ def identify_window(task: WindowTask) -> dict:
     dict
         ``IdentificationResult.to_dict()``.
     """
-    from aslm_core import IdentifyConfig, Window, identify
+    from aslm_core import IdentifyConfig, identify
 
-    window = Window(t=task.t, V=task.V, theta=task.theta, P=task.P, Q=task.Q, f=task.f, f0=task.f0, bus=task.bus)
+    window = task_window(task)
     warm = np.asarray(task.warm_start, dtype=float) if task.warm_start is not None else None
     return identify(window, warm_start=warm, config=IdentifyConfig(**task.options)).to_dict()
 
@@ -90,10 +97,9 @@ def diagnose_window(task: WindowTask) -> dict:
         The JSON-ready report of :func:`aslm_core.diagnosis.diagnose_dict`, warm-started from the
         window's identification in ``task.previous``.
     """
-    from aslm_core import Window
     from aslm_core.diagnosis import diagnose_dict
 
-    window = Window(t=task.t, V=task.V, theta=task.theta, P=task.P, Q=task.Q, f=task.f, f0=task.f0, bus=task.bus)
+    window = task_window(task)
     return diagnose_dict(window, previous=task.previous)
 
 

@@ -125,7 +125,7 @@ def test_fused_normal_equations_match_explicit_projection(eq_window):
     ok, rr_p, rr_q = optimize._evaluate(
         d, problem.vd, problem.vq, problem.vdm, problem.vqm, problem.dt, problem.omega0, True, problem.k0,
         problem.p_meas, problem.q_meas, problem.basis2, np.empty((l, 10)), np.empty((10, 10)),
-        np.empty((2, 10)), *out, np.empty(1), np.empty((1, 4)),
+        *out, np.empty(1), np.empty((1, 4)),
     )
     Ap, Aq, gp, gq = out
     assert ok
