@@ -2,12 +2,16 @@
 
     .venv/bin/python benchmarks/diagnosis.py            # 12 cases per effect per level, 20 clean per level
     .venv/bin/python benchmarks/diagnosis.py --quick    # ~2 min smoke run
+    .venv/bin/python benchmarks/diagnosis.py --input-noise   # V, θ, f noisy too (PMU-like)
 
 Each library effect (and two effects outside the library) is applied to synthetic ZIP + IM cases
 (``input_noise=False``: noise on P and Q at the level's SNR, paper eq. 10) by :mod:`aslm_core.diagnosis.effects`
 and concealed (plain-fit FD ≥ 0.9 on P and Q).  ``exponential_static`` is diagnosed against a user model
 (the true ZIP + IM with the old exponents) because it is not identifiable against a re-identified ZIP;
-clean cases are diagnosed both ways.  Results go to ``docs/results/diagnosis.json``.
+clean cases are diagnosed both ways.  ``--input-noise`` makes the cases with ``input_noise=True`` (V, θ and f
+noisy at the same SNR as P and Q; the effects are still computed from the noise-free V and θ).  Results go to
+``docs/results/diagnosis.json`` (``diagnosis_input_noise.json`` with ``--input-noise``; ``_quick`` for
+``--quick``).
 """
 
 from __future__ import annotations
@@ -42,19 +46,20 @@ MAIN_PARAM = {"frequency_dependence": ("Kpf", None), "second_motor": ("Tm2", Non
 
 
 @lru_cache(maxsize=64)
-def _base(level: int, i: int):
+def _base(level: int, i: int, input_noise: bool = False):
     from aslm_core.synthetic import make_case
 
-    return make_case(10_000 * level + i, level=level, input_noise=False)
+    return make_case(10_000 * level + i, level=level, input_noise=input_noise)
 
 
-def run_one(job: tuple[str, int, int]) -> dict:
-    """One diagnosis: (effect, level, case index) → record."""
+def run_one(job: tuple) -> dict:
+    """One diagnosis: (effect, level, case index[, input_noise]) → record."""
     from aslm_core.diagnosis import diagnose
     from aslm_core.diagnosis.effects import apply_effect
 
-    effect, level, i = job
-    base = _base(level, i)
+    effect, level, i, *rest = job
+    input_noise = bool(rest[0]) if rest else False
+    base = _base(level, i, input_noise)
     user = effect in ("exponential_static", "none_user")
     seed = zlib.crc32(f"{effect}/{level}/{i}".encode())  # deterministic (str hash() is salted per process)
     ec = apply_effect(base, "none" if effect.startswith("none") else effect, seed=seed)
@@ -67,6 +72,7 @@ def run_one(job: tuple[str, int, int]) -> dict:
     top = next((e for e in rep.missing_physics if e.get("tested", True)), None)
     rec = {
         "effect": effect, "level": level, "case": i, "snr_db": base.snr_db, "mode": "user" if user else "identified",
+        "input_noise": input_noise,
         "verdict": rep.verdict, "cause": rep.cause, "top": top["name"] if top else None,
         "top_significant": bool(top and top["significant"]), "fd_plain": ec.fd_plain, "conceal_scale": ec.scale,
         "fit_before": rep.fit_before, "fit_after": rep.fit_after, "elapsed_s": elapsed,
@@ -81,13 +87,13 @@ def run_one(job: tuple[str, int, int]) -> dict:
     return rec
 
 
-def _jobs(n_eff: int, n_clean: int, n_user: int) -> list[tuple[str, int, int]]:
+def _jobs(n_eff: int, n_clean: int, n_user: int, input_noise: bool = False) -> list[tuple[str, int, int, bool]]:
     jobs = []
     for lvl in LEVELS:
         for eff in (*LIBRARY_EFFECTS, *OUTSIDE_EFFECTS):
-            jobs += [(eff, lvl, i) for i in range(n_eff)]
-        jobs += [("none", lvl, i) for i in range(n_clean)]
-        jobs += [("none_user", lvl, i) for i in range(n_user)]
+            jobs += [(eff, lvl, i, input_noise) for i in range(n_eff)]
+        jobs += [("none", lvl, i, input_noise) for i in range(n_clean)]
+        jobs += [("none_user", lvl, i, input_noise) for i in range(n_user)]
     return jobs
 
 
@@ -195,23 +201,34 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--per-level", type=int, default=12, help="cases per effect per level")
     p.add_argument("--clean", type=int, default=20, help="clean cases per level")
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    p.add_argument("--input-noise", action="store_true",
+                   help="noise on V, θ and f too (synthetic input_noise=True); default: P and Q only (paper protocol)")
+    p.add_argument("--only", default="", help="comma-separated effects to run (e.g. none,measurement_skew)")
     p.add_argument("--no-write", action="store_true")
     args = p.parse_args(argv)
     n_eff, n_clean, n_user = (1, 2, 1) if args.quick else (args.per_level, args.clean, max(4, args.clean // 3))
-    jobs = _jobs(n_eff, n_clean, n_user)
+    jobs = _jobs(n_eff, n_clean, n_user, args.input_noise)
+    if args.only:
+        keep = set(args.only.split(","))
+        jobs = [j for j in jobs if j[0] in keep]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers, initializer=_init) as pool:
         recs = list(pool.map(run_one, jobs, chunksize=1))
     wall = time.perf_counter() - t0
     s = summarise(recs)
     s["wall_s"] = wall
-    s["command"] = "benchmarks/diagnosis.py" + (" --quick" if args.quick else "")
+    s["command"] = "benchmarks/diagnosis.py" + (" --quick" if args.quick else "") + (
+        " --input-noise" if args.input_noise else "") + (f" --only {args.only}" if args.only else "")
+    s["input_noise"] = args.input_noise
     s["machine"] = {"cpus": os.cpu_count(), "python": platform.python_version(), "workers": args.workers}
     print(markdown(s))
     print(f"\nwall {wall:.0f} s for {len(recs)} diagnoses ({args.workers} workers)")
     if not args.no_write:
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
-        RESULTS.with_name("diagnosis_quick.json" if args.quick else "diagnosis.json").write_text(
+        stem = "diagnosis" + ("_input_noise" if args.input_noise else "") + ("_quick" if args.quick else "")
+        if args.only:
+            stem += "_only"
+        RESULTS.with_name(stem + ".json").write_text(
             json.dumps({"summary": s, "records": recs}, indent=1, default=float))
     return 0
 
