@@ -125,8 +125,8 @@ def levenberg_marquardt(problem: Problem, d0: np.ndarray, max_iter: int = 60, xt
                         known: Sequence[np.ndarray] = ()) -> dict:
     """Constrained Levenberg–Marquardt on the projected residuals from one start.
 
-    A start whose iterate comes within 5 % (relative, every parameter) of an optimum in ``known`` stops early: it is
-    heading to the same point.  See :func:`aslm_core.optimize.lm_kernel`.
+    A start whose iterate, or the model's next step from it, comes within 5 % (relative, every parameter) of an
+    optimum in ``known`` stops early: it is heading to the same point.  See :func:`aslm_core.optimize.lm_kernel`.
 
     Returns
     -------
@@ -140,7 +140,7 @@ def levenberg_marquardt(problem: Problem, d0: np.ndarray, max_iter: int = 60, xt
         d, problem.vd, problem.vq, problem.vdm, problem.vqm, problem.dt, problem.omega0, problem.rk4,
         problem.basis2, problem.p_meas, problem.q_meas, problem.k0, problem.lower, problem.upper,
         problem.v_min, EQUILIBRIUM_MARGIN, optimize.OBJECTIVE_CODES[problem.config.objective],
-        max_iter, xtol, known_arr, known_arr.shape[0], out,
+        max_iter, xtol, optimize.FTOL, optimize.DUPLICATE_RTOL, known_arr, known_arr.shape[0], out,
     )
     problem.evaluations += evals
     return {"d": out, "cost": float(cost), "iterations": int(iters), "evaluations": int(evals),

@@ -110,33 +110,39 @@ def _steady_state(vd0, vq0, a, b, h2, tm, w0, x0, s0):
 
 
 @nb.njit(cache=True, nogil=True, inline="always", error_model="numpy", fastmath={"contract"})
-def _f(fd, fq, s, vd, vq, a, b, h2, tm, w0):
+def _f(fd, fq, s, vd, vq, a, b, ih2, tm, w0):
     ws = w0 * s
     return (
         -b * fd + ws * fq + a * vd,
         -b * fq - ws * fd + a * vq,
-        (tm - (vq * fd - vd * fq)) / h2,
+        (tm - (vq * fd - vd * fq)) * ih2,
     )
 
 
 @nb.njit(cache=True, nogil=True, inline="always", error_model="numpy", fastmath={"contract"})
-def _fsens(fd, fq, s, vd, vq, a, b, h2, tm, w0, S, K):
-    """K = fx·S + fp: time derivative of the sensitivity matrix S (3×4)."""
+def _sens_rate(W, c, fd, fq, s, vd, vq, dsdt, b, w0, ih2, t, k):
+    """Rows k..k+2 of W = fx·(S + c·T) + fp: the sensitivity rate at a stage state.
+
+    W holds the sensitivity columns row-wise (rows 0–2: S = dx/dD, one column per parameter), T is
+    rows t..t+2; 4-wide rows keep the loops over parameters short and contiguous.
+    """
     ws = w0 * s
-    te = vq * fd - vd * fq
+    wfq = w0 * fq
+    wfd = w0 * fd
     for j in range(4):
-        s0 = S[0, j]
-        s1 = S[1, j]
-        s2 = S[2, j]
-        K[0, j] = -b * s0 + ws * s1 + w0 * fq * s2
-        K[1, j] = -ws * s0 - b * s1 - w0 * fd * s2
-        K[2, j] = (-vq * s0 + vd * s1) / h2
-    K[0, 0] += vd
-    K[1, 0] += vq
-    K[0, 1] -= fd
-    K[1, 1] -= fq
-    K[2, 2] -= (tm - te) / (h2 * h2)
-    K[2, 3] += 1.0 / h2
+        s0 = W[0, j] + c * W[t, j]
+        s1 = W[1, j] + c * W[t + 1, j]
+        s2 = W[2, j] + c * W[t + 2, j]
+        W[k, j] = -b * s0 + ws * s1 + wfq * s2
+        W[k + 1, j] = -ws * s0 - b * s1 - wfd * s2
+        W[k + 2, j] = (vd * s1 - vq * s0) * ih2
+    # fp = ∂f/∂D: columns a, b, H2 (−(ds/dt)/H2), Tm.
+    W[k, 0] += vd
+    W[k + 1, 0] += vq
+    W[k, 1] -= fd
+    W[k + 1, 1] -= fq
+    W[k + 2, 2] -= dsdt * ih2
+    W[k + 2, 3] += ih2
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
@@ -155,20 +161,18 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
     b = d[1]
     h2 = d[2]
     tm = d[3]
+    ih2 = 1.0 / h2
     n = vd.shape[0]
     x = np.empty(3)
-    S = np.zeros((3, 4))
-    if not _steady_state(vd[0], vq[0], a, b, h2, tm, w0, x, S):
+    # Rows 0–2: S = dx/dD; rows 3–14: the four RK4 stage rates of S.
+    W = np.zeros((15, 4))
+    if not _steady_state(vd[0], vq[0], a, b, h2, tm, w0, x, W[0:3]):
         return False
-    K1 = np.empty((3, 4))
-    K2 = np.empty((3, 4))
-    K3 = np.empty((3, 4))
-    K4 = np.empty((3, 4))
-    St = np.empty((3, 4))
     fd = x[0]
     fq = x[1]
     s = x[2]
     h = dt
+    h6 = h / 6.0
     for k in range(n):
         ud = vd[k]
         uq = vq[k]
@@ -180,15 +184,15 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
             x_out[k, 2] = s
             if with_sens:
                 for j in range(4):
-                    dp_out[k, j] = uq * S[0, j] - ud * S[1, j]
-                    dq_out[k, j] = -ud * S[0, j] - uq * S[1, j]
+                    dp_out[k, j] = uq * W[0, j] - ud * W[1, j]
+                    dq_out[k, j] = -ud * W[0, j] - uq * W[1, j]
         elif k >= k0:
             i = k - k0
             X[i, 0] = p_meas[i] - (fd * uq - fq * ud)
             X[i, 5] = q_meas[i] - (-ud * fd - uq * fq)
             for j in range(4):
-                X[i, 1 + j] = uq * S[0, j] - ud * S[1, j]
-                X[i, 6 + j] = -ud * S[0, j] - uq * S[1, j]
+                X[i, 1 + j] = uq * W[0, j] - ud * W[1, j]
+                X[i, 6 + j] = -ud * W[0, j] - uq * W[1, j]
             if i > 0:
                 for j in range(10):
                     X[i, j] -= X[0, j]
@@ -199,46 +203,37 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
             mq = vqm[k]
             nd = vd[k + 1]
             nq = vq[k + 1]
-            k1 = _f(fd, fq, s, ud, uq, a, b, h2, tm, w0)
+            k1 = _f(fd, fq, s, ud, uq, a, b, ih2, tm, w0)
             x2d = fd + 0.5 * h * k1[0]
             x2q = fq + 0.5 * h * k1[1]
             x2s = s + 0.5 * h * k1[2]
-            k2 = _f(x2d, x2q, x2s, md, mq, a, b, h2, tm, w0)
+            k2 = _f(x2d, x2q, x2s, md, mq, a, b, ih2, tm, w0)
             x3d = fd + 0.5 * h * k2[0]
             x3q = fq + 0.5 * h * k2[1]
             x3s = s + 0.5 * h * k2[2]
-            k3 = _f(x3d, x3q, x3s, md, mq, a, b, h2, tm, w0)
+            k3 = _f(x3d, x3q, x3s, md, mq, a, b, ih2, tm, w0)
             x4d = fd + h * k3[0]
             x4q = fq + h * k3[1]
             x4s = s + h * k3[2]
-            k4 = _f(x4d, x4q, x4s, nd, nq, a, b, h2, tm, w0)
+            k4 = _f(x4d, x4q, x4s, nd, nq, a, b, ih2, tm, w0)
             if with_sens:
-                _fsens(fd, fq, s, ud, uq, a, b, h2, tm, w0, S, K1)
+                _sens_rate(W, 0.0, fd, fq, s, ud, uq, k1[2], b, w0, ih2, 0, 3)
+                _sens_rate(W, 0.5 * h, x2d, x2q, x2s, md, mq, k2[2], b, w0, ih2, 3, 6)
+                _sens_rate(W, 0.5 * h, x3d, x3q, x3s, md, mq, k3[2], b, w0, ih2, 6, 9)
+                _sens_rate(W, h, x4d, x4q, x4s, nd, nq, k4[2], b, w0, ih2, 9, 12)
                 for i in range(3):
                     for j in range(4):
-                        St[i, j] = S[i, j] + 0.5 * h * K1[i, j]
-                _fsens(x2d, x2q, x2s, md, mq, a, b, h2, tm, w0, St, K2)
-                for i in range(3):
-                    for j in range(4):
-                        St[i, j] = S[i, j] + 0.5 * h * K2[i, j]
-                _fsens(x3d, x3q, x3s, md, mq, a, b, h2, tm, w0, St, K3)
-                for i in range(3):
-                    for j in range(4):
-                        St[i, j] = S[i, j] + h * K3[i, j]
-                _fsens(x4d, x4q, x4s, nd, nq, a, b, h2, tm, w0, St, K4)
-                for i in range(3):
-                    for j in range(4):
-                        S[i, j] += h / 6.0 * (K1[i, j] + 2.0 * K2[i, j] + 2.0 * K3[i, j] + K4[i, j])
-            fd += h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-            fq += h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-            s += h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+                        W[i, j] += h6 * (W[3 + i, j] + 2.0 * W[6 + i, j] + 2.0 * W[9 + i, j] + W[12 + i, j])
+            fd += h6 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            fq += h6 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+            s += h6 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
         else:
-            k1 = _f(fd, fq, s, ud, uq, a, b, h2, tm, w0)
+            k1 = _f(fd, fq, s, ud, uq, a, b, ih2, tm, w0)
             if with_sens:
-                _fsens(fd, fq, s, ud, uq, a, b, h2, tm, w0, S, K1)
+                _sens_rate(W, 0.0, fd, fq, s, ud, uq, k1[2], b, w0, ih2, 0, 3)
                 for i in range(3):
                     for j in range(4):
-                        S[i, j] += h * K1[i, j]
+                        W[i, j] += h * W[3 + i, j]
             fd += h * k1[0]
             fq += h * k1[1]
             s += h * k1[2]

@@ -109,13 +109,29 @@ def _evaluate(d, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2, X, G
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _near_known(d, known, n_known, rtol):
+    """True when d is within rtol (relative, every parameter) of a row of known."""
+    for k in range(n_known):
+        close = True
+        for u in range(4):
+            if abs(d[u] - known[k, u]) > rtol * abs(known[k, u]) + 1e-9:
+                close = False
+        if close:
+            return True
+    return False
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, lower, upper, vmin,
-              margin, objective, max_iter, xtol, known, n_known, out_d):
+              margin, objective, max_iter, xtol, ftol, dup_rtol, known, n_known, out_d):
     """Levenberg–Marquardt from d0 (feasible). Returns (cost, iterations, evaluations, status code).
 
     ``basis2`` holds the non-constant orthonormal static regressors over the regression samples (l×2).
-    Status: 0 converged, 1 max_iter, 2 duplicate (came within DUPLICATE_RTOL of a row of ``known``),
-    3 failed (no finite objective at the start), 4 stalled (no descent step found).
+    ``ftol`` is the relative objective decrease below which a step is not worth an evaluation; ``dup_rtol``
+    the closeness (relative, every parameter) to a row of ``known`` at which a start is stopped.
+    Status: 0 converged, 1 max_iter, 2 duplicate (the iterate, or the model's next point, came within
+    ``dup_rtol`` of a row of ``known``), 3 failed (no finite objective at the start), 4 stalled (no
+    descent step found).
     """
     l = p_meas.shape[0]
     X = np.empty((l, 10))
@@ -168,7 +184,8 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
         accepted = False
         converged = False
         moved = 0.0
-        for _ in range(14):
+        heading_to_known = False
+        for attempt in range(14):
             for u in range(4):
                 step[u] = 0.0
             if nf > 0:
@@ -182,6 +199,13 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                 sol = np.linalg.solve(M, rhs)
                 for u in range(nf):
                     step[idx[u]] = sol[u]
+            if attempt == 0 and n_known > 0:
+                # The model's next point already lies in a known optimum's neighbourhood: same basin.
+                for u in range(4):
+                    trial[u] = min(max(d[u] + step[u], lower[u]), upper[u])
+                if _near_known(trial, known, n_known, dup_rtol):
+                    heading_to_known = True
+                    break
             # Predicted decrease of the full (unclipped) damped step: the convergence test.  A step cut
             # short by a bound or the equilibrium constraint says nothing about convergence.
             pred_full = 0.0
@@ -189,7 +213,7 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                 pred_full -= g[u] * step[u]
                 for v in range(4):
                     pred_full -= 0.5 * step[u] * A[u, v] * step[v]
-            if scale * pred_full <= FTOL * cost:
+            if scale * pred_full <= ftol * cost:
                 converged = True  # the model promises less than the objective's rounding
                 break
             for u in range(4):
@@ -252,6 +276,9 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                         break
             lam *= nu
             nu *= 2.0
+        if heading_to_known:
+            status = 2
+            break
         if converged:
             status = 0
             break
@@ -261,15 +288,7 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
         if moved < xtol:
             status = 0
             break
-        dup = False
-        for k in range(n_known):
-            close = True
-            for u in range(4):
-                if abs(d[u] - known[k, u]) > DUPLICATE_RTOL * abs(known[k, u]) + 1e-9:
-                    close = False
-            if close:
-                dup = True
-        if dup:
+        if _near_known(d, known, n_known, dup_rtol):
             status = 2
             break
     out_d[:] = d
