@@ -15,7 +15,6 @@ import os
 import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import asdict
 
 import numpy as np
 
@@ -53,9 +52,9 @@ class Problem:
         self.k0 = min(int(math.ceil(config.skip_s / prep.dt - 1e-9)), n - 10)
         self.l = n - self.k0
         phi = static.regressors(prep.V[self.k0:], config.static)
-        basis, self.r_factor = np.linalg.qr(phi)
-        self.basis = np.ascontiguousarray(basis)
-        # Non-constant orthonormal regressors (QR keeps the constant column first), padded to two.
+        self.basis, self.r_factor = optimize.thin_qr(np.ascontiguousarray(phi))
+        basis = self.basis
+        # Non-constant orthonormal regressors (the constant column comes first), padded to two.
         self.basis2 = np.zeros((basis.shape[0], 2))
         self.basis2[:, : basis.shape[1] - 1] = basis[:, 1:]
         self.p_meas = np.ascontiguousarray(prep.P[self.k0:])
@@ -147,25 +146,24 @@ def levenberg_marquardt(problem: Problem, d0: np.ndarray, max_iter: int = 60, xt
             "status": optimize.STATUS_NAMES[status]}
 
 
-def _standard_errors(problem: Problem, rp: np.ndarray, rq: np.ndarray, jp: np.ndarray,
-                     jq: np.ndarray) -> tuple[np.ndarray, dict]:
-    """Standard errors of D from the projected Jacobian, per-channel noise, residual autocorrelation."""
+def _standard_errors(problem: Problem, rr: tuple[float, float], rho: tuple[float, float],
+                     jj: np.ndarray) -> np.ndarray:
+    """Standard errors of D from the projected Jacobian, per-channel noise, residual autocorrelation.
+
+    ``rr``: ‖r‖² per channel; ``rho``: lag-1 residual autocorrelation per channel; ``jj``: JᵀJ per channel.
+    """
     n_free = problem.basis.shape[1]
     fisher = np.zeros((4, 4))
-    info = {}
-    for name, r, j in (("p", rp, jp), ("q", rq, jq)):
-        var = float(r @ r) / max(problem.l - n_free - 2, 1)
-        rho = float(r[1:] @ r[:-1]) / max(float(r @ r), 1e-300)
-        rho = min(max(rho, 0.0), 0.95)
+    for c in range(2):
+        var = rr[c] / max(problem.l - n_free - 2, 1)
+        r1 = min(max(rho[c], 0.0), 0.95)
         # Correlated residuals carry fewer independent samples: inflate by (1+ρ)/(1−ρ).
-        fisher += (j.T @ j) / (var * (1.0 + rho) / (1.0 - rho))
-        info[f"residual_rho_{name}"] = rho
+        fisher += jj[c] / max(var * (1.0 + r1) / (1.0 - r1), 1e-300)
     try:
         cov = np.linalg.inv(fisher)
-        se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        return np.sqrt(np.clip(np.diag(cov), 0.0, None))
     except np.linalg.LinAlgError:
-        se = np.full(4, np.inf)
-    return se, info
+        return np.full(4, np.inf)
 
 
 def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None = None,
@@ -214,31 +212,27 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
             config: IdentifyConfig, t_start: float) -> IdentificationResult:
     d = best["d"]
     rp, rq, jp, jq = problem.residuals(d)
-    k0 = problem.k0
-    y_p = problem.p_meas - problem._p[k0:]
-    y_q = problem.q_meas - problem._q[k0:]
-    beta_p = np.linalg.solve(problem.r_factor, problem.basis.T @ y_p)
-    beta_q = np.linalg.solve(problem.r_factor, problem.basis.T @ y_q)
-    se, info = _standard_errors(problem, rp, rq, jp, jq)
-    pc = problem.p_meas - problem.p_meas.mean()
-    qc = problem.q_meas - problem.q_meas.mean()
-    ss_p, ss_q = float(pc @ pc), float(qc @ qc)
-    fd_p = 1.0 - float(rp @ rp) / ss_p
-    fd_q = 1.0 - float(rq @ rq) / ss_q
+    jj = np.empty((2, 4, 4))
+    bty = np.empty((2, problem.basis.shape[1]))
+    rr_p, rr_q, rho_p, rho_q, ss_p, ss_q, v_rel, dth_std = optimize.fit_statistics(
+        rp, rq, jp, jq, problem.p_meas, problem.q_meas, problem._p, problem._q, problem.basis, prep.V,
+        prep.theta, jj, bty)
+    beta = np.linalg.solve(problem.r_factor, bty.T)
+    se = _standard_errors(problem, (rr_p, rr_q), (rho_p, rho_q), jj)
+    fd_p = 1.0 - rr_p / ss_p
+    fd_q = 1.0 - rr_q / ss_q
     flags = list(prep.flags)
+    lower, upper = problem.lower, problem.upper
     for i, name in enumerate(DYNAMIC_NAMES):
-        if d[i] <= problem.lower[i] * (1 + 1e-9) or d[i] >= problem.upper[i] * (1 - 1e-9):
+        if d[i] <= lower[i] * (1 + 1e-9) or d[i] >= upper[i] * (1 - 1e-9):
             flags.append(f"at_bound:{name}")
     margin = (d[0] * problem.v_min**2 - 2 * d[1] * d[3]) / (d[0] * problem.v_min**2)
     if margin < 0.01:
         flags.append("equilibrium_constraint_active")
-    v_mean = float(prep.V.mean())
-    v_rel = float(np.sqrt(np.mean((prep.V - v_mean) ** 2)) / v_mean)
     if v_rel < 2e-4:
         flags.append("low_excitation")
-    rel_se = se / np.abs(d).clip(1e-12)
     for i, name in enumerate(DYNAMIC_NAMES):
-        if rel_se[i] > 0.25:
+        if se[i] > 0.25 * max(abs(d[i]), 1e-12):
             flags.append(f"uncertain:{name}")
     for r in runs:
         if r is best or not math.isfinite(r["cost"]) or r["status"] == "duplicate":
@@ -248,20 +242,19 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
             break
     if min(fd_p, fd_q) < 0.5:
         flags.append("poor_fit")
-    snr = {}
-    for name, r, ss in (("p", rp, ss_p), ("q", rq, ss_q)):
-        # Ambient signal = measured variance minus what the fit leaves (the noise estimate), eq. 10.
-        noise = float(r @ r)
-        snr[f"snr_{name}_db"] = 10.0 * math.log10(max(ss - noise, 1e-300) / max(noise, 1e-300))
-    of_paper = (math.sqrt(rp @ rp) + math.sqrt(rq @ rq)) / problem.l
+    # Ambient signal = measured variance minus what the fit leaves (the noise estimate), eq. 10.
+    snr_p = 10.0 * math.log10(max(ss_p - rr_p, 1e-300) / max(rr_p, 1e-300))
+    snr_q = 10.0 * math.log10(max(ss_q - rr_q, 1e-300) / max(rr_q, 1e-300))
     quality = {
-        **snr, "v_std_rel": v_rel, "f_dev_std_hz": float(np.std(np.diff(prep.theta)) / prep.dt / (2 * math.pi)),
-        "equilibrium_margin": float(margin), "n_samples": float(prep.V.size), "n_regression": float(problem.l),
-        "dt_s": prep.dt, "of_paper": of_paper, **info,
+        "snr_p_db": snr_p, "snr_q_db": snr_q, "v_std_rel": v_rel,
+        "f_dev_std_hz": dth_std / prep.dt / (2 * math.pi), "equilibrium_margin": float(margin),
+        "n_samples": float(prep.V.size), "n_regression": float(problem.l), "dt_s": prep.dt,
+        "of_paper": (math.sqrt(rr_p) + math.sqrt(rr_q)) / problem.l,
+        "residual_rho_p": min(max(rho_p, 0.0), 0.95), "residual_rho_q": min(max(rho_q, 0.0), 0.95),
     }
     return IdentificationResult(
         dynamic={k: float(v) for k, v in zip(DYNAMIC_NAMES, d, strict=True)},
-        static=static.coefficients(beta_p, beta_q, config.static),
+        static=static.coefficients(beta[:, 0], beta[:, 1], config.static),
         objective=float(best["cost"]),
         fit={"fd_p": fd_p, "fd_q": fd_q},
         stderr={k: float(v) for k, v in zip(DYNAMIC_NAMES, se, strict=True)},
@@ -272,7 +265,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         evaluations=problem.evaluations,
         elapsed_s=time.perf_counter() - t_start,
         bus=window.bus,
-        config=asdict(config),
+        config=config.to_dict(),
     )
 
 

@@ -40,6 +40,44 @@ def project_into(y, basis, out):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def thin_qr(A):
+    """Thin QR factors (Q l×m orthonormal, R m×m upper triangular) of a tall matrix.
+
+    Classical Gram–Schmidt with one reorthogonalisation ("twice is enough"): orthogonal to rounding
+    for the nearly collinear [1, V, V²] of ambient data, without LAPACK's call overhead for m = 2–3.
+    """
+    l, m = A.shape
+    T = np.empty((m, l))  # Qᵀ: rows contiguous
+    R = np.zeros((m, m))
+    c = np.empty(m)
+    for j in range(m):
+        for i in range(l):
+            T[j, i] = A[i, j]
+        for _ in range(2):
+            for u in range(j):
+                acc = 0.0
+                for i in range(l):
+                    acc += T[u, i] * T[j, i]
+                c[u] = acc
+                R[u, j] += acc
+            for u in range(j):
+                for i in range(l):
+                    T[j, i] -= c[u] * T[u, i]
+        nrm = 0.0
+        for i in range(l):
+            nrm += T[j, i] * T[j, i]
+        nrm = math.sqrt(nrm)
+        R[j, j] = nrm
+        for i in range(l):
+            T[j, i] /= nrm
+    Q = np.empty((l, m))
+    for i in range(l):
+        for j in range(m):
+            Q[i, j] = T[j, i]
+    return Q, R
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def feasible(d, lower, upper, vmin, margin):
     for i in range(4):
         if d[i] < lower[i] or d[i] > upper[i]:
@@ -70,6 +108,70 @@ def residuals_into(d, vd, vq, vdm, vqm, dt, w0, rk4, with_jac, basis, p_meas, q_
             project_into(yp, basis, jp[:, j])
             project_into(yq, basis, jq[:, j])
     return True
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def fit_statistics(rp, rq, jp, jq, p_meas, q_meas, p_model, q_model, basis, V, theta, JJ, bty):
+    """Sums describing the final fit, in one pass (the result's standard errors, FD, SNR, static part).
+
+    Fills JJ (2×4×4) with JᵀJ of the projected Jacobians of P and Q, and bty (2×m) with Bᵀ(measured − motor).
+    Returns ‖r_p‖², ‖r_q‖², the lag-1 autocorrelations of r_p and r_q, the centred sums of squares of the
+    measured P and Q over the regression samples, the std of V relative to its mean, and the std of the
+    sample-to-sample change of θ [rad].
+    """
+    l = rp.shape[0]
+    rr_p = 0.0
+    rr_q = 0.0
+    lag_p = 0.0
+    lag_q = 0.0
+    for i in range(l):
+        rr_p += rp[i] * rp[i]
+        rr_q += rq[i] * rq[i]
+        if i > 0:
+            lag_p += rp[i] * rp[i - 1]
+            lag_q += rq[i] * rq[i - 1]
+    for c in range(2):
+        j = jp if c == 0 else jq
+        for u in range(4):
+            for v in range(u, 4):
+                acc = 0.0
+                for i in range(l):
+                    acc += j[i, u] * j[i, v]
+                JJ[c, u, v] = acc
+                JJ[c, v, u] = acc
+    m = basis.shape[1]
+    k0 = p_model.shape[0] - l
+    for c in range(2):
+        meas = p_meas if c == 0 else q_meas
+        model = p_model if c == 0 else q_model
+        for u in range(m):
+            acc = 0.0
+            for i in range(l):
+                acc += basis[i, u] * (meas[i] - model[k0 + i])
+            bty[c, u] = acc
+    ss = np.zeros(2)
+    for c in range(2):
+        meas = p_meas if c == 0 else q_meas
+        mean = 0.0
+        for i in range(l):
+            mean += meas[i]
+        mean /= l
+        for i in range(l):
+            ss[c] += (meas[i] - mean) ** 2
+    n = V.shape[0]
+    v_mean = 0.0
+    for i in range(n):
+        v_mean += V[i]
+    v_mean /= n
+    v_var = 0.0
+    for i in range(n):
+        v_var += (V[i] - v_mean) ** 2
+    dth_mean = (theta[n - 1] - theta[0]) / (n - 1)
+    dth_var = 0.0
+    for i in range(1, n):
+        dth_var += (theta[i] - theta[i - 1] - dth_mean) ** 2
+    return (rr_p, rr_q, lag_p / max(rr_p, 1e-300), lag_q / max(rr_q, 1e-300), ss[0], ss[1],
+            math.sqrt(v_var / n) / v_mean, math.sqrt(dth_var / (n - 1)))
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")

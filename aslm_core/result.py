@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Literal
 
 import numpy as np
@@ -51,6 +51,10 @@ class IdentifyConfig:
     seed: int | None = 0
     max_gap_samples: int = 5
     min_duration_s: float = 5.0
+
+    def to_dict(self) -> dict:
+        """The options as a plain dict (flat, so cheaper than ``dataclasses.asdict``)."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 @dataclass
