@@ -21,7 +21,9 @@ class IdentifyConfig:
     Attributes
     ----------
     integrator : {"rk4", "euler"}
-        RK4 at the sample step (default) or the paper's explicit Euler (reproduction mode).
+        RK4 at the sample step, starting from the steady state that turns with the bus frequency at the
+        first sample (default), or the paper's formulation: explicit Euler from the steady state at nominal
+        frequency (reproduction mode).
     objective : {"paper", "ml", "ssq"}
         ``paper``: (‖r_p‖ + ‖r_q‖)/l, eq. 7.  ``ml``: Gaussian likelihood with one unknown noise
         variance per channel (weights 1/‖r‖²).  ``ssq``: plain sum of squares.
