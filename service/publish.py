@@ -30,33 +30,32 @@ class ResultPublisher:
         self.session = session
         self.prefix = prefix
         self._latest = latest
-        self._publishers: dict[str, zenoh.Publisher] = {}
         self.published = 0
         self.queryable = session.declare_queryable(f"{prefix}/params/**", self._on_query)
         self.token = session.liveliness().declare_token(f"{prefix}/service/{instance}")
 
-    def _publisher(self, key: str) -> zenoh.Publisher:
-        """The JSON publisher of one key, declared once (reliable, blocking congestion control)."""
-        pub = self._publishers.get(key)
-        if pub is None:
-            pub = self._publishers[key] = self.session.declare_publisher(
-                key, encoding=zenoh.Encoding.APPLICATION_JSON,
-                congestion_control=zenoh.CongestionControl.BLOCK, reliability=zenoh.Reliability.RELIABLE,
-            )
-        return pub
+    def _put(self, key: str, payload: str) -> None:
+        """Put JSON on ``key``: reliable (Zenoh's default), blocking congestion control, never dropped.
+
+        ``Session.put`` rather than one declared publisher per key: declaring a publisher costs time
+        proportional to the publishers already declared (0.4 ms each at 4,000 keys, ~30 s for 10,000
+        buses on the first period), while a put on the session costs ~9 µs (7.5 µs on a publisher).
+        """
+        self.session.put(key, payload, encoding=zenoh.Encoding.APPLICATION_JSON,
+                         congestion_control=zenoh.CongestionControl.BLOCK)
 
     def publish(self, result: BusResult, payload: str | None = None) -> None:
         """Put one result on ``{prefix}/params/{bus}`` (never dropped).
 
         ``payload`` is the result's JSON if the caller has it already.
         """
-        self._publisher(f"{self.prefix}/params/{result.bus}").put(
-            payload if payload is not None else result.model_dump_json())
+        self._put(f"{self.prefix}/params/{result.bus}",
+                  payload if payload is not None else result.model_dump_json())
         self.published += 1
 
     def publish_diagnosis(self, bus: str, payload: str) -> None:
         """Put one diagnosis report (JSON) on ``{prefix}/diagnosis/{bus}`` (never dropped)."""
-        self._publisher(f"{self.prefix}/diagnosis/{bus}").put(payload)
+        self._put(f"{self.prefix}/diagnosis/{bus}", payload)
 
     def _on_query(self, query: zenoh.Query) -> None:
         try:
@@ -70,9 +69,8 @@ class ResultPublisher:
 
     def close(self) -> None:
         """Undeclare everything (the liveliness token disappears)."""
-        for obj in (*self._publishers.values(), self.queryable, self.token):
+        for obj in (self.queryable, self.token):
             try:
                 obj.undeclare()
             except Exception:  # noqa: BLE001 - session may already be closed
                 pass
-        self._publishers.clear()

@@ -95,6 +95,9 @@ class Scheduler:
         bus → D [a, b, H2, Tm] of its previous successful result (kept up to date here).
     options : dict
         :class:`aslm_core.IdentifyConfig` keyword arguments for every task.
+    n_starts_warm : int or None
+        ``n_starts`` (random starts) of the tasks of buses that have a warm start; None: ``options``'
+        for every task.
     diagnose_every : int
         Diagnose every bus identified in every k-th period run (0: never); diagnoses are queued after
         the period's identifications and reported asynchronously through ``on_diagnosis``.
@@ -105,7 +108,7 @@ class Scheduler:
     def __init__(self, store: BufferStore, executor: Executor, rules: QualityRules, *, late_s: float,
                  f0: float, period_s: Callable[[], float], on_results: Callable[[list[BusResult]], None],
                  on_period: Callable[[PeriodSummary], None], warm_starts: dict[str, list[float]],
-                 options: dict | None = None, diagnose_every: int = 0,
+                 options: dict | None = None, n_starts_warm: int | None = None, diagnose_every: int = 0,
                  on_diagnosis: Callable[[str, float, TaskOutcome], None] | None = None) -> None:
         self.store = store
         self.executor = executor
@@ -117,6 +120,7 @@ class Scheduler:
         self.on_period = on_period
         self.warm_starts = warm_starts
         self.options = options or {}
+        self.warm_options = self.options if n_starts_warm is None else {**self.options, "n_starts": n_starts_warm}
         self.diagnose_every = diagnose_every
         self.on_diagnosis = on_diagnosis
         self.periods_run = 0
@@ -171,6 +175,14 @@ class Scheduler:
         completed: queue.SimpleQueue[Future] = queue.SimpleQueue()
         skipped: list[BusResult] = []
         identified: dict[str, tuple[Cut, dict]] = {}
+        group: list[tuple[WindowTask, Cut, bool]] = []
+
+        def submit(group: list[tuple[WindowTask, Cut, bool]]) -> None:
+            futs = self.executor.submit_many([task for task, _, _ in group])
+            for fut, (task, cut, warm) in zip(futs, group, strict=True):
+                pending[fut] = (task.bus, cut, warm)
+                fut.add_done_callback(completed.put)
+
         for bus in self.store.buses():
             buf = self.store.buffer(bus, create=False)
             if buf is None:
@@ -184,10 +196,14 @@ class Scheduler:
                 continue
             warm = self.warm_starts.get(bus)
             task = WindowTask(bus=bus, t=cut.t, V=cut.V, theta=cut.theta, P=cut.P, Q=cut.Q, f=cut.f, f0=self.f0,
-                              warm_start=list(warm) if warm is not None else None, options=self.options)
-            fut = self.executor.submit(task)
-            pending[fut] = (bus, cut, warm is not None)
-            fut.add_done_callback(completed.put)
+                              warm_start=list(warm) if warm is not None else None,
+                              options=self.options if warm is None else self.warm_options)
+            group.append((task, cut, warm is not None))
+            if len(group) >= 64:  # submitted in groups: the workers start while the rest is cut
+                submit(group)
+                group = []
+        if group:
+            submit(group)
         if skipped:
             self._emit(skipped, done)
         batch: list[BusResult] = []

@@ -57,7 +57,11 @@ class ServiceSettings(BaseSettings):
     workers: int = Field(2, description="Local worker processes (spawned)")
     executor: str = Field("local", description="'local' (process pool) or a Dask scheduler address tcp://host:port")
     task_timeout_s: float = Field(60.0, description="Per-window identification timeout [s]")
-    n_starts: int = Field(3, description="Random starts of the identifier besides the warm start")
+    n_starts: int = Field(3, description="Random starts of the identifier for a bus without a warm start")
+    n_starts_warm: int = Field(
+        1, description="Random starts besides the warm start for a bus that has one (its previous successful D): "
+                       "a cheaper steady state; n_starts applies to buses without one",
+    )
     lowpass_hz: float | None = Field(
         2.0, description="Causal low-pass of V, θ, P, Q before identification [Hz] (None: off); it keeps "
                          "PMU noise on V and θ from biasing D (errors in variables), see docs/reproduction.md",
@@ -132,7 +136,7 @@ class ServiceSettings(BaseSettings):
             raise ValueError(f"lowpass_hz must be > 0 Hz or null (got {v})")
         return v
 
-    @field_validator("workers", "n_starts", "diagnose_every")
+    @field_validator("workers", "n_starts", "n_starts_warm", "diagnose_every")
     @classmethod
     def _count(cls, v: int, info) -> int:
         if v < (1 if info.field_name == "workers" else 0):

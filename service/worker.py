@@ -88,6 +88,16 @@ def identify_window(task: WindowTask) -> dict:
     return identify(window, warm_start=warm, config=IdentifyConfig(**task.options)).to_dict()
 
 
+def _warm_identify() -> None:
+    """Compile (or load from numba's cache) the identifier's kernels: worker start-up, not the first period."""
+    from aslm_core import warmup
+
+    warmup()
+
+
+identify_window.warmup = _warm_identify
+
+
 def diagnose_window(task: WindowTask) -> dict:
     """Worker function of the discrepancy diagnosis (DESIGN §3) of the task's window.
 
@@ -107,7 +117,11 @@ _FN_CACHE: dict[str, Callable[[WindowTask], dict]] = {}
 
 
 def resolve(fn_path: str) -> Callable[[WindowTask], dict]:
-    """Import ``module:function``."""
+    """Import ``module:function``.
+
+    A worker function may carry a ``warmup`` attribute: a callable without arguments that the worker
+    runs once at start, before it reports ready (e.g. JIT compilation).
+    """
     fn = _FN_CACHE.get(fn_path)
     if fn is None:
         module, _, name = fn_path.partition(":")

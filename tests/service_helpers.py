@@ -66,7 +66,7 @@ def fake_identify(task) -> dict:
         "dynamic": dict(zip(("a", "b", "H2", "Tm"), d, strict=True)),
         "static": {"Pz": 0.0, "Pi": 0.0, "Pp": float(np.mean(task.P)), "Qz": 0.0, "Qi": 0.0, "Qp": 0.0},
         "objective": 0.0, "fit": {"fd_p": 1.0, "fd_q": 1.0}, "elapsed_s": 0.001,
-        "warm_start_given": task.warm_start is not None,
+        "warm_start_given": task.warm_start is not None, "n_starts": task.options.get("n_starts"),
     }
 
 
@@ -126,4 +126,20 @@ def nan_for_b02_identify(task) -> dict:
     out = fake_identify(task)
     if task.bus == "b02":
         out["dynamic"]["a"] = float("nan")
+    return out
+
+
+def crash_identify(task) -> dict:
+    """Kills its worker process (no exception, no answer) on the bus named in $ASLM_TEST_CRASH_BUS."""
+    if task.bus == os.environ.get("ASLM_TEST_CRASH_BUS"):
+        os._exit(3)
+    time.sleep(0.005)
+    return fake_identify(task)
+
+
+def unpicklable_identify(task) -> dict:
+    """Returns a value that cannot be sent back to the parent (a lambda) for bus "bad"."""
+    out = fake_identify(task)
+    if task.bus == "bad":
+        out["oops"] = lambda: None
     return out

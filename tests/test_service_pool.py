@@ -62,6 +62,51 @@ def test_hung_task_times_out_and_others_finish(env):
         pool.close()
 
 
+@pytest.mark.parametrize("depth", [1, 8])
+def test_window_crashing_its_worker_fails_that_bus_only_with_tasks_queued_behind_it(monkeypatch, depth):
+    # With depth 8 a worker holds up to 8 tasks: the crash fails the one running, the ones queued
+    # behind it in the dead worker run elsewhere.
+    monkeypatch.setenv("ASLM_TEST_CRASH_BUS", "crash")
+    pool = LocalPool(2, "service_helpers:crash_identify", timeout_s=60, depth=depth)
+    try:
+        assert pool.wait_ready(60)
+        names = [f"b{i}" for i in range(10)] + ["crash"] + [f"b{i}" for i in range(10, 40)]
+        futs = pool.submit_many([task(n) for n in names])
+        outs = {n: f.result(timeout=60) for n, f in zip(names, futs, strict=True)}
+        assert (outs["crash"].ok, outs["crash"].reason) == (False, "worker_crashed")
+        assert all(o.ok for n, o in outs.items() if n != "crash")
+        assert pool.replaced == 1
+    finally:
+        pool.close()
+
+
+def test_hung_task_in_a_full_worker_times_out_alone(env):
+    pool = LocalPool(2, "service_helpers:hang_once_identify", timeout_s=2.0, depth=8)
+    try:
+        assert pool.wait_ready(60)
+        names = [f"b{i}" for i in range(5)] + ["hang"] + [f"b{i}" for i in range(5, 30)]
+        futs = pool.submit_many([task(n) for n in names])
+        outs = {n: f.result(timeout=60) for n, f in zip(names, futs, strict=True)}
+        assert (outs["hang"].ok, outs["hang"].reason) == (False, "timeout")
+        assert all(o.ok for n, o in outs.items() if n != "hang")
+        assert pool.replaced == 1
+    finally:
+        pool.close()
+
+
+def test_result_that_cannot_be_sent_back_fails_its_task_only():
+    pool = LocalPool(1, "service_helpers:unpicklable_identify", timeout_s=60)
+    try:
+        assert pool.wait_ready(60)
+        bad, good = pool.submit_many([task("bad"), task("good")])
+        out = bad.result(timeout=30)
+        assert not out.ok and out.reason.startswith("error:") and "not transferable" in out.message
+        assert good.result(timeout=30).ok
+        assert pool.replaced == 0
+    finally:
+        pool.close()
+
+
 def test_exceptions_become_reasons():
     pool = LocalPool(1, "service.worker:identify_window", timeout_s=60)
     try:

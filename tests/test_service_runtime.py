@@ -62,6 +62,7 @@ def test_restart_keeps_history_and_warm_starts(tmp_path, running):
     first = wait_for(lambda: [p for p in periods(svc.url) if p["n_ok"] == 3], 30)[0]
     before = httpx.get(f"{svc.url}/buses/b01/parameters").json()
     assert before and before[0]["period"] >= first["period"]
+    assert before[-1]["parameters"]["n_starts"] == 3  # cold: n_starts random starts
     stream.stop()
     svc.stop()
 
@@ -74,6 +75,7 @@ def test_restart_keeps_history_and_warm_starts(tmp_path, running):
     res = httpx.get(f"{svc2.url}/buses/b01/parameters", params={"since": fresh["period"], "until": fresh["period"]}
                     ).json()[0]
     assert res["warm_start"] is True and res["parameters"]["warm_start_given"] is True
+    assert res["parameters"]["n_starts"] == 1  # warm start + n_starts_warm random starts
     # The stand-in adds 1 to the warm start's a: the first period after the restart continues the chain.
     first_after = [r for r in httpx.get(f"{svc2.url}/buses/b01/parameters").json() if r["period"] > before[0]["period"]][-1]
     assert first_after["parameters"]["dynamic"]["a"] == latest_before + 1

@@ -19,6 +19,7 @@ def test_defaults():
     s = load_settings()
     assert (s.prefix, s.period_s, s.window_s, s.frame_rate, s.workers, s.executor) == (
         "aslm", 900.0, 10.0, 50.0, 2, "local")
+    assert (s.n_starts, s.n_starts_warm) == (3, 1)
 
 
 def test_precedence_toml_env_cli(tmp_path, monkeypatch):
@@ -40,6 +41,7 @@ def test_precedence_toml_env_cli(tmp_path, monkeypatch):
     ({"period_s": 5, "window_s": 10}, "period_s (5 s) must be at least window_s + late_s"),
     ({"workers": -1}, "workers"),
     ({"workers": 0}, "workers"),
+    ({"n_starts_warm": -1}, "n_starts_warm"),
     ({"executor": "spark"}, "executor must be 'local' or a Dask scheduler address"),
     ({"prefix": "aslm/**"}, "prefix"),
     ({"late_s": -1}, "late_s must be >= 0"),
