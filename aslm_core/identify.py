@@ -124,7 +124,7 @@ def levenberg_marquardt(problem: Problem, d0: np.ndarray, max_iter: int = 60, xt
                         known: Sequence[np.ndarray] = ()) -> dict:
     """Constrained Levenberg–Marquardt on the projected residuals from one start.
 
-    A start whose iterate, or the model's next step from it, comes within 5 % (relative, every parameter) of an
+    A start whose iterate, or the model's next step from it, comes within 10 % (relative, every parameter) of an
     optimum in ``known`` stops early: it is heading to the same point.  See :func:`aslm_core.optimize.lm_kernel`.
 
     Returns

@@ -17,7 +17,7 @@ from aslm_core.motor import normal_equations, simulate_kernel
 OBJECTIVE_CODES = {"paper": 0, "ml": 1, "ssq": 2}
 STATUS_NAMES = ("converged", "max_iter", "duplicate", "failed", "stalled")
 # A start this close (relative, every parameter) to an optimum already found is in its basin: stop it.
-DUPLICATE_RTOL = 5e-2
+DUPLICATE_RTOL = 0.1
 # Relative objective decrease below which a step is not worth an evaluation (rounding level).
 FTOL = 1e-10
 
