@@ -52,7 +52,7 @@ def client(url: str, buses: list[str], rate: float, seconds: float, out, connect
                 head = await reader.readuntil(b"\r\n\r\n")
                 await reader.readexactly(int(length.search(head).group(1)))
                 ok = head.split(b" ", 2)[1] == b"200"
-                lat.append(time.perf_counter() - due if ok else float("inf"))
+                lat.append((due, time.perf_counter() - due if ok else float("inf")))
 
         workers = [asyncio.create_task(conn_worker()) for _ in range(connections)]
         for bus in buses[:50]:  # warm-up
@@ -82,6 +82,8 @@ def main() -> None:
     ap.add_argument("--rate", type=float, default=200.0)
     ap.add_argument("--seconds", type=float, default=15.0)
     ap.add_argument("--idle", action="store_true", help="measure without a period computing (baseline)")
+    ap.add_argument("--timeline", type=float, default=0.0, metavar="S",
+                    help="also print p99/max per S-second bin, relative to the period's start")
     args = ap.parse_args()
 
     from bench_period import fill
@@ -99,27 +101,52 @@ def main() -> None:
         names = fill(svc.store, args.buses, b1)
         s1 = svc.scheduler.run_period(b1, 60.0)
         print(f"first period: {s1.n_ok} ok in {s1.latency_s:.1f} s (results now served)")
-        fill(svc.store, args.buses, b1 + 60, seed=1)
-        period = threading.Thread(target=lambda: None if args.idle else print_period(
-            svc.scheduler.run_period(b1 + 60, 60.0)))
+        fill(svc.store, args.buses, b1 + 60, skip_s=60.0)  # the same buses, one period later: warm-started
+        span = []  # perf_counter (CLOCK_MONOTONIC: comparable across processes) at the period's start and end
+
+        def run_second() -> None:
+            span.append(time.perf_counter())
+            s2 = svc.scheduler.run_period(b1 + 60, 60.0)
+            span.append(time.perf_counter())
+            print_period(s2)
+
+        period = threading.Thread(target=lambda: None if args.idle else run_second())
         ctx = mp.get_context("spawn")
         out = ctx.Queue()
         proc = ctx.Process(target=client, args=(svc.url, names, args.rate, args.seconds, out))
         proc.start()
         assert out.get(timeout=120) == "ready"
         period.start()
-        lat = np.array(out.get(timeout=args.seconds + 120))
+        res = np.array(out.get(timeout=args.seconds + 120))
         proc.join(10)
         computing = svc.scheduler.running_period is not None
         period.join()
+        due, lat = res[:, 0], res[:, 1]
         ok = np.isfinite(lat)
-        ms = 1e3 * lat[ok]
         print(f"REST latest at {args.rate:g} req/s for {args.seconds:g} s over {args.buses} buses "
-              f"{'idle' if args.idle else 'while a period computes'} (still computing at the end: {computing}): {ok.sum()} ok / {lat.size} requests; "
-              f"p50 {np.percentile(ms, 50):.1f} ms, p95 {np.percentile(ms, 95):.1f} ms, "
-              f"p99 {np.percentile(ms, 99):.1f} ms, max {ms.max():.1f} ms; load average {os.getloadavg()[0]:.1f}")
+              f"{'idle' if args.idle else 'while a period computes'} (still computing at the end: {computing}): "
+              f"{ok.sum()} ok / {lat.size} requests; load average {os.getloadavg()[0]:.1f}")
+        print("  all requests: " + stats(lat))
+        if len(span) == 2:
+            during = (due >= span[0]) & (due <= span[1])
+            print(f"  requests due while the period ran ({span[1] - span[0]:.1f} s): " + stats(lat[during]))
+            if args.timeline > 0:
+                rel = due - span[0]
+                for k in np.arange(np.floor(rel.min() / args.timeline), np.ceil(rel.max() / args.timeline)):
+                    sel = (rel >= k * args.timeline) & (rel < (k + 1) * args.timeline)
+                    if sel.any():
+                        print(f"    t = {k * args.timeline:+6.1f} s: " + stats(lat[sel]))
     finally:
         svc.stop()
+
+
+def stats(lat: np.ndarray) -> str:
+    """Percentiles of latencies [s] as text [ms]."""
+    ms = 1e3 * lat[np.isfinite(lat)]
+    if ms.size == 0:
+        return "no successful requests"
+    return (f"n {ms.size}, p50 {np.percentile(ms, 50):.1f} ms, p95 {np.percentile(ms, 95):.1f} ms, "
+            f"p99 {np.percentile(ms, 99):.1f} ms, max {ms.max():.1f} ms")
 
 
 def print_period(s) -> None:

@@ -202,6 +202,7 @@ class Scheduler:
             if len(group) >= 64:  # submitted in groups: the workers start while the rest is cut
                 submit(group)
                 group = []
+                time.sleep(0)  # let the REST/ingest threads have the GIL between groups
         if group:
             submit(group)
         if skipped:
