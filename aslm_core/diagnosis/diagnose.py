@@ -36,7 +36,9 @@ import numpy as np
 
 from aslm_core.diagnosis import engine
 from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
-from aslm_core.diagnosis.locate import locate, noise_floor
+from aslm_core.diagnosis.locate import locate
+from aslm_core.diagnosis.noise import BAND_HZ, NoiseModel, dct_band
+from aslm_core.diagnosis.noise import estimate as estimate_noise
 from aslm_core.diagnosis.playback import model_dict
 from aslm_core.diagnosis.segment import Segment, make_segment
 from aslm_core.identify import identify
@@ -66,6 +68,10 @@ class DiagnosisConfig:
         Newey–West bandwidth of the HAC variance [s].
     candidates : tuple of str
         Library members tried (default: all).
+    band_hz : float
+        Upper edge of the ambient band the fits and held-out tests use [Hz].
+    prediction_variance : bool
+        Count the plain model's own held-out prediction uncertainty in the score test's variance.
     """
 
     train_fraction: float = 0.65
@@ -74,6 +80,8 @@ class DiagnosisConfig:
     explained_fraction: float = 0.5
     lag_s: float = 1.0
     candidates: tuple[str, ...] = tuple(LIBRARY)
+    band_hz: float = BAND_HZ
+    prediction_variance: bool = True
 
 
 @dataclass
@@ -133,6 +141,8 @@ class _WindowAnalysis:
     comps: dict
     reidentified: engine.Fit | None = None
     refit_comp: engine.Comparison | None = None
+    noise: NoiseModel | None = None
+    floors: dict | None = None
 
 
 def _plain_d(seg: Segment, previous, config: DiagnosisConfig) -> np.ndarray:
@@ -153,37 +163,55 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
     else:
         m = model_dict(model)
         ctx = Context("user", np.array([m["dynamic"][k] for k in DYNAMIC_NAMES]), m["static"])
-    # Noise floor from the plain residual (unit weights first), then the weighted plain fit.
+    # Noise model (white P/Q floors, V/θ noise propagated through the model) from a first playback, the
+    # plain fit weighted by it, the noise model again through the fitted plain model, and the plain fit
+    # again under those weights (candidates are compared with a plain fit made under the same weights).
     first = engine.evaluate(_PLAIN, seg, ctx, ctx.d0, np.zeros(0), (1.0, 1.0))
     if not first.ok:
         raise ValueError("the model has no motor equilibrium at the window's first sample")
     win = slice(seg.k0, seg.ke)
-    rp, rq = (a[win] for a in first.residuals(seg))
-    floors = {"P": noise_floor(rp, seg.fs), "Q": noise_floor(rq, seg.fs)}
-    sig = (max(floors["P"]["sigma"], 1e-12), max(floors["Q"]["sigma"], 1e-12))
-    plain = engine.fit_candidate(_PLAIN, seg, ctx, sig)
+    noise = estimate_noise(seg, lambda s: engine.output(_PLAIN, s, ctx, first), win, band_hz=config.band_hz)
+    plain = engine.fit_candidate(_PLAIN, seg, ctx, noise)
+    if noise.has_inputs and plain.ok:
+        noise = estimate_noise(seg, lambda s: engine.output(_PLAIN, s, ctx, plain), win, band_hz=config.band_hz)
+        plain = engine.fit_candidate(_PLAIN, seg, ctx, noise, d_start=plain.d)
+    sig = (noise.total_sigma("P", win), noise.total_sigma("Q", win))
+    floors = {ch: noise.location_floor(ch, win) for ch in ("P", "Q")}
     # Location uses the model identified from the whole window (the playback of DESIGN §3): a model fitted
     # on the training part alone carries its extrapolation error into the held-out part.
     full = replace(seg, ks=seg.ke)
-    whole = engine.fit_candidate(_PLAIN, full, ctx, sig, d_start=plain.d)
+    whole = engine.fit_candidate(_PLAIN, full, ctx, noise, d_start=plain.d)
     rp, rq = (a[win] for a in (whole if whole.ok else plain).residuals(seg))
     drivers = {"V": seg.V[win], "dVdt": seg.dvdt[win], "df": seg.dfreq[win]}
     located = locate(rp, rq, seg.t[win], seg.fs, drivers, floors)
+    g0 = _probes(seg, noise, _PLAIN, ctx, plain)
+    pcov = engine.prediction_cov(_PLAIN, seg, ctx, plain, noise) if config.prediction_variance else None
     fits, comps = {}, {}
     for name in config.candidates:
         cand = LIBRARY[name]
         if cand.not_applicable(ctx):
             continue
-        f = engine.fit_candidate(cand, seg, ctx, sig, d_start=plain.d)
+        f = engine.fit_candidate(cand, seg, ctx, noise, d_start=plain.d)
         fits[name] = f
-        comps[name] = engine.compare(seg, plain, f, cand.n_params, sig, config.lag_s)
-    out = _WindowAnalysis(seg, ctx, sig, plain, located, fits, comps)
+        g1 = _probes(seg, noise, cand, ctx, f) if g0 is not None else None
+        comps[name] = engine.compare(seg, plain, f, cand.n_params, noise, config.lag_s,
+                                     probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
+    out = _WindowAnalysis(seg, ctx, sig, plain, located, fits, comps, noise=noise, floors=floors)
     if not ctx.free:
         ictx = Context("identified", _plain_d(seg, None, config))
-        re = engine.fit_candidate(_PLAIN, seg, ictx, sig)
+        re = engine.fit_candidate(_PLAIN, seg, ictx, noise)
         out.reidentified = re
-        out.refit_comp = engine.compare(seg, plain, re, 4 + 5, sig, config.lag_s)
+        g1 = _probes(seg, noise, _PLAIN, ictx, re) if g0 is not None else None
+        out.refit_comp = engine.compare(seg, plain, re, 4 + 5, noise, config.lag_s,
+                                        probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
     return out
+
+
+def _probes(seg: Segment, noise: NoiseModel, cand: Candidate, ctx: Context, fit: engine.Fit):
+    """The noise model's input-noise draws pushed through a fitted candidate (None: not modelled/failed)."""
+    if not noise.has_inputs or not fit.ok:
+        return None
+    return noise.propagate(seg, lambda s: engine.output(cand, s, ctx, fit), (fit.model_p, fit.model_q))
 
 
 def _held_out_fit(seg: Segment, fit: engine.Fit) -> dict:
@@ -334,7 +362,11 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
     return DiagnosisReport(
         verdict=verdict, cause=cause, located=located, missing_physics=entries, fit_before=before,
         fit_after=after, model=plain_model,
-        noise={"sigma_p": float(np.mean([a.sig[0] for a in analyses])), "sigma_q": float(np.mean([a.sig[1] for a in analyses]))},
+        noise={"sigma_p": float(np.mean([a.sig[0] for a in analyses])), "sigma_q": float(np.mean([a.sig[1] for a in analyses])),
+               "sigma_v": float(np.mean([a.noise.sigma_v for a in analyses])),
+               "sigma_theta": float(np.mean([a.noise.sigma_theta for a in analyses])),
+               "input_share_p": float(np.mean([a.floors["P"]["input_share"] for a in analyses])),
+               "input_share_q": float(np.mean([a.floors["Q"]["input_share"] for a in analyses]))},
         held_out={"windows": m, "t_start": [float(a.seg.t[a.seg.ks]) for a in analyses],
                   "t_end": [float(a.seg.t[a.seg.ke - 1]) for a in analyses],
                   "n": int(sum(a.seg.ke - a.seg.ks for a in analyses)), "dm_critical": zcrit},
@@ -344,17 +376,18 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
 
 
 def _explained_fraction(analyses: list[_WindowAnalysis], name: str) -> float:
-    """Share of the held-out weighted residual sum of squares above the noise expectation that a candidate removes."""
+    """Share of the held-out ambient-band residual above the noise expectation that a candidate removes
+    (noise-weighted sums of squares of the DCT coefficients; m per channel expected from noise alone)."""
     s0 = s1 = expected = 0.0
     for a in analyses:
         te = a.seg.test
-        for ch, sg in ((0, a.sig[0]), (1, a.sig[1])):
-            y = a.seg.P if ch == 0 else a.seg.Q
-            m0 = a.plain.model_p if ch == 0 else a.plain.model_q
-            m1 = a.fits[name].model_p if ch == 0 else a.fits[name].model_q
-            s0 += float(np.sum((y[te] - m0[te]) ** 2)) / sg**2
-            s1 += float(np.sum((y[te] - m1[te]) ** 2)) / sg**2
-            expected += te.stop - te.start
+        vp, vq, _ = a.noise.coefficients(te)
+        f1 = a.fits[name]
+        for y, m0, m1, v in ((a.seg.P, a.plain.model_p, f1.model_p, vp), (a.seg.Q, a.plain.model_q, f1.model_q, vq)):
+            c = dct_band(np.column_stack([(y - m0)[te], (y - m1)[te]]), a.noise.fs, a.noise.band_hz)
+            s0 += float(np.sum(c[:, 0] ** 2 / v))
+            s1 += float(np.sum(c[:, 1] ** 2 / v))
+            expected += v.size
     excess = s0 - expected
     if excess <= 0.05 * expected:  # hardly any excess: a significant gain then explains it all
         return 1.0 if s1 < s0 else 0.0
@@ -367,9 +400,7 @@ def _remaining(analyses: list[_WindowAnalysis], name: str) -> list[str]:
     for a in analyses:
         win = slice(a.seg.k0, a.seg.ke)
         rp, rq = (r[win] for r in a.fits[name].residuals(a.seg))
-        fl = {ch: {**a.located["noise_floor"][ch], "band": a.located["noise_floor"][ch]["band_hz"]}
-              for ch in ("P", "Q")}
-        loc = locate(rp, rq, a.seg.t[win], a.seg.fs, {}, fl)
+        loc = locate(rp, rq, a.seg.t[win], a.seg.fs, {}, a.floors)
         left.update(loc["channels"])
     return sorted(left)
 

@@ -5,8 +5,10 @@ Upper stage: ``scipy.optimize.least_squares`` (trust-region reflective, finite d
 nonlinear parameters — D = [a, b, H2, Tm] in identified mode plus the candidate's own z.  Lower stage:
 for given (D, z) the linear coefficients (ZIP and the candidate's linear extras) are the least-squares
 solution on the training samples, so the upper stage sees the projected residual (variable projection).
-Both channels are weighted by their noise level (1/σ², σ from the noise floor): the weighted sum of
-squares is the Gaussian likelihood with known per-channel noise, so P and Q count by their information.
+Residuals are taken in the ambient band (DCT coefficients below 5 Hz, :mod:`aslm_core.diagnosis.noise`)
+and weighted per coefficient by the noise model's variance (measurement noise plus the V/θ noise the model
+propagates): the weighted sum of squares is the Gaussian (Whittle-type) likelihood with known noise, so P
+and Q, and the frequencies, count by their information.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from aslm_core.diagnosis.candidates.base import Candidate, Context, Prediction
+from aslm_core.diagnosis.noise import NoiseModel, dct_band, n_band
 from aslm_core.diagnosis.segment import Segment
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 
@@ -73,16 +76,40 @@ def _lstsq(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return beta / s
 
 
-def _train_residuals(pr: Prediction, seg: Segment, sig: tuple[float, float]):
+def as_noise(noise, seg: Segment) -> NoiseModel:
+    """A :class:`NoiseModel` from a noise model or a pair of white-noise stds (σ_P, σ_Q) [pu]."""
+    if isinstance(noise, NoiseModel):
+        return noise
+    return NoiseModel.white(float(noise[0]), float(noise[1]), seg.fs)
+
+
+def output(cand: Candidate, seg: Segment, ctx: Context, fit: Fit) -> tuple[np.ndarray, np.ndarray] | None:
+    """A fitted candidate's P and Q [pu] over a segment (parameters and linear coefficients fixed)."""
+    pr = cand.predict(seg, ctx, fit.d, fit.z)
+    if pr is None:
+        return None
+    return pr.mp + pr.xp @ fit.beta_p, pr.mq + pr.xq @ fit.beta_q
+
+
+def _train_residuals(pr: Prediction, seg: Segment, noise: NoiseModel):
+    """Whitened ambient-band residuals of the lower stage on the training samples.
+
+    Returns rp, rq (weighted DCT coefficients), bp, bq (linear coefficients), xp, xq (weighted columns).
+    """
     tr = seg.train
-    bp = _lstsq(pr.xp[tr], seg.P[tr] - pr.mp[tr])
-    bq = _lstsq(pr.xq[tr], seg.Q[tr] - pr.mq[tr])
-    rp = (seg.P[tr] - pr.mp[tr] - pr.xp[tr] @ bp) / sig[0]
-    rq = (seg.Q[tr] - pr.mq[tr] - pr.xq[tr] @ bq) / sig[1]
-    return rp, rq, bp, bq
+    vp, vq, _ = noise.coefficients(tr)
+    out = []
+    for y, m, x, v in ((seg.P, pr.mp, pr.xp, vp), (seg.Q, pr.mq, pr.xq, vq)):
+        c = dct_band(np.column_stack([y[tr] - m[tr], x[tr]]), noise.fs, noise.band_hz)
+        w = 1.0 / np.sqrt(v)
+        yw, xw = c[:, 0] * w, c[:, 1:] * w[:, None]
+        beta = _lstsq(xw, yw)
+        out.append((yw - xw @ beta, beta, xw))
+    (rp, bp, xwp), (rq, bq, xwq) = out
+    return rp, rq, bp, bq, xwp, xwq
 
 
-def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, sig: tuple[float, float], *,
+def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, noise, *,
                   d_start: np.ndarray | None = None, z_starts: list[np.ndarray] | None = None,
                   max_nfev: int | None = None) -> Fit:
     """Fit one candidate on ``seg.train``.
@@ -93,8 +120,8 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, sig: tuple[float,
     seg : Segment
     ctx : Context
         Identified mode frees D; user mode keeps ``ctx.d0``.
-    sig : (float, float)
-        Noise std of P and Q [pu] (weights).
+    noise : NoiseModel or (float, float)
+        Noise of the residuals (the weights); a pair is white noise std of P and Q [pu].
     d_start : ndarray, optional
         Start of D (default ``ctx.d0``).
     z_starts : list of ndarray, optional
@@ -102,6 +129,7 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, sig: tuple[float,
     max_nfev : int, optional
         Function evaluations per start.
     """
+    noise = as_noise(noise, seg)
     d0 = np.asarray(ctx.d0 if d_start is None else d_start, dtype=np.float64)
     z_starts = cand.starts(seg, ctx) if z_starts is None else z_starts
     zlo, zhi = cand.bounds(seg, ctx)
@@ -113,7 +141,7 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, sig: tuple[float,
         lo, hi = np.concatenate([dlo, zlo]), np.concatenate([dhi, zhi])
     else:
         lo, hi = np.asarray(zlo, float), np.asarray(zhi, float)
-    n_tr = seg.ks - seg.k0
+    n_tr = n_band(seg.ks - seg.k0, noise.fs, noise.band_hz)
 
     def unpack(x):
         return (x[:4], x[4:]) if free else (d0, x)
@@ -123,7 +151,7 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, sig: tuple[float,
         pr = cand.predict(seg, ctx, d, z)
         if pr is None:
             return np.full(2 * n_tr, _FAIL)
-        rp, rq, _, _ = _train_residuals(pr, seg, sig)
+        rp, rq, *_ = _train_residuals(pr, seg, noise)
         r = np.concatenate([rp, rq])
         return r if np.all(np.isfinite(r)) else np.full(2 * n_tr, _FAIL)
 
@@ -144,26 +172,28 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, sig: tuple[float,
         if best is None or res.cost < best.cost:
             best = res
     d, z = unpack(best.x)
-    return evaluate(cand, seg, ctx, d, z, sig, res=best, nfev=nfev)
+    return evaluate(cand, seg, ctx, d, z, noise, res=best, nfev=nfev)
 
 
 def evaluate(cand: Candidate, seg: Segment, ctx: Context, d: np.ndarray, z: np.ndarray,
-             sig: tuple[float, float], *, res=None, nfev: int = 0) -> Fit:
+             noise, *, res=None, nfev: int = 0) -> Fit:
     """The lower stage alone for given (D, z): linear coefficients on the training samples, model over
-    the window (``res``, the upper stage's result, adds standard errors of z)."""
+    the window (``res``, the upper stage's result, adds standard errors of z); ``noise`` as in
+    :func:`fit_candidate`."""
+    noise = as_noise(noise, seg)
     pr = cand.predict(seg, ctx, d, z)
     if pr is None:
         nan = np.full(seg.n, np.nan)
         return Fit(np.asarray(d, float), np.asarray(z, float), np.zeros(0), np.zeros(0), nan, nan, math.inf,
                    ok=False, nfev=nfev)
-    rp, rq, bp, bq = _train_residuals(pr, seg, sig)
+    rp, rq, bp, bq, xwp, xwq = _train_residuals(pr, seg, noise)
     model_p = pr.mp + pr.xp @ bp
     model_q = pr.mq + pr.xq @ bq
     cost = 0.5 * float(rp @ rp + rq @ rq)
     fit = Fit(np.array(d, float), np.array(z, float), bp, bq, model_p, model_q, cost, nfev=nfev)
     if res is None:
         res = optimize.OptimizeResult(jac=np.zeros((rp.size + rq.size, 0)))
-    _parameters(fit, cand, seg, pr, res, rp, rq, sig, ctx.free)
+    _parameters(fit, cand, pr, res, rp, rq, xwp, xwq, ctx.free)
     return fit
 
 
@@ -174,19 +204,18 @@ def _ar1_inflation(r: np.ndarray) -> float:
     return (1.0 + rho) / (1.0 - rho)
 
 
-def _parameters(fit: Fit, cand: Candidate, seg: Segment, pr: Prediction, res, rp, rq, sig, free: bool) -> None:
-    """Fill the candidate's parameters and standard errors into ``fit``."""
+def _parameters(fit: Fit, cand: Candidate, pr: Prediction, res, rp, rq, xwp, xwq, free: bool) -> None:
+    """Fill the candidate's parameters and standard errors into ``fit`` (whitened residuals and columns)."""
     params: dict[str, float] = {}
     stderr: dict[str, float] = {}
     n_static = pr.xp.shape[1] - len(cand.lin_p)
-    tr = seg.train
-    for name, cols, beta, r, s in (("p", cand.lin_p, fit.beta_p, rp, sig[0]), ("q", cand.lin_q, fit.beta_q, rq, sig[1])):
+    for cols, beta, r, x in ((cand.lin_p, fit.beta_p, rp, xwp), (cand.lin_q, fit.beta_q, rq, xwq)):
         if not cols:
             continue
-        x = (pr.xp if name == "p" else pr.xq)[tr]
-        var = float(r @ r) / max(r.size - x.shape[1], 1) * s * s * _ar1_inflation(r)
+        var = float(r @ r) / max(r.size - x.shape[1], 1) * _ar1_inflation(r)
         try:
             xs = np.sqrt(np.sum(x * x, axis=0))
+            xs[xs == 0] = 1.0
             cov = np.linalg.pinv((x / xs).T @ (x / xs)) / np.outer(xs, xs) * var
             se = np.sqrt(np.clip(np.diag(cov), 0, None))
         except np.linalg.LinAlgError:
@@ -215,6 +244,71 @@ def _parameters(fit: Fit, cand: Candidate, seg: Segment, pr: Prediction, res, rp
     fit.stderr = stderr
 
 
+def prediction_cov(cand: Candidate, seg: Segment, ctx: Context, fit: Fit, noise,
+                   rel_step: float = 1e-6) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Linearised held-out prediction uncertainty of a fitted model from its training fit.
+
+    Parameters
+    ----------
+    cand : Candidate
+    seg : Segment
+    ctx : Context
+    fit : Fit
+        The model fitted on ``seg.train``.
+    noise : NoiseModel or (float, float)
+        Noise of the residuals (see :func:`fit_candidate`).
+    rel_step : float
+        Relative forward-difference step of the nonlinear parameters [-].
+
+    Returns
+    -------
+    (jp, jq, cov) or None
+        jp, jq: derivatives of the held-out ambient-band DCT coefficients of P and Q with respect to all
+        fitted parameters (the free nonlinear ones, then the linear coefficients of P, then of Q);
+        cov: the parameters' covariance from the noise-weighted training fit, (JᵀJ)⁻¹ with J the whitened
+        training Jacobian.  The plain model's held-out residual is noise *plus* its own estimation error,
+        whose covariance is jp·cov·jpᵀ etc.; None when the model cannot be differentiated.
+    """
+    noise = as_noise(noise, seg)
+    pr = cand.predict(seg, ctx, fit.d, fit.z)
+    if pr is None:
+        return None
+    x_nl = np.concatenate([fit.d, fit.z]) if ctx.free else np.asarray(fit.z, float)
+    cols_p, cols_q = [], []
+    base_p, base_q = pr.mp + pr.xp @ fit.beta_p, pr.mq + pr.xq @ fit.beta_q
+    for j in range(x_nl.size):
+        h = rel_step * max(abs(x_nl[j]), 1e-3)
+        x = x_nl.copy()
+        x[j] += h
+        d, z = (x[:4], x[4:]) if ctx.free else (fit.d, x)
+        pj = cand.predict(seg, ctx, d, z)
+        if pj is None:
+            return None
+        cols_p.append((pj.mp + pj.xp @ fit.beta_p - base_p) / h)
+        cols_q.append((pj.mq + pj.xq @ fit.beta_q - base_q) / h)
+    n, kp, kq, k = seg.n, pr.xp.shape[1], pr.xq.shape[1], x_nl.size
+    jp = np.zeros((n, k + kp + kq))
+    jq = np.zeros((n, k + kp + kq))
+    if k:
+        jp[:, :k] = np.column_stack(cols_p)
+        jq[:, :k] = np.column_stack(cols_q)
+    jp[:, k:k + kp] = pr.xp
+    jq[:, k + kp:] = pr.xq
+    tr, te = seg.train, seg.test
+    vp, vq, _ = noise.coefficients(tr)
+    jtr = np.vstack([dct_band(jp[tr], noise.fs, noise.band_hz) / np.sqrt(vp)[:, None],
+                     dct_band(jq[tr], noise.fs, noise.band_hz) / np.sqrt(vq)[:, None]])
+    if not np.all(np.isfinite(jtr)):
+        return None
+    sc = np.sqrt(np.sum(jtr * jtr, axis=0))
+    sc[sc == 0] = 1.0
+    # From the SVD of J itself (JᵀJ would square the condition of the nearly collinear [1, V, V²]).
+    _, sv, vt = np.linalg.svd(jtr / sc, full_matrices=False)
+    keep = sv > 1e-13 * sv[0]
+    cov = (vt[keep].T / sv[keep] ** 2) @ vt[keep] / np.outer(sc, sc)
+    return dct_band(jp[te], noise.fs, noise.band_hz), dct_band(jq[te], noise.fs, noise.band_hz), cov
+
+
 # --------------------------------------------------------------------------------------------------
 # Held-out comparison
 # --------------------------------------------------------------------------------------------------
@@ -238,22 +332,22 @@ class Comparison:
     Attributes
     ----------
     score_z : float
-        Held-out score statistic Σ r0·Δ/σ² / sqrt(ΣΔ²/σ²) of the plain residual r0 against the
-        candidate's correction Δ = model1 − model0 (both channels, noise-weighted).  Δ depends only on the
-        training samples and the inputs, so with white measurement noise score_z ~ N(0, 1) when the
+        Held-out score statistic of the plain residual r0 against the candidate's correction
+        Δ = model1 − model0 in the ambient band, noise-weighted (see :func:`compare`).  Δ depends only on
+        the training samples and the inputs, so with the noise model right score_z ~ N(0, 1) when the
         candidate is not needed, whatever its number of parameters.
     dm_z : float
         Diebold–Mariano statistic of the weighted squared-error differential (plain − candidate), HAC
         (reported; weaker on a few seconds of held-out data).
     gain : float
-        Held-out log-likelihood gain Σ_ch (n/2)·ln(SSR0/SSR1) [nats].
+        Held-out log-likelihood gain Σ_ch (m/2)·ln(S0/S1) over the m ambient-band coefficients [nats].
     penalised_gain : float
-        gain − (k/2)·ln(n) (BIC-like penalty for the k added parameters) [nats].
+        gain − (k/2)·ln(m) (BIC-like penalty for the k added parameters) [nats].
     reduction_p, reduction_q : float
         Held-out residual-variance reduction 1 − SSR1/SSR0 per channel [-].
     excess_p, excess_q : float or None
-        Share of the held-out residual variance *above the noise floor* removed, (SSR0 − SSR1)/(SSR0 − n·σ²)
-        per channel [-]; None when the channel has (almost) no excess to remove.
+        Share of the held-out ambient-band residual *above the noise* removed, (S0 − S1)/(S0 − m) per
+        channel (noise-weighted sums of squares) [-]; None when the channel has (almost) no excess.
     n : int
         Held-out samples.
     """
@@ -269,28 +363,90 @@ class Comparison:
     excess_q: float | None = None
 
 
-def compare(seg: Segment, plain: Fit, cand: Fit, k: int, sig: tuple[float, float], lag_s: float = 1.0) -> Comparison:
-    """Compare a candidate with the plain fit on the held-out samples of one segment."""
+def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1.0, probes=None,
+            plain_cov=None) -> Comparison:
+    """Compare a candidate with the plain fit on the held-out samples of one segment.
+
+    Parameters
+    ----------
+    seg : Segment
+    plain, cand : Fit
+        The plain model and the candidate, both fitted on the training samples.
+    k : int
+        Parameters the candidate adds (the penalty's k).
+    noise : NoiseModel or (float, float)
+        Noise of the residuals (see :func:`fit_candidate`).
+    lag_s : float
+        Newey–West bandwidth of the reported Diebold–Mariano statistic [s].
+    probes : tuple of ndarray, optional
+        (G0 e, G1 e): the same input-noise draws pushed through the plain model and through the candidate,
+        each a pair of arrays (k, n) for P and Q (:meth:`NoiseModel.propagate`).  Given, the score and the
+        gain are corrected for errors in variables (below).
+    plain_cov : tuple, optional
+        The plain model's held-out prediction uncertainty from :func:`prediction_cov`: its held-out residual
+        is the noise plus its own estimation error, and the score's variance counts both.
+
+    Notes
+    -----
+    With R0 and D the ambient-band DCT coefficients of the plain held-out residual and of the candidate's
+    correction (model1 − model0), and v_P, v_Q, c_PQ the noise model's variances and covariance per
+    coefficient, the score statistic is Σ(R0_P·D_P/v_P + R0_Q·D_Q/v_Q) over its standard deviation
+    √Σ(D_P²/v_P + D_Q²/v_Q + 2·D_P·D_Q·c_PQ/(v_P·v_Q)) — N(0, 1) when the candidate is not needed.  The
+    log-likelihood gain is Σ_ch (m/2)·ln(S0/S1) with S the weighted sums of squares of the m coefficients.
+
+    Errors in variables: with noisy V and θ both R0 and D carry the *held-out* input noise, R0 ⊃ −G0·e and
+    D ⊃ (G1 − G0)·e, so the numerator has the expectation b = −E[Σ G0e·(G1 − G0)e/v] ≠ 0 even when the
+    candidate is not needed (e.g. a candidate that smooths its input removes part of the propagated
+    noise).  b, the variance of that quadratic form and of the P/Q noise against (G1 − G0)e are estimated
+    from the probes; the score is (numerator − b) over the total standard deviation, and the candidate's
+    held-out sum of squares S1 is raised by 2·b per channel before the gain is taken.
+    """
+    noise = as_noise(noise, seg)
     te = seg.test
     r0p, r0q = (seg.P - plain.model_p)[te], (seg.Q - plain.model_q)[te]
     r1p, r1q = (seg.P - cand.model_p)[te], (seg.Q - cand.model_q)[te]
     n = r0p.size
     if not cand.ok or not np.all(np.isfinite(r1p)) or not np.all(np.isfinite(r1q)):
         return Comparison(-math.inf, -math.inf, -math.inf, -math.inf, 0.0, 0.0, n)
-    dl = (r0p**2 - r1p**2) / sig[0] ** 2 + (r0q**2 - r1q**2) / sig[1] ** 2
+    # Reported: Diebold–Mariano on the time-domain squared errors, weighted by the total noise level.
+    sp, sq = noise.total_sigma("P", te), noise.total_sigma("Q", te)
+    dl = (r0p**2 - r1p**2) / sp**2 + (r0q**2 - r1q**2) / sq**2
     lag = max(1, min(int(round(lag_s / seg.dt)), n // 4))
     z = float(dl.mean() / math.sqrt(hac_variance(dl, lag) / n))
-    dp, dq = r0p - r1p, r0q - r1q  # = model1 − model0
-    num = float(r0p @ dp) / sig[0] ** 2 + float(r0q @ dq) / sig[1] ** 2
-    den = math.sqrt(max(float(dp @ dp) / sig[0] ** 2 + float(dq @ dq) / sig[1] ** 2, 1e-300))
-    score = num / den
+    # The test: ambient band, noise-weighted per coefficient.
+    vp, vq, cpq = noise.coefficients(te)
+    c = dct_band(np.column_stack([r0p, r0q, r0p - r1p, r0q - r1q]), noise.fs, noise.band_hz)
+    R0p, R0q, Dp, Dq = c.T
+    m = R0p.size
+    num = float(np.sum(R0p * Dp / vp + R0q * Dq / vq))
+    den2 = float(np.sum(Dp * Dp / vp + Dq * Dq / vq + 2.0 * Dp * Dq * cpq / (vp * vq)))
+    bp = bq = 0.0
+    if probes is not None:
+        (g0p, g0q), (g1p, g1q) = probes
+        G0p, G0q, dGp, dGq = (dct_band(x[:, te].T, noise.fs, noise.band_hz)
+                              for x in (g0p, g0q, g1p - g0p, g1q - g0q))
+        ap = -np.sum(G0p * dGp / vp[:, None], axis=0)  # per draw
+        aq = -np.sum(G0q * dGq / vq[:, None], axis=0)
+        bp, bq = float(ap.mean()), float(aq.mean())
+        # The realisation's spread, plus the Monte Carlo error of b itself.
+        var_quad = float(np.var(ap + aq, ddof=1)) * (1.0 + 1.0 / ap.size) if ap.size > 1 else 0.0
+        var_cross = float(np.mean(np.sum(dGp**2 * noise.sigma_p**2 / vp[:, None] ** 2
+                                         + dGq**2 * noise.sigma_q**2 / vq[:, None] ** 2, axis=0)))
+        num -= bp + bq
+        den2 += var_quad + var_cross
+    if plain_cov is not None:
+        jp, jq, cov = plain_cov
+        g = jp.T @ (Dp / vp) + jq.T @ (Dq / vq)
+        den2 += max(float(g @ cov @ g), 0.0)
+    score = num / math.sqrt(max(den2, 1e-300))
+    S0p, S0q = float(np.sum(R0p**2 / vp)), float(np.sum(R0q**2 / vq))
+    S1p = float(np.sum((R0p - Dp) ** 2 / vp)) + 2.0 * bp
+    S1q = float(np.sum((R0q - Dq) ** 2 / vq)) + 2.0 * bq
+    gain = 0.5 * m * (math.log(S0p / max(S1p, 1e-300)) + math.log(S0q / max(S1q, 1e-300)))
+    ex = [(s0 - s1) / (s0 - m) if s0 - m > 0.05 * m else None for s0, s1 in ((S0p, S1p), (S0q, S1q))]
     s0p, s0q, s1p, s1q = (float(r @ r) for r in (r0p, r0q, r1p, r1q))
-    gain = 0.5 * n * (math.log(s0p / s1p) + math.log(s0q / s1q))
-    ex = []
-    for s0, s1, sg in ((s0p, s1p, sig[0]), (s0q, s1q, sig[1])):
-        noise = n * sg * sg
-        ex.append((s0 - s1) / (s0 - noise) if s0 - noise > 0.05 * noise else None)
-    return Comparison(score, z, gain, gain - 0.5 * k * math.log(n), 1.0 - s1p / s0p, 1.0 - s1q / s0q, n, ex[0], ex[1])
+    return Comparison(score, z, gain, gain - 0.5 * k * math.log(m), 1.0 - s1p / s0p, 1.0 - s1q / s0q, n,
+                      ex[0], ex[1])
 
 
 def dm_critical(alpha: float, m: int) -> float:

@@ -66,7 +66,9 @@ def band_excess(r: np.ndarray, fs: float, floor: dict, *, alpha: float = 0.01, n
     fs : float
         Sample rate [Hz].
     floor : dict
-        From :func:`noise_floor` (``psd`` [pu²/Hz], ``bins``).
+        From :func:`noise_floor` (``psd`` [pu²/Hz], ``bins``); optionally ``extra_psd``: the expected PSD of
+        noise propagated from the inputs, per bin of :func:`periodogram` of ``r`` [pu²/Hz], added to the
+        white floor.
     alpha : float
         Family-wise significance level [-].
     n_tests : int
@@ -76,6 +78,7 @@ def band_excess(r: np.ndarray, fs: float, floor: dict, *, alpha: float = 0.01, n
     -----
     Under white noise the band mean of m periodogram bins over the floor's mean of M bins is
     F(2m, 2M)-distributed; a band is significant at ``alpha`` Bonferroni-corrected over ``n_tests``.
+    With ``extra_psd`` the band mean is compared with the band mean of the expected PSD.
 
     Returns
     -------
@@ -84,6 +87,7 @@ def band_excess(r: np.ndarray, fs: float, floor: dict, *, alpha: float = 0.01, n
         floor in the band) [pu²], ``p_value``, ``significant``.
     """
     f, pxx = periodogram(r, fs)
+    expected = _expected_psd(floor, f)
     out = []
     for lo, hi in BANDS:
         hi = min(hi, 0.95 * fs / 2)
@@ -91,13 +95,21 @@ def band_excess(r: np.ndarray, fs: float, floor: dict, *, alpha: float = 0.01, n
         m = int(sel.sum())
         if m == 0:
             continue
-        ratio = float(pxx[sel].mean() / floor["psd"])
+        ratio = float(pxx[sel].mean() / expected[sel].mean())
         df_hz = float(f[1] - f[0])
         p = float(stats.f.sf(ratio, 2 * m, 2 * floor["bins"]))
         out.append({"band": [lo, hi], "ratio": ratio,
-                    "excess_var": float(max(pxx[sel].sum() - m * floor["psd"], 0.0) * df_hz),
+                    "excess_var": float(max(pxx[sel].sum() - expected[sel].sum(), 0.0) * df_hz),
                     "p_value": p, "significant": bool(p < alpha / n_tests)})
     return out
+
+
+def _expected_psd(floor: dict, f: np.ndarray) -> np.ndarray:
+    """White floor plus the propagated input noise, if any, per periodogram bin [pu²/Hz]."""
+    extra = floor.get("extra_psd")
+    if extra is None or len(extra) != f.size:
+        return np.full(f.size, floor["psd"])
+    return floor["psd"] + np.asarray(extra, float)
 
 
 def coherence(r: np.ndarray, drivers: dict[str, np.ndarray], fs: float, band: tuple[float, float] = (0.1, 2.0),
@@ -149,7 +161,7 @@ def time_segments(r: np.ndarray, t: np.ndarray, fs: float, floor: dict, *, band:
     fs : float
         Sample rate [Hz].
     floor : dict
-        From :func:`noise_floor`.
+        From :func:`noise_floor` (with ``extra_psd`` as in :func:`band_excess`, if any).
     band : (float, float)
         Only ``band[1]`` is used: the low-pass cut-off [Hz].
     win_s : float
@@ -170,7 +182,8 @@ def time_segments(r: np.ndarray, t: np.ndarray, fs: float, floor: dict, *, band:
     x = signal.sosfiltfilt(sos, signal.detrend(r))
     w = max(3, int(round(win_s * fs)))
     ms = np.convolve(x * x, np.ones(w) / w, mode="same")
-    var_band = floor["psd"] * hi
+    fb, _ = periodogram(r, fs)
+    var_band = float(_expected_psd(floor, fb)[fb <= hi].mean()) * hi
     dof = max(2.0 * hi * win_s, 1.0)
     thr = var_band * stats.chi2.isf(alpha, dof) / dof
     above = ms > thr
@@ -198,7 +211,8 @@ def locate(rp: np.ndarray, rq: np.ndarray, t: np.ndarray, fs: float, drivers: di
     drivers : dict
         Signals to test coherence with, e.g. ``V`` [pu], ``dVdt`` [pu/s], ``df`` [Hz].
     floors : dict, optional
-        Noise floors {"P": ..., "Q": ...} from :func:`noise_floor` (default: estimated from rp, rq).
+        Noise floors {"P": ..., "Q": ...} from :func:`noise_floor` (default: estimated from rp, rq), each
+        optionally with ``extra_psd`` (see :func:`band_excess`) and ``sigma`` the whole noise std.
     min_excess : float
         A channel is located only if, besides a significant band, its variance above the floor over the
         reported bands is at least this fraction of the noise variance [-] (a mismatch far below the
@@ -223,7 +237,8 @@ def locate(rp: np.ndarray, rq: np.ndarray, t: np.ndarray, fs: float, drivers: di
         out["excess_over_noise"][ch] = excess / fl["sigma"] ** 2
         if excess < min_excess * fl["sigma"] ** 2:
             sig = []
-        out["noise_floor"][ch] = {"psd": fl["psd"], "sigma": fl["sigma"], "band_hz": fl["band"], "bins": fl["bins"]}
+        out["noise_floor"][ch] = {"psd": fl["psd"], "sigma": fl["sigma"], "band_hz": fl["band"], "bins": fl["bins"],
+                                  "input_share": float(fl.get("input_share", 0.0))}
         out["spectrum"][ch] = bands
         out["coherence"][ch] = coherence(r, drivers, fs)
         if sig:
