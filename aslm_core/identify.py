@@ -211,12 +211,14 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
 def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prepared,
             config: IdentifyConfig, t_start: float) -> IdentificationResult:
     d = best["d"]
-    rp, rq, jp, jq = problem.residuals(d)
+    pb = problem
+    if not motor.simulate_kernel(pb.vd, pb.vq, pb.vdm, pb.vqm, d, pb.dt, pb.omega0, pb.rk4, True, pb._p, pb._q,
+                                 pb._dp, pb._dq, pb._x, True, pb.k0, pb.p_meas, pb.q_meas, pb._dp):
+        raise WindowError("no_solution", "the optimum's trajectory could not be simulated")
     jj = np.empty((2, 4, 4))
     bty = np.empty((2, problem.basis.shape[1]))
     rr_p, rr_q, rho_p, rho_q, ss_p, ss_q, v_rel, dth_std = optimize.fit_statistics(
-        rp, rq, jp, jq, problem.p_meas, problem.q_meas, problem._p, problem._q, problem.basis, prep.V,
-        prep.theta, jj, bty)
+        pb._dp, pb._dq, pb.p_meas, pb.q_meas, pb._p, pb._q, pb.basis, prep.V, prep.theta, jj, bty)
     beta = np.linalg.solve(problem.r_factor, bty.T)
     se = _standard_errors(problem, (rr_p, rr_q), (rho_p, rho_q), jj)
     fd_p = 1.0 - rr_p / ss_p

@@ -111,53 +111,68 @@ def residuals_into(d, vd, vq, vdm, vqm, dt, w0, rk4, with_jac, basis, p_meas, q_
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def fit_statistics(rp, rq, jp, jq, p_meas, q_meas, p_model, q_model, basis, V, theta, JJ, bty):
+def fit_statistics(dp, dq, p_meas, q_meas, p_model, q_model, basis, V, theta, JJ, bty):
     """Sums describing the final fit, in one pass (the result's standard errors, FD, SNR, static part).
 
-    Fills JJ (2×4×4) with JᵀJ of the projected Jacobians of P and Q, and bty (2×m) with Bᵀ(measured − motor).
-    Returns ‖r_p‖², ‖r_q‖², the lag-1 autocorrelations of r_p and r_q, the centred sums of squares of the
-    measured P and Q over the regression samples, the std of V relative to its mean, and the std of the
+    ``p_model``, ``dp`` (n, and n×4) are the motor's P and its D-gradient over the whole window, the
+    measurements and the orthonormal ``basis`` (l×m, constant column first) cover the regression samples
+    k0 = n − l onwards.  Fills JJ (2×4×4) with JᵀJ of the projected Jacobians J = −P⊥·∂m/∂D of P and Q
+    (as MᵀM − (BᵀM)ᵀ(BᵀM), rows shifted by the first one so that few digits cancel), and bty (2×m) with
+    Bᵀ(measured − motor).  Returns ‖r_p‖², ‖r_q‖², the lag-1 autocorrelations of r_p and r_q, the centred
+    sums of squares of the measured P and Q, the std of V relative to its mean, and the std of the
     sample-to-sample change of θ [rad].
     """
-    l = rp.shape[0]
-    rr_p = 0.0
-    rr_q = 0.0
-    lag_p = 0.0
-    lag_q = 0.0
-    for i in range(l):
-        rr_p += rp[i] * rp[i]
-        rr_q += rq[i] * rq[i]
-        if i > 0:
-            lag_p += rp[i] * rp[i - 1]
-            lag_q += rq[i] * rq[i - 1]
-    for c in range(2):
-        j = jp if c == 0 else jq
-        for u in range(4):
-            for v in range(u, 4):
-                acc = 0.0
-                for i in range(l):
-                    acc += j[i, u] * j[i, v]
-                JJ[c, u, v] = acc
-                JJ[c, v, u] = acc
+    l = p_meas.shape[0]
     m = basis.shape[1]
     k0 = p_model.shape[0] - l
+    rr = np.zeros(2)
+    lag = np.zeros(2)
+    ss = np.zeros(2)
+    y = np.empty(l)
+    bm = np.empty((m, 4))
+    mm = np.empty((4, 4))
     for c in range(2):
         meas = p_meas if c == 0 else q_meas
         model = p_model if c == 0 else q_model
+        grad = dp if c == 0 else dq
+        for i in range(l):
+            y[i] = meas[i] - model[k0 + i]
         for u in range(m):
             acc = 0.0
             for i in range(l):
-                acc += basis[i, u] * (meas[i] - model[k0 + i])
+                acc += basis[i, u] * y[i]
             bty[c, u] = acc
-    ss = np.zeros(2)
-    for c in range(2):
-        meas = p_meas if c == 0 else q_meas
+        prev = 0.0
+        for i in range(l):
+            r = y[i]
+            for u in range(m):
+                r -= basis[i, u] * bty[c, u]
+            rr[c] += r * r
+            if i > 0:
+                lag[c] += r * prev
+            prev = r
         mean = 0.0
         for i in range(l):
             mean += meas[i]
         mean /= l
         for i in range(l):
             ss[c] += (meas[i] - mean) ** 2
+        bm[:, :] = 0.0
+        mm[:, :] = 0.0
+        for i in range(l):
+            for v in range(4):
+                g = grad[k0 + i, v] - grad[k0, v]
+                for u in range(m):
+                    bm[u, v] += basis[i, u] * g
+                for w in range(v, 4):
+                    mm[v, w] += g * (grad[k0 + i, w] - grad[k0, w])
+        for v in range(4):
+            for w in range(v, 4):
+                acc = mm[v, w]
+                for u in range(m):
+                    acc -= bm[u, v] * bm[u, w]
+                JJ[c, v, w] = acc
+                JJ[c, w, v] = acc
     n = V.shape[0]
     v_mean = 0.0
     for i in range(n):
@@ -170,7 +185,7 @@ def fit_statistics(rp, rq, jp, jq, p_meas, q_meas, p_model, q_model, basis, V, t
     dth_var = 0.0
     for i in range(1, n):
         dth_var += (theta[i] - theta[i - 1] - dth_mean) ** 2
-    return (rr_p, rr_q, lag_p / max(rr_p, 1e-300), lag_q / max(rr_q, 1e-300), ss[0], ss[1],
+    return (rr[0], rr[1], lag[0] / max(rr[0], 1e-300), lag[1] / max(rr[1], 1e-300), ss[0], ss[1],
             math.sqrt(v_var / n) / v_mean, math.sqrt(dth_var / (n - 1)))
 
 
