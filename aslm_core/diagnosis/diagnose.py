@@ -165,7 +165,9 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
         ctx = Context("user", np.array([m["dynamic"][k] for k in DYNAMIC_NAMES]), m["static"])
     # Noise model (white P/Q floors, V/θ noise propagated through the model) from a first playback, the
     # plain fit weighted by it, the noise model again through the fitted plain model, and the plain fit
-    # again under those weights (candidates are compared with a plain fit made under the same weights).
+    # again under those weights; every fit below uses these weights.  The tests use the same noise
+    # propagated through the very model whose residual they judge (plain for the held-out test, the
+    # whole-window fit for the location).
     first = engine.evaluate(_PLAIN, seg, ctx, ctx.d0, np.zeros(0), (1.0, 1.0))
     if not first.ok:
         raise ValueError("the model has no motor equilibrium at the window's first sample")
@@ -175,16 +177,19 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
     if noise.has_inputs and plain.ok:
         noise = estimate_noise(seg, lambda s: engine.output(_PLAIN, s, ctx, plain), win, band_hz=config.band_hz)
         plain = engine.fit_candidate(_PLAIN, seg, ctx, noise, d_start=plain.d)
-    sig = (noise.total_sigma("P", win), noise.total_sigma("Q", win))
-    floors = {ch: noise.location_floor(ch, win) for ch in ("P", "Q")}
+    test_noise = _through(seg, noise, _PLAIN, ctx, plain)
+    sig = (test_noise.total_sigma("P", win), test_noise.total_sigma("Q", win))
     # Location uses the model identified from the whole window (the playback of DESIGN §3): a model fitted
     # on the training part alone carries its extrapolation error into the held-out part.
     full = replace(seg, ks=seg.ke)
     whole = engine.fit_candidate(_PLAIN, full, ctx, noise, d_start=plain.d)
-    rp, rq = (a[win] for a in (whole if whole.ok else plain).residuals(seg))
+    loc_fit = whole if whole.ok else plain
+    loc_noise = _through(seg, noise, _PLAIN, ctx, loc_fit)
+    floors = {ch: loc_noise.location_floor(ch, win) for ch in ("P", "Q")}
+    rp, rq = (a[win] for a in loc_fit.residuals(seg))
     drivers = {"V": seg.V[win], "dVdt": seg.dvdt[win], "df": seg.dfreq[win]}
     located = locate(rp, rq, seg.t[win], seg.fs, drivers, floors)
-    g0 = _probes(seg, noise, _PLAIN, ctx, plain)
+    g0 = (test_noise.probes_p, test_noise.probes_q) if test_noise.has_inputs else None
     pcov = engine.prediction_cov(_PLAIN, seg, ctx, plain, noise) if config.prediction_variance else None
     fits, comps = {}, {}
     for name in config.candidates:
@@ -194,17 +199,24 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
         f = engine.fit_candidate(cand, seg, ctx, noise, d_start=plain.d)
         fits[name] = f
         g1 = _probes(seg, noise, cand, ctx, f) if g0 is not None else None
-        comps[name] = engine.compare(seg, plain, f, cand.n_params, noise, config.lag_s,
+        comps[name] = engine.compare(seg, plain, f, cand.n_params, test_noise, config.lag_s,
                                      probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
-    out = _WindowAnalysis(seg, ctx, sig, plain, located, fits, comps, noise=noise, floors=floors)
+    out = _WindowAnalysis(seg, ctx, sig, plain, located, fits, comps, noise=test_noise, floors=floors)
     if not ctx.free:
         ictx = Context("identified", _plain_d(seg, None, config))
         re = engine.fit_candidate(_PLAIN, seg, ictx, noise)
         out.reidentified = re
         g1 = _probes(seg, noise, _PLAIN, ictx, re) if g0 is not None else None
-        out.refit_comp = engine.compare(seg, plain, re, 4 + 5, noise, config.lag_s,
+        out.refit_comp = engine.compare(seg, plain, re, 4 + 5, test_noise, config.lag_s,
                                         probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
     return out
+
+
+def _through(seg: Segment, noise: NoiseModel, cand: Candidate, ctx: Context, fit: engine.Fit) -> NoiseModel:
+    """The noise model with its input-noise draws propagated through a fitted model (itself if none)."""
+    if not noise.has_inputs or not fit.ok:
+        return noise
+    return noise.through(seg, lambda s: engine.output(cand, s, ctx, fit), (fit.model_p, fit.model_q))
 
 
 def _probes(seg: Segment, noise: NoiseModel, cand: Candidate, ctx: Context, fit: engine.Fit):

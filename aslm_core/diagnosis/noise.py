@@ -179,6 +179,16 @@ class NoiseModel:
             pq.append(out[1] - base[1])
         return np.array(pp), np.array(pq)
 
+    def through(self, seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndarray] | None],
+                base: tuple[np.ndarray, np.ndarray]) -> NoiseModel:
+        """The same noise (floors, draws) propagated through another model — the propagated spectrum depends
+        on the model (e.g. the height of the motor's electromechanical resonance), so every test uses the
+        model whose residual it tests.  ``output`` and ``base`` as in :meth:`propagate`; self if that fails."""
+        prop = self.propagate(seg, output, base)
+        if prop is None:
+            return self
+        return replace(self, probes_p=prop[0], probes_q=prop[1], _cache={})
+
     def location_floor(self, ch: str, sl: slice) -> dict:
         """The floor :func:`aslm_core.diagnosis.locate.locate` takes for channel ``ch`` on samples ``sl``: the
         white floor, ``extra_psd`` (propagated input noise), ``sigma`` the whole noise std and
