@@ -30,6 +30,26 @@ log = logging.getLogger(__name__)
 # which stalled REST answers during periods.  Startup objects are frozen (never scanned again), and
 # a full collection runs after each period instead, when the period's results are out.
 _GEN2_THRESHOLD_OFF = 1_000_000_000
+_gc_lock = threading.Lock()
+_gc_state = {"services": 0, "threshold": (700, 10, 10)}  # services running in this process, thresholds before
+
+
+def _gc_service_started() -> None:
+    with _gc_lock:
+        if _gc_state["services"] == 0:
+            _gc_state["threshold"] = gc.get_threshold()
+            gc.collect()
+            gc.freeze()  # modules, schemas, routes, sessions: never scanned again
+            gc.set_threshold(*_gc_state["threshold"][:2], _GEN2_THRESHOLD_OFF)
+        _gc_state["services"] += 1
+
+
+def _gc_service_stopped() -> None:
+    with _gc_lock:
+        _gc_state["services"] -= 1
+        if _gc_state["services"] == 0:
+            gc.set_threshold(*_gc_state["threshold"])
+            gc.unfreeze()
 
 
 class Service:
@@ -105,10 +125,8 @@ class Service:
         self.scheduler.start()
         if self.rest:
             self._start_rest()
-        self._gc_threshold = gc.get_threshold()
-        gc.collect()
-        gc.freeze()  # modules, schemas, routes, sessions: never scanned again
-        gc.set_threshold(self._gc_threshold[0], self._gc_threshold[1], _GEN2_THRESHOLD_OFF)
+        _gc_service_started()
+        self._gc_managed = True
         return self
 
     def _start_rest(self) -> None:
@@ -143,9 +161,8 @@ class Service:
         if self.session is not None:
             self.session.close()
         self.storage.close()
-        if getattr(self, "_gc_threshold", None) is not None:
-            gc.set_threshold(*self._gc_threshold)
-            gc.unfreeze()
+        if getattr(self, "_gc_managed", False):
+            _gc_service_stopped()
 
     def __enter__(self) -> Service:
         return self.start()

@@ -3,6 +3,7 @@ period changes over REST, restarts, a worker killed mid-task, bad input on the w
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import signal
@@ -151,3 +152,15 @@ def test_instance_ingests_only_its_shard(running):
     assert p["n_ok"] + p["n_failed"] + p["n_skipped"] == 2
     assert [b["bus"] for b in httpx.get(f"{svc.url}/buses").json()] == ["north/b1", "north/b2"]
     assert httpx.get(f"{svc.url}/buses/north/b1/parameters/latest").json()["status"] == "ok"
+
+
+def test_no_automatic_full_gc_while_running(running):
+    # A generation-2 collection holds the GIL for as long as it scans every live object (REST stalls):
+    # off while a service runs, startup objects frozen; restored when the last service stops.
+    before = gc.get_threshold()
+    svc, _, stream = running(period_s=3.0)
+    assert gc.get_threshold()[2] >= 10**9 and gc.get_freeze_count() > 0
+    wait_for(lambda: [p for p in periods(svc.url) if p["n_ok"] == 3], 30)
+    stream.stop()
+    svc.stop()
+    assert gc.get_threshold() == before and gc.get_freeze_count() == 0
