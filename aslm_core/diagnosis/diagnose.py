@@ -5,23 +5,26 @@ Method (DESIGN §3)
 1. Split each window in time: the parameters are fitted on the first ``train_fraction`` (after the 1 s
    initial-state transient), every comparison is made on the rest (held out).
 2. Plain model: ZIP + IM identified on the training samples (or the user's model, frozen but for its
-   operating point).  Its residual gives the noise floor per channel (from the band above 5 Hz); the
-   same model refitted on the whole window gives the location of any excess (bands, coherence, time
-   segments).
+   operating point).  Noise model (:mod:`aslm_core.diagnosis.noise`): white floors of P, Q, V and θ from
+   the band above 5 Hz, and the V/θ noise propagated through the model (errors in variables) by Monte
+   Carlo; fits and tests use the ambient band (DCT coefficients below 5 Hz) weighted per coefficient.  The
+   same model refitted on the whole window gives the location of any excess over the expected noise
+   spectrum (bands, coherence, time segments).
 3. Each candidate extends the plain model inside the hierarchical framework and is fitted on the training
    samples, starting from the plain fit.
 4. Held-out test: the score statistic of the plain model's held-out residual against the candidate's
-   held-out correction (fitted on the training samples only, so under white measurement noise it is
-   N(0, 1) when the candidate is not needed), one-sided and Bonferroni-corrected over the candidates; and
-   a BIC-like penalty — the held-out Gaussian log-likelihood gain must exceed (k/2)·ln(n) for k added
-   parameters.  Candidates passing both — and whose own magnitude (the parameter that is zero when the
+   held-out correction (fitted on the training samples only, so with the noise model right it is N(0, 1)
+   when the candidate is not needed: its variance counts the P/Q covariance, the input-noise quadratic form
+   and the plain model's own prediction error, its mean the input noise both carry), one-sided and
+   Bonferroni-corrected over the candidates; and a BIC-like penalty — the held-out Gaussian log-likelihood
+   gain must exceed (k/2)·ln(m) for k added parameters and m ambient-band coefficients.  Candidates passing both — and whose own magnitude (the parameter that is zero when the
    physics is absent, e.g. the second motor's torque) is at least 2 standard errors from zero (1 for the
    second motor, whose torque trades off against the first's) — are
    significant, ranked by the penalised gain.  A Diebold–Mariano
    statistic (HAC variance) is reported alongside.
 5. Verdict: ``explained`` when the top significant candidate removes at least ``explained_fraction`` of
-   the held-out residual variance above the noise floor; ``unexplained`` when the residual exceeds the
-   floor (or a candidate is significant but explains too little) — then only the location is reported;
+   the held-out ambient-band residual above the noise expectation; ``unexplained`` when the residual exceeds
+   the expected noise (or a candidate is significant but explains too little) — then only the location is reported;
    otherwise ``consistent``.
 """
 

@@ -376,7 +376,9 @@ def apply_effect(case: SyntheticCase, name: str, magnitude: float | None = None,
     Parameters
     ----------
     case : SyntheticCase
-        Made with ``input_noise=False`` (noise on P and Q only, the paper's protocol).
+        Made with ``input_noise=False`` (noise on P and Q only, the paper's protocol) or ``True`` (V, θ
+        and f noisy too: the window keeps them; the effect is computed from the noise-free V and θ, as the
+        load sees them).
     name : str
         An effect of :data:`LIBRARY_EFFECTS` or :data:`OUTSIDE_EFFECTS`, or ``none``.
     magnitude : float, optional
