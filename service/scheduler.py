@@ -19,8 +19,6 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
 
-import numpy as np
-
 from service.buffers import BufferStore, Cut
 from service.models import BusResult, Identified, PeriodSummary
 from service.pool import Executor
@@ -61,9 +59,11 @@ def check_window(cut: Cut, rules: QualityRules) -> str | None:
         return "no_data"
     if n < rules.min_coverage * rules.window_s * rules.frame_rate:
         return "coverage"
-    if float(np.max(np.diff(cut.t))) > rules.max_gap_s:
+    t = cut.t
+    if float((t[1:] - t[:-1]).max()) > rules.max_gap_s:
         return "gap"
-    if float(np.std(cut.V)) < rules.min_v_std:
+    dv = cut.V - cut.V.mean()
+    if math.sqrt(float(dv @ dv) / n) < rules.min_v_std:  # std of V, without np.std's overhead
         return "no_excitation"
     return None
 
@@ -276,7 +276,10 @@ class Scheduler:
                 cut: Cut | None, warm: bool, outcome: TaskOutcome | None = None) -> BusResult:
         params = None
         if outcome is not None and outcome.ok:
-            params = Identified.model_validate(_finite(outcome.value))
+            # run_task has replaced non-finite floats by None (a non-finite D then fails validation).
+            params = Identified.model_validate(outcome.value)
+            if not all(math.isfinite(v) for v in params.dynamic.values()):
+                raise ValueError(f"non-finite D {params.dynamic}")
         if outcome is not None and not outcome.ok and outcome.message:
             log.warning("bus %s: %s: %s", bus, outcome.reason, outcome.message)
         has = cut is not None and len(cut) > 0
@@ -286,14 +289,3 @@ class Scheduler:
             n_frames=len(cut) if cut is not None else 0, warm_start=warm, completed_at=time.time(),
             parameters=params,
         )
-
-
-def _finite(obj):
-    """Replace non-finite floats (not JSON) by None, recursively."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_finite(v) for v in obj]
-    return obj

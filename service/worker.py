@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -152,11 +153,25 @@ def resolve(fn_path: str) -> Callable[[WindowTask], dict]:
     return fn
 
 
+def finite(obj):
+    """Replace non-finite floats (not JSON) by None, recursively (in the worker: off the service's process)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [finite(v) for v in obj]
+    return obj
+
+
 def run_task(fn_path: str, task: WindowTask) -> TaskOutcome:
-    """Run one task, turning every exception into a failed outcome with a reason."""
+    """Run one task, turning every exception into a failed outcome with a reason.
+
+    The value's non-finite floats become None (:func:`finite`).
+    """
     t0 = time.perf_counter()
     try:
-        value = resolve(task.fn or fn_path)(task)
+        value = finite(resolve(task.fn or fn_path)(task))
         return TaskOutcome(ok=True, value=value, elapsed_s=time.perf_counter() - t0)
     except Exception as exc:  # noqa: BLE001 - any failure fails this bus only
         reason = getattr(exc, "reason", None)
