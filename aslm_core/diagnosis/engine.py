@@ -384,18 +384,20 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1
         gain are corrected for errors in variables (below).
     plain_cov : tuple, optional
         The plain model's held-out prediction uncertainty from :func:`prediction_cov`: its held-out residual
-        is the noise plus its own estimation error, and the score's variance counts both.
+        is the noise plus its own estimation error, and the score's metric counts both.
 
     Notes
     -----
-    With R0 and D the ambient-band DCT coefficients of the plain held-out residual and of the candidate's
-    correction (model1 − model0), and v_P, v_Q, c_PQ the noise model's variances and covariance per
-    coefficient, the score statistic is Σ(R0_P·D_P/v_P + R0_Q·D_Q/v_Q) over its standard deviation
-    √Σ(D_P²/v_P + D_Q²/v_Q + 2·D_P·D_Q·c_PQ/(v_P·v_Q)) — N(0, 1) when the candidate is not needed.  The
-    log-likelihood gain is Σ_ch (m/2)·ln(S0/S1) with S the weighted sums of squares of the m coefficients.
+    With R0 and D the ambient-band DCT coefficients (P and Q stacked) of the plain held-out residual and of
+    the candidate's correction (model1 − model0), and C the covariance of R0 when the candidate is not
+    needed — the noise model's variances and P/Q covariance per coefficient plus, with ``plain_cov``, the
+    plain model's prediction error — the score statistic is Dᵀ·C⁻¹·R0 / √(Dᵀ·C⁻¹·D): N(0, 1) when the
+    candidate is not needed (D depends on the training samples only), and the most powerful such linear
+    statistic.  The log-likelihood gain is Σ_ch (m/2)·ln(S0/S1) with S the sums of squares of the m
+    coefficients weighted by 1/v.
 
     Errors in variables: with noisy V and θ both R0 and D carry the *held-out* input noise, R0 ⊃ −G0·e and
-    D ⊃ (G1 − G0)·e, so the numerator has the expectation b = −E[Σ G0e·(G1 − G0)e/v] ≠ 0 even when the
+    D ⊃ (G1 − G0)·e, so the numerator has the expectation b = −E[((G1 − G0)e)ᵀ·C⁻¹·G0e] ≠ 0 even when the
     candidate is not needed (e.g. a candidate that smooths its input removes part of the propagated
     noise).  b, the variance of that quadratic form and of the P/Q noise against (G1 − G0)e are estimated
     from the probes; the score is (numerator − b) over the total standard deviation, and the candidate's
@@ -413,31 +415,33 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1
     dl = (r0p**2 - r1p**2) / sp**2 + (r0q**2 - r1q**2) / sq**2
     lag = max(1, min(int(round(lag_s / seg.dt)), n // 4))
     z = float(dl.mean() / math.sqrt(hac_variance(dl, lag) / n))
-    # The test: ambient band, noise-weighted per coefficient.
+    # The test: ambient band; generalised least squares in the metric of the plain residual's covariance
+    # C = N + J·cov·Jᵀ (N: the noise per coefficient, P/Q correlated; J·cov·Jᵀ: the plain model's own
+    # held-out prediction error), applied through Woodbury's identity (the second term has rank ≤ 10).
     vp, vq, cpq = noise.coefficients(te)
     c = dct_band(np.column_stack([r0p, r0q, r0p - r1p, r0q - r1q]), noise.fs, noise.band_hz)
     R0p, R0q, Dp, Dq = c.T
     m = R0p.size
-    num = float(np.sum(R0p * Dp / vp + R0q * Dq / vq))
-    den2 = float(np.sum(Dp * Dp / vp + Dq * Dq / vq + 2.0 * Dp * Dq * cpq / (vp * vq)))
+    cinv = _gls_metric(vp, vq, cpq, plain_cov)
+    wDp, wDq = cinv(Dp, Dq)
+    num = float(np.sum(wDp * R0p + wDq * R0q))
+    den2 = float(np.sum(wDp * Dp + wDq * Dq))
     bp = bq = 0.0
     if probes is not None:
         (g0p, g0q), (g1p, g1q) = probes
         G0p, G0q, dGp, dGq = (dct_band(x[:, te].T, noise.fs, noise.band_hz)
                               for x in (g0p, g0q, g1p - g0p, g1q - g0q))
-        ap = -np.sum(G0p * dGp / vp[:, None], axis=0)  # per draw
-        aq = -np.sum(G0q * dGq / vq[:, None], axis=0)
-        bp, bq = float(ap.mean()), float(aq.mean())
-        # The realisation's spread, plus the Monte Carlo error of b itself.
-        var_quad = float(np.var(ap + aq, ddof=1)) * (1.0 + 1.0 / ap.size) if ap.size > 1 else 0.0
-        var_cross = float(np.mean(np.sum(dGp**2 * noise.sigma_p**2 / vp[:, None] ** 2
-                                         + dGq**2 * noise.sigma_q**2 / vq[:, None] ** 2, axis=0)))
-        num -= bp + bq
+        # Per draw: the numerator's input-noise part (C⁻¹·(G1 − G0)e)ᵀ(−G0e); its mean is the bias.
+        wp, wq = cinv(dGp, dGq)
+        a = -np.sum(wp * G0p + wq * G0q, axis=0)
+        # The realisation's spread, plus the Monte Carlo error of the mean itself.
+        var_quad = float(np.var(a, ddof=1)) * (1.0 + 1.0 / a.size) if a.size > 1 else 0.0
+        var_cross = float(np.mean(np.sum(wp**2 * noise.sigma_p**2 + wq**2 * noise.sigma_q**2, axis=0)))
+        num -= float(a.mean())
         den2 += var_quad + var_cross
-    if plain_cov is not None:
-        jp, jq, cov = plain_cov
-        g = jp.T @ (Dp / vp) + jq.T @ (Dq / vq)
-        den2 += max(float(g @ cov @ g), 0.0)
+        # Per channel, in the gain's own (diagonal) metric.
+        bp = float(np.mean(-np.sum(G0p * dGp / vp[:, None], axis=0)))
+        bq = float(np.mean(-np.sum(G0q * dGq / vq[:, None], axis=0)))
     score = num / math.sqrt(max(den2, 1e-300))
     S0p, S0q = float(np.sum(R0p**2 / vp)), float(np.sum(R0q**2 / vq))
     S1p = float(np.sum((R0p - Dp) ** 2 / vp)) + 2.0 * bp
@@ -447,6 +451,39 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1
     s0p, s0q, s1p, s1q = (float(r @ r) for r in (r0p, r0q, r1p, r1q))
     return Comparison(score, z, gain, gain - 0.5 * k * math.log(m), 1.0 - s1p / s0p, 1.0 - s1q / s0q, n,
                       ex[0], ex[1])
+
+
+def _gls_metric(vp: np.ndarray, vq: np.ndarray, cpq: np.ndarray, plain_cov):
+    """x ↦ C⁻¹x for the plain held-out residual's covariance C = N + J·cov·Jᵀ in the ambient band.
+
+    N is block-diagonal per coefficient k: [[v_P, c_PQ], [c_PQ, v_Q]]; ``plain_cov`` = (jp, jq, cov) from
+    :func:`prediction_cov` (or None: C = N).  The returned function takes and returns the P and Q parts
+    (vectors of length m, or matrices with m rows).
+    """
+    det = np.maximum(vp * vq - cpq * cpq, 1e-9 * vp * vq)
+    ipp, iqq, ipq = vq / det, vp / det, -cpq / det
+
+    def ninv(xp, xq):
+        if xp.ndim == 2:
+            return ipp[:, None] * xp + ipq[:, None] * xq, ipq[:, None] * xp + iqq[:, None] * xq
+        return ipp * xp + ipq * xq, ipq * xp + iqq * xq
+
+    if plain_cov is None:
+        return ninv
+    jp, jq, cov = plain_cov
+    lam, u = np.linalg.eigh(0.5 * (cov + cov.T))
+    keep = lam > 1e-14 * max(float(lam.max()), 1e-300)
+    f = u[:, keep] * np.sqrt(lam[keep])
+    lp, lq = jp @ f, jq @ f  # C = N + L·Lᵀ
+    nlp, nlq = ninv(lp, lq)
+    inner = np.linalg.inv(np.eye(lp.shape[1]) + lp.T @ nlp + lq.T @ nlq)
+
+    def cinv(xp, xq):
+        yp, yq = ninv(xp, xq)
+        t = inner @ (lp.T @ yp + lq.T @ yq)
+        return yp - nlp @ t, yq - nlq @ t
+
+    return cinv
 
 
 def dm_critical(alpha: float, m: int) -> float:
