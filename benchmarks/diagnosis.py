@@ -9,7 +9,8 @@ Each library effect (and two effects outside the library) is applied to syntheti
 and concealed (plain-fit FD ≥ 0.9 on P and Q).  ``exponential_static`` is diagnosed against a user model
 (the true ZIP + IM with the old exponents) because it is not identifiable against a re-identified ZIP;
 clean cases are diagnosed both ways.  ``--input-noise`` makes the cases with ``input_noise=True`` (V, θ and f
-noisy at the same SNR as P and Q; the effects are still computed from the noise-free V and θ).  Results go to
+noisy at the same SNR as P and Q; the effects are still computed from the noise-free V and θ, and concealed on
+the same case without input noise, so both modes carry the same effects at the same magnitudes).  Results go to
 ``docs/results/diagnosis.json`` (``diagnosis_input_noise.json`` with ``--input-noise``; ``_quick`` for
 ``--quick``).
 """
@@ -62,7 +63,10 @@ def run_one(job: tuple) -> dict:
     base = _base(level, i, input_noise)
     user = effect in ("exponential_static", "none_user")
     seed = zlib.crc32(f"{effect}/{level}/{i}".encode())  # deterministic (str hash() is salted per process)
-    ec = apply_effect(base, "none" if effect.startswith("none") else effect, seed=seed)
+    # With input noise the effect is concealed on the same case without it (same clean record, same P/Q
+    # noise): noisy V/θ lower the plain fit's FD by themselves, which would shrink every effect.
+    twin = _base(level, i, False) if input_noise else None
+    ec = apply_effect(base, "none" if effect.startswith("none") else effect, seed=seed, conceal_case=twin)
     model = ec.model
     if effect == "none_user":
         model = {"dynamic": base.truth.dynamic, "static": base.truth.static_identifiable}

@@ -55,7 +55,9 @@ def test_clean_case_with_input_noise_against_its_true_model_is_consistent():
 
 @pytest.mark.parametrize(("effect", "magnitude"), [("inverter_der", 3.0), ("frequency_dependence", 2.5)])
 def test_concealed_effect_with_input_noise_is_named(effect, magnitude):
-    ec = apply_effect(make_case(911, level=3, input_noise=True), effect, magnitude, seed=4)
+    # Concealed on the same case without input noise (noisy V/θ alone lower the plain fit's FD).
+    ec = apply_effect(make_case(911, level=3, input_noise=True), effect, magnitude, seed=4,
+                      conceal_case=make_case(911, level=3, input_noise=False))
     assert min(ec.fd_plain.values()) >= 0.9  # concealed
     rep = diagnose(ec.window)
     assert rep.verdict == "explained" and rep.cause == effect, (rep.message, rep.missing_physics[:2])

@@ -370,7 +370,7 @@ MAGNITUDES: dict[str, tuple[float, float]] = {
 
 
 def apply_effect(case: SyntheticCase, name: str, magnitude: float | None = None, *, seed: int = 0,
-                 conceal: bool = True, max_tries: int = 6) -> EffectCase:
+                 conceal: bool = True, max_tries: int = 6, conceal_case: SyntheticCase | None = None) -> EffectCase:
     """Add an effect to a synthetic case (noise: the case's own realisation).
 
     Parameters
@@ -389,6 +389,10 @@ def apply_effect(case: SyntheticCase, name: str, magnitude: float | None = None,
         Reduce the magnitude (×0.7 per try) until the plain fit has FD ≥ 0.9 on P and Q.
     max_tries : int
         Reductions tried before giving up (the last one is returned, flagged by ``fd_plain``).
+    conceal_case : SyntheticCase, optional
+        Conceal on this case instead — e.g. the same seed without input noise, whose plain fit is not
+        degraded by noisy V and θ — and apply the magnitude found there to ``case`` (same draws);
+        ``fd_plain`` and ``scale`` are then the twin's.
 
     Returns
     -------
@@ -401,6 +405,12 @@ def apply_effect(case: SyntheticCase, name: str, magnitude: float | None = None,
         return EffectCase(w, "none", {}, case, fd_plain=dict(r.fit))
     if magnitude is None:
         magnitude = float(rng_m.uniform(*MAGNITUDES[name]))
+    if conceal and conceal_case is not None:
+        twin = apply_effect(conceal_case, name, magnitude, seed=seed, conceal=True, max_tries=max_tries)
+        mag = magnitude if name == "speed_dependent_torque" else magnitude * twin.scale
+        ec = apply_effect(case, name, mag, seed=seed, conceal=False)
+        ec.fd_plain, ec.scale = twin.fd_plain, twin.scale
+        return ec
     scale = 1.0
     model = None
     if name == "exponential_static":
