@@ -107,6 +107,7 @@ class Service:
         self.http_port: int | None = None
         self._stopped = False
         self._periods_done = 0
+        self._gc_complete_due = False
 
     # --- lifecycle ------------------------------------------------------------------------------------
     def start(self, wait_workers: float = 120.0) -> Service:
@@ -232,15 +233,19 @@ class Service:
         self.metrics.period(summary)
         self.storage.purge(summary.period - 86400.0 * self.settings.retention_days)
         self._periods_done += 1
-        timer = threading.Timer(min(0.25 * summary.period_s, 30.0), self._collect_garbage,
-                                args=(self._periods_done % _FULL_GC_EVERY == 0,))
+        self._gc_complete_due |= self._periods_done % _FULL_GC_EVERY == 0
+        timer = threading.Timer(min(0.25 * summary.period_s, 30.0), self._collect_garbage)
         timer.daemon = True
         timer.start()
 
-    def _collect_garbage(self, complete: bool) -> None:
-        """The collection automatic GC no longer does (see _GEN2_THRESHOLD_OFF), between periods."""
-        if self._stopped:
+    def _collect_garbage(self) -> None:
+        """The collection automatic GC no longer does (see _GEN2_THRESHOLD_OFF), between periods.
+
+        Skipped if a period is running by then (periods run back to back): the next one's end retries.
+        """
+        if self._stopped or (self.scheduler is not None and self.scheduler.running_period is not None):
             return
+        complete, self._gc_complete_due = self._gc_complete_due, False
         t0 = time.perf_counter()
         with _gc_lock:
             if complete:
