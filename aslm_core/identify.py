@@ -114,7 +114,7 @@ class Problem:
 
     def into_feasible(self, d: np.ndarray) -> np.ndarray:
         """Clip a (warm-start) point into the box and the equilibrium set."""
-        d = np.clip(np.asarray(d, dtype=np.float64), self.lower, self.upper)
+        d = np.minimum(np.maximum(np.asarray(d, dtype=np.float64), self.lower), self.upper)
         tm_max = (1.0 - 2 * EQUILIBRIUM_MARGIN) * d[0] * self.v_min**2 / (2.0 * d[1])
         d[3] = min(d[3], tm_max)
         return d
@@ -161,9 +161,9 @@ def _standard_errors(problem: Problem, rr: tuple[float, float], rho: tuple[float
         fisher += jj[c] / max(var * (1.0 + r1) / (1.0 - r1), 1e-300)
     try:
         cov = np.linalg.inv(fisher)
-        return np.sqrt(np.clip(np.diag(cov), 0.0, None))
     except np.linalg.LinAlgError:
         return np.full(4, np.inf)
+    return np.sqrt(np.maximum(cov.diagonal(), 0.0))
 
 
 def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None = None,
@@ -219,7 +219,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     bty = np.empty((2, problem.basis.shape[1]))
     rr_p, rr_q, rho_p, rho_q, ss_p, ss_q, v_rel, dth_std = optimize.fit_statistics(
         pb._dp, pb._dq, pb.p_meas, pb.q_meas, pb._p, pb._q, pb.basis, prep.V, prep.theta, jj, bty)
-    beta = np.linalg.solve(problem.r_factor, bty.T)
+    beta = optimize.solve_upper(problem.r_factor, np.ascontiguousarray(bty.T))
     se = _standard_errors(problem, (rr_p, rr_q), (rho_p, rho_q), jj)
     fd_p = 1.0 - rr_p / ss_p
     fd_q = 1.0 - rr_q / ss_q

@@ -78,6 +78,20 @@ def thin_qr(A):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def solve_upper(R, B):
+    """X with R·X = B for upper-triangular R (m×m) by back substitution; B is m×k."""
+    m, k = B.shape
+    X = np.empty((m, k))
+    for c in range(k):
+        for i in range(m - 1, -1, -1):
+            acc = B[i, c]
+            for j in range(i + 1, m):
+                acc -= R[i, j] * X[j, c]
+            X[i, c] = acc / R[i, i]
+    return X
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def feasible(d, lower, upper, vmin, margin):
     for i in range(4):
         if d[i] < lower[i] or d[i] > upper[i]:

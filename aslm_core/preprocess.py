@@ -108,11 +108,12 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
 
     flags: list[str] = []
     stacked = np.stack([arrays[c] for c in CHANNELS])
-    if np.isinf(stacked).any():
+    finite = bool(np.isfinite(stacked).all())
+    if not finite and np.isinf(stacked).any():
         raise WindowError("non_finite", "a channel contains Inf")
     n_grid = int(k_steps.sum()) + 1
-    if n_grid == n and np.isfinite(stacked).all():
-        V, theta, P, Q = stacked.copy()  # already a complete uniform grid
+    if n_grid == n and finite:
+        grid = stacked  # already a complete uniform grid (np.stack made a copy)
     else:
         idx = np.concatenate(([0], np.cumsum(k_steps).astype(np.int64)))
         grid = np.full((len(CHANNELS), n_grid), np.nan)
@@ -122,12 +123,13 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
             repaired = max(repaired, _fill_short_gaps(grid[i], max_gap_samples, c))
         if repaired:
             flags.append(f"repaired_samples:{repaired}")
-        V, theta, P, Q = grid
-    if np.any(V <= 0.3) or np.any(V > 2.0):
-        raise WindowError("bad_range", f"V outside (0.3, 2] pu: min {V.min():.4g}, max {V.max():.4g}")
+    V, theta, P, Q = grid
+    lo, hi = grid.min(axis=1), grid.max(axis=1)
+    if lo[0] <= 0.3 or hi[0] > 2.0:
+        raise WindowError("bad_range", f"V outside (0.3, 2] pu: min {lo[0]:.4g}, max {hi[0]:.4g}")
     if np.abs(np.diff(theta)).max() > np.pi:
         theta = np.unwrap(theta)
-    if np.ptp(V) < 1e-6 * V[0] or np.ptp(P) == 0.0 or np.ptp(Q) == 0.0:
+    if hi[0] - lo[0] < 1e-6 * V[0] or hi[2] == lo[2] or hi[3] == lo[3]:
         raise WindowError("no_excitation", "V, P or Q is constant: ambient signals carry no information")
     if lowpass_hz is not None:
         fs = 1.0 / dt
