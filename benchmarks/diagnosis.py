@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/diagnosis.py            # 12 cases per effect per level, 20 clean per level
     .venv/bin/python benchmarks/diagnosis.py --quick    # ~2 min smoke run
     .venv/bin/python benchmarks/diagnosis.py --input-noise   # V, θ, f noisy too (PMU-like)
+    .venv/bin/python benchmarks/diagnosis.py --timing 30     # CPU time per diagnosis, one process
 
 Each library effect (and two effects outside the library) is applied to synthetic ZIP + IM cases
 (``input_noise=False``: noise on P and Q at the level's SNR, paper eq. 10) by :mod:`aslm_core.diagnosis.effects`
@@ -70,16 +71,16 @@ def run_one(job: tuple) -> dict:
     model = ec.model
     if effect == "none_user":
         model = {"dynamic": base.truth.dynamic, "static": base.truth.static_identifiable}
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     rep = diagnose(ec.window, model)
-    elapsed = time.perf_counter() - t0
+    elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
     top = next((e for e in rep.missing_physics if e.get("tested", True)), None)
     rec = {
         "effect": effect, "level": level, "case": i, "snr_db": base.snr_db, "mode": "user" if user else "identified",
         "input_noise": input_noise,
         "verdict": rep.verdict, "cause": rep.cause, "top": top["name"] if top else None,
         "top_significant": bool(top and top["significant"]), "fd_plain": ec.fd_plain, "conceal_scale": ec.scale,
-        "fit_before": rep.fit_before, "fit_after": rep.fit_after, "elapsed_s": elapsed,
+        "fit_before": rep.fit_before, "fit_after": rep.fit_after, "elapsed_s": elapsed, "cpu_s": cpu,
         "located": rep.located.get("channels", []), "truth": {k: float(v) for k, v in ec.truth.items()},
     }
     if rep.cause:
@@ -208,8 +209,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--input-noise", action="store_true",
                    help="noise on V, θ and f too (synthetic input_noise=True); default: P and Q only (paper protocol)")
     p.add_argument("--only", default="", help="comma-separated effects to run (e.g. none,measurement_skew)")
+    p.add_argument("--timing", type=int, default=0, metavar="N",
+                   help="only time N diagnoses one after another in this process (CPU time of one core)")
     p.add_argument("--no-write", action="store_true")
     args = p.parse_args(argv)
+    if args.timing:
+        return _timing(args.timing, args.input_noise)
     n_eff, n_clean, n_user = (1, 2, 1) if args.quick else (args.per_level, args.clean, max(4, args.clean // 3))
     jobs = _jobs(n_eff, n_clean, n_user, args.input_noise)
     if args.only:
@@ -234,6 +239,21 @@ def main(argv: list[str] | None = None) -> int:
             stem += "_only"
         RESULTS.with_name(stem + ".json").write_text(
             json.dumps({"summary": s, "records": recs}, indent=1, default=float))
+    return 0
+
+
+def _timing(n: int, input_noise: bool) -> int:
+    """N diagnoses in this process (effects and levels interleaved); CPU time per diagnosis."""
+    _init()
+    effects = [*LIBRARY_EFFECTS, *OUTSIDE_EFFECTS, "none"]
+    jobs = [(effects[k % len(effects)], 1 + k % 3, k // len(effects), input_noise) for k in range(n + 1)]
+    recs = [run_one(j) for j in jobs][1:]  # the first one pays for loading compiled kernels
+    cpu = np.array([r["cpu_s"] for r in recs])
+    wall = np.array([r["elapsed_s"] for r in recs])
+    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    print(f"{n} diagnoses{' (input noise)' if input_noise else ''}: CPU median {np.median(cpu):.2f} s, "
+          f"p95 {np.percentile(cpu, 95):.2f} s, max {cpu.max():.2f} s; wall median {np.median(wall):.2f} s; "
+          f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
     return 0
 
 
