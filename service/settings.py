@@ -67,8 +67,9 @@ class ServiceSettings(BaseSettings):
                          "PMU noise on V and θ from biasing D (errors in variables), see docs/reproduction.md",
     )
     diagnose_every: int = Field(
-        0, description="Discrepancy diagnosis of every identified bus each k-th period (0: off). Off by default: "
-                       "with PMU noise on V and θ the diagnosis names causes that are not there (docs/diagnosis.md)",
+        4, description="Discrepancy diagnosis of every identified bus each k-th period (0: off); ~0.7 s of one "
+                       "core per bus and diagnosis, queued after the period's identifications: raise k (or 0) "
+                       "for large fleets. Models PMU noise on V and θ (docs/diagnosis.md)",
     )
     identify_fn: str = Field(
         "service.worker:identify_window",

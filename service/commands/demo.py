@@ -32,9 +32,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--level", type=int, default=2, help="measurement-noise level (default 2)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--periods", type=int, default=None, help="exit after N periods with results")
-    p.add_argument("--diagnose-every", type=int, default=0,
-                   help="discrepancy diagnosis of every bus each k-th period (default 0: off; the demo fleet "
-                        "carries PMU noise on V and θ, which the diagnosis does not model yet)")
+    p.add_argument("--diagnose-every", type=int, default=4,
+                   help="discrepancy diagnosis of every bus each k-th period (default 4; 0: off)")
     p.add_argument("--duration", type=float, default=None, help="exit after this many seconds")
     p.add_argument("--port", type=int, default=8080, help="REST port (default 8080; any free port if taken)")
     p.add_argument("--out", default=None, help="directory for the SQLite file (default: a temporary one)")
