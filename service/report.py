@@ -51,7 +51,11 @@ def _spectrum(plt, s: dict, report: DiagnosisReport, floors: dict, path: Path) -
         if s[f"{ch}_after"] is not None:
             f, p1 = periodogram(y - s[f"{ch}_after"][k0:ke], fs)
             ax.semilogy(f[1:], p1[1:], color="C3", lw=0.9, alpha=0.8, label="residual after")
-        ax.axhline(floors[ch]["psd"], color="k", ls=":", label="noise floor")
+        expected = s.get("noise_psd")
+        if expected is not None:  # white floor + V/θ noise propagated through the model
+            ax.semilogy(expected["f"][1:], expected[ch][1:], color="k", ls=":", label="expected noise")
+        else:
+            ax.axhline(floors[ch]["psd"], color="k", ls=":", label="noise floor")
         ax.set_xscale("log")
         ax.set_xlabel("f [Hz]")
         ax.set_ylabel(f"PSD of {ch} residual [pu²/Hz]")

@@ -39,7 +39,7 @@ import numpy as np
 
 from aslm_core.diagnosis import engine
 from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
-from aslm_core.diagnosis.locate import locate
+from aslm_core.diagnosis.locate import locate, periodogram
 from aslm_core.diagnosis.noise import BAND_HZ, NoiseModel, dct_band
 from aslm_core.diagnosis.noise import estimate as estimate_noise
 from aslm_core.diagnosis.playback import model_dict
@@ -420,12 +420,24 @@ def _remaining(analyses: list[_WindowAnalysis], name: str) -> list[str]:
     return sorted(left)
 
 
+def _noise_psd(a: _WindowAnalysis) -> dict:
+    """Expected noise spectrum of the residual on samples k0..ke (white floor + propagated input noise),
+    on the bins of :func:`aslm_core.diagnosis.locate.periodogram`: {"f": [Hz], "P", "Q": [pu²/Hz]}."""
+    f, _ = periodogram(np.zeros(a.seg.ke - a.seg.k0), a.seg.fs)
+    out = {"f": f}
+    for ch in ("P", "Q"):
+        fl = a.floors[ch]
+        extra = fl.get("extra_psd")
+        out[ch] = fl["psd"] + (np.asarray(extra) if extra is not None and len(extra) == f.size else 0.0) * np.ones(f.size)
+    return out
+
+
 def _series(a: _WindowAnalysis, cause: str | None) -> dict:
     """Time series for plots: measured, plain and (if any) explained model [pu]."""
     after = a.fits[cause] if cause else None
     return {"t": a.seg.t, "P": a.seg.P, "Q": a.seg.Q, "P_before": a.plain.model_p, "Q_before": a.plain.model_q,
             "P_after": None if after is None else after.model_p, "Q_after": None if after is None else after.model_q,
-            "k0": a.seg.k0, "ks": a.seg.ks, "ke": a.seg.ke, "fs": a.seg.fs,
+            "k0": a.seg.k0, "ks": a.seg.ks, "ke": a.seg.ke, "fs": a.seg.fs, "noise_psd": _noise_psd(a),
             "drivers": {"V": a.seg.V, "dVdt": a.seg.dvdt, "df": a.seg.dfreq}}
 
 
