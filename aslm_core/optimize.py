@@ -253,6 +253,36 @@ def _near_known(d, known, n_known, rtol):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _solve_small(M, rhs, n):
+    """Solve the leading n×n system M·x = rhs in place (x into rhs), partial pivoting; False if singular.
+
+    LAPACK's call overhead is larger than the work for n ≤ 4.
+    """
+    for k in range(n):
+        p = k
+        for i in range(k + 1, n):
+            if abs(M[i, k]) > abs(M[p, k]):
+                p = i
+        if not abs(M[p, k]) > 0.0:
+            return False
+        if p != k:
+            for j in range(n):
+                M[k, j], M[p, j] = M[p, j], M[k, j]
+            rhs[k], rhs[p] = rhs[p], rhs[k]
+        for i in range(k + 1, n):
+            f = M[i, k] / M[k, k]
+            for j in range(k, n):
+                M[i, j] -= f * M[k, j]
+            rhs[i] -= f * rhs[k]
+    for k in range(n - 1, -1, -1):
+        acc = rhs[k]
+        for j in range(k + 1, n):
+            acc -= M[k, j] * rhs[j]
+        rhs[k] = acc / M[k, k]
+    return True
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, lower, upper, vmin,
               margin, objective, max_iter, xtol, ftol, dup_rtol, known, n_known, out_d):
     """Levenberg–Marquardt from d0 (feasible). Returns (cost, iterations, evaluations, status code).
@@ -279,6 +309,8 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
     dummy2 = np.empty((1, 4))
     A = np.empty((4, 4))
     g = np.empty(4)
+    M = np.empty((4, 4))
+    rhs = np.empty(4)
     d = d0.copy()
     trial = np.empty(4)
     step = np.empty(4)
@@ -320,16 +352,17 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
             for u in range(4):
                 step[u] = 0.0
             if nf > 0:
-                M = np.empty((nf, nf))
-                rhs = np.empty(nf)
                 for u in range(nf):
                     for v in range(nf):
                         M[u, v] = A[idx[u], idx[v]]
                     M[u, u] += lam * max(A[idx[u], idx[u]], 1e-12 * dmax + 1e-300)
                     rhs[u] = -g[idx[u]]
-                sol = np.linalg.solve(M, rhs)
+                if not _solve_small(M, rhs, nf):
+                    lam *= nu
+                    nu *= 2.0
+                    continue
                 for u in range(nf):
-                    step[idx[u]] = sol[u]
+                    step[idx[u]] = rhs[u]
             if attempt == 0 and n_known > 0:
                 # The model's next point already lies in a known optimum's neighbourhood: same basin.
                 for u in range(4):
