@@ -155,29 +155,29 @@ def _f(fd, fq, s, vd, vq, a, b, ih2, tm, w0):
 
 
 @nb.njit(cache=True, nogil=True, inline="always", error_model="numpy", fastmath={"contract"})
-def _sens_rate(S0, S1, S2, T0, T1, T2, c, fd, fq, s, vd, vq, dsdt, b, w0, ih2, K0, K1, K2):
-    """K = fx·(S + c·T) + fp: the sensitivity rate at a stage state, one row per state.
+def _sens_rate(W, c, fd, fq, s, vd, vq, dsdt, b, w0, ih2, t, k):
+    """Rows k..k+2 of W = fx·(S + c·T) + fp: the sensitivity rate at a stage state.
 
-    Rows hold the four parameter columns of S = dx/dD contiguously, so the loops over parameters are
-    short and contiguous.
+    W holds the sensitivity columns row-wise (rows 0–2: S = dx/dD, one column per parameter), T is
+    rows t..t+2; 4-wide rows keep the loops over parameters short and contiguous.
     """
     ws = w0 * s
     wfq = w0 * fq
     wfd = w0 * fd
     for j in range(4):
-        s0 = S0[j] + c * T0[j]
-        s1 = S1[j] + c * T1[j]
-        s2 = S2[j] + c * T2[j]
-        K0[j] = -b * s0 + ws * s1 + wfq * s2
-        K1[j] = -ws * s0 - b * s1 - wfd * s2
-        K2[j] = (vd * s1 - vq * s0) * ih2
+        s0 = W[0, j] + c * W[t, j]
+        s1 = W[1, j] + c * W[t + 1, j]
+        s2 = W[2, j] + c * W[t + 2, j]
+        W[k, j] = -b * s0 + ws * s1 + wfq * s2
+        W[k + 1, j] = -ws * s0 - b * s1 - wfd * s2
+        W[k + 2, j] = (vd * s1 - vq * s0) * ih2
     # fp = ∂f/∂D: columns a, b, H2 (−(ds/dt)/H2), Tm.
-    K0[0] += vd
-    K1[0] += vq
-    K0[1] -= fd
-    K1[1] -= fq
-    K2[2] -= dsdt * ih2
-    K2[3] += ih2
+    W[k, 0] += vd
+    W[k + 1, 0] += vq
+    W[k, 1] -= fd
+    W[k + 1, 1] -= fq
+    W[k + 2, 2] -= dsdt * ih2
+    W[k + 2, 3] += ih2
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
@@ -210,11 +210,6 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
     s = x[2]
     h = dt
     h6 = h / 6.0
-    S0, S1, S2 = W[0], W[1], W[2]
-    A0, A1, A2 = W[3], W[4], W[5]
-    B0, B1, B2 = W[6], W[7], W[8]
-    C0, C1, C2 = W[9], W[10], W[11]
-    D0, D1, D2 = W[12], W[13], W[14]
     for k in range(n):
         ud = vd[k]
         uq = vq[k]
@@ -226,15 +221,15 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
             x_out[k, 2] = s
             if with_sens:
                 for j in range(4):
-                    dp_out[k, j] = uq * S0[j] - ud * S1[j]
-                    dq_out[k, j] = -ud * S0[j] - uq * S1[j]
+                    dp_out[k, j] = uq * W[0, j] - ud * W[1, j]
+                    dq_out[k, j] = -ud * W[0, j] - uq * W[1, j]
         elif k >= k0:
             i = k - k0
             X[i, 0] = p_meas[i] - (fd * uq - fq * ud)
             X[i, 5] = q_meas[i] - (-ud * fd - uq * fq)
             for j in range(4):
-                X[i, 1 + j] = uq * S0[j] - ud * S1[j]
-                X[i, 6 + j] = -ud * S0[j] - uq * S1[j]
+                X[i, 1 + j] = uq * W[0, j] - ud * W[1, j]
+                X[i, 6 + j] = -ud * W[0, j] - uq * W[1, j]
             if i > 0:
                 for j in range(10):
                     X[i, j] -= X[0, j]
@@ -259,25 +254,23 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
             x4s = s + h * k3[2]
             k4 = _f(x4d, x4q, x4s, nd, nq, a, b, ih2, tm, w0)
             if with_sens:
-                _sens_rate(S0, S1, S2, S0, S1, S2, 0.0, fd, fq, s, ud, uq, k1[2], b, w0, ih2, A0, A1, A2)
-                _sens_rate(S0, S1, S2, A0, A1, A2, 0.5 * h, x2d, x2q, x2s, md, mq, k2[2], b, w0, ih2, B0, B1, B2)
-                _sens_rate(S0, S1, S2, B0, B1, B2, 0.5 * h, x3d, x3q, x3s, md, mq, k3[2], b, w0, ih2, C0, C1, C2)
-                _sens_rate(S0, S1, S2, C0, C1, C2, h, x4d, x4q, x4s, nd, nq, k4[2], b, w0, ih2, D0, D1, D2)
-                for j in range(4):
-                    S0[j] += h6 * (A0[j] + 2.0 * B0[j] + 2.0 * C0[j] + D0[j])
-                    S1[j] += h6 * (A1[j] + 2.0 * B1[j] + 2.0 * C1[j] + D1[j])
-                    S2[j] += h6 * (A2[j] + 2.0 * B2[j] + 2.0 * C2[j] + D2[j])
+                _sens_rate(W, 0.0, fd, fq, s, ud, uq, k1[2], b, w0, ih2, 0, 3)
+                _sens_rate(W, 0.5 * h, x2d, x2q, x2s, md, mq, k2[2], b, w0, ih2, 3, 6)
+                _sens_rate(W, 0.5 * h, x3d, x3q, x3s, md, mq, k3[2], b, w0, ih2, 6, 9)
+                _sens_rate(W, h, x4d, x4q, x4s, nd, nq, k4[2], b, w0, ih2, 9, 12)
+                for i in range(3):
+                    for j in range(4):
+                        W[i, j] += h6 * (W[3 + i, j] + 2.0 * W[6 + i, j] + 2.0 * W[9 + i, j] + W[12 + i, j])
             fd += h6 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
             fq += h6 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
             s += h6 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
         else:
             k1 = _f(fd, fq, s, ud, uq, a, b, ih2, tm, w0)
             if with_sens:
-                _sens_rate(S0, S1, S2, S0, S1, S2, 0.0, fd, fq, s, ud, uq, k1[2], b, w0, ih2, A0, A1, A2)
-                for j in range(4):
-                    S0[j] += h * A0[j]
-                    S1[j] += h * A1[j]
-                    S2[j] += h * A2[j]
+                _sens_rate(W, 0.0, fd, fq, s, ud, uq, k1[2], b, w0, ih2, 0, 3)
+                for i in range(3):
+                    for j in range(4):
+                        W[i, j] += h * W[3 + i, j]
             fd += h * k1[0]
             fq += h * k1[1]
             s += h * k1[2]
