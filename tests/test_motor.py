@@ -135,3 +135,20 @@ def test_fused_normal_equations_match_explicit_projection(eq_window):
     np.testing.assert_allclose(gq, jq.T @ rq, rtol=1e-7, atol=1e-9 * np.abs(jq.T @ rq).max())
     np.testing.assert_allclose(Ap, jp.T @ jp, rtol=1e-7)
     np.testing.assert_allclose(Aq, jq.T @ jq, rtol=1e-7)
+
+
+def test_initial_state_turns_with_an_off_nominal_frequency():
+    """A window 0.05 Hz off nominal, constant |V|: RK4 mode starts in the turning steady state (no transient)."""
+    t = np.arange(1001) * 0.01
+    V = np.ones_like(t)
+    theta = 2 * np.pi * 0.05 * t
+    d = np.array([40.0, 15.0, 1.3, 1.0])
+    w0 = motor.omega0_of(50.0)
+    p, q, x = motor.simulate(V, theta, d, 0.01, w0)
+    assert np.ptp(p) < 1e-6 and np.ptp(q) < 1e-6
+    # Slip relative to ω0 shifted by −Δω/ω0 from the steady state at nominal frequency.
+    s_nominal = motor.steady_state(1.0, 0.0, d, w0)[2]
+    assert x[0, 2] == pytest.approx(s_nominal - 2 * np.pi * 0.05 / w0, rel=1e-6)
+    # The paper's Euler mode keeps the ω0 steady state, so the same window starts with a transient.
+    pe, _, _ = motor.simulate(V, theta, d, 0.01, w0, integrator="euler")
+    assert np.ptp(pe) > 1e-3
