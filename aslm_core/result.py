@@ -41,6 +41,12 @@ class IdentifyConfig:
         Seed of the random starts (None: fixed per window for reproducibility).
     max_gap_samples : int
         Longest run of missing samples repaired by interpolation.
+    min_duration_s : float
+        Shortest window accepted [s].
+    coarse_to_fine : bool
+        RK4 only: random starts descend first on a coarse grid (every m-th sample, m·dt ≤ 40 ms, the
+        half-step inputs taken from the measured sample in between), then polish on the full grid.
+        The answer is the full grid's optimum either way; False descends on the full grid throughout.
     """
 
     integrator: Integrator = "rk4"
@@ -53,6 +59,7 @@ class IdentifyConfig:
     seed: int | None = 0
     max_gap_samples: int = 5
     min_duration_s: float = 5.0
+    coarse_to_fine: bool = True
 
     def to_dict(self) -> dict:
         """The options as a plain dict (flat, so cheaper than ``dataclasses.asdict``)."""
