@@ -87,6 +87,7 @@ def run_one(job: tuple) -> dict:
         e = next(e for e in rep.missing_physics if e["name"] == rep.cause)
         rec["improvement"] = e["improvement"]
         rec["excess_reduction"] = e["excess_reduction"]
+        rec["improvement_band"] = e["improvement_band"]
         rec["parameters"] = {**e["parameters"], **e.get("derived", {})}
         rec["stderr"] = e["stderr"]
     return rec
@@ -129,11 +130,18 @@ def summarise(recs: list[dict]) -> dict:
             continue
         chans = CHANNELS[e]
         red_ok = [all(r["improvement"][c.lower()] >= 0.5 for c in chans) for r in ok]
+        band = [[r["improvement_band"][c.lower()] for c in chans] for r in ok]
+        band_ok = [all(x is not None and x >= 0.5 for x in b) for b in band]
         imp[e] = {
             "n": len(ok),
             "median_var_reduction_p": float(np.median([r["improvement"]["p"] for r in ok])),
             "median_var_reduction_q": float(np.median([r["improvement"]["q"] for r in ok])),
             "share_reduced_50pct_on_acting_channels": float(np.mean(red_ok)),
+            "median_band_reduction_p": float(np.nanmedian([np.nan if r["improvement_band"]["p"] is None
+                                                           else r["improvement_band"]["p"] for r in ok])),
+            "median_band_reduction_q": float(np.nanmedian([np.nan if r["improvement_band"]["q"] is None
+                                                           else r["improvement_band"]["q"] for r in ok])),
+            "share_band_reduced_50pct_on_acting_channels": float(np.mean(band_ok)),
             "median_excess_reduction": float(np.nanmedian([np.nanmean([np.nan if r["excess_reduction"][c.lower()] is None
                                                                   else r["excess_reduction"][c.lower()] for c in chans])
                                                        for r in ok])),
@@ -188,12 +196,14 @@ def markdown(s: dict) -> str:
               f"- outside-library effects `unexplained`: {100 * s['outside_unexplained']:.1f} % (named: {100 * s['outside_named']:.1f} %)",
               f"- time per diagnosis: median {s['time_s']['median']:.2f} s, p95 {s['time_s']['p95']:.2f} s, max {s['time_s']['max']:.2f} s",
               f"- concealed (plain FD ≥ 0.9 on P and Q): {100 * s['concealed_share']:.1f} % of cases; {s['n_cases']} cases", "",
-              "| effect (when named) | n | median ΔVar P | median ΔVar Q | ≥50 % on acting channels | median excess removed | median ΔFD P | median ΔFD Q | FD raised | parameter error |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
+              "| effect (when named) | n | median ΔVar P | median ΔVar Q | ≥50 % on acting channels | in-band ΔVar P | in-band ΔVar Q | ≥50 % in band on acting channels | median excess removed | median ΔFD P | median ΔFD Q | FD raised | parameter error |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for e, v in s["improvement_when_explained"].items():
         perr = next(((k.replace("median_rel_error_", ""), x) for k, x in v.items() if k.startswith("median_rel_error_")), None)
         lines.append(f"| {e} | {v['n']} | {100 * v['median_var_reduction_p']:.0f} % | {100 * v['median_var_reduction_q']:.0f} % | "
-                     f"{100 * v['share_reduced_50pct_on_acting_channels']:.0f} % | {100 * v['median_excess_reduction']:.0f} % | "
+                     f"{100 * v['share_reduced_50pct_on_acting_channels']:.0f} % | "
+                     f"{100 * v['median_band_reduction_p']:.0f} % | {100 * v['median_band_reduction_q']:.0f} % | "
+                     f"{100 * v['share_band_reduced_50pct_on_acting_channels']:.0f} % | {100 * v['median_excess_reduction']:.0f} % | "
                      f"{v['median_fd_gain_p']:+.4f} | "
                      f"{v['median_fd_gain_q']:+.4f} | {100 * v['share_fd_raised_on_acting_channels']:.0f} % | "
                      + (f"{perr[0]}: {100 * perr[1]:.1f} %" if perr else "-") + " |")

@@ -101,7 +101,7 @@ class DiagnosisReport:
         per-band spectrum ratios and coherences.
     missing_physics : list of dict
         Ranked candidates: name, parameters (with ``stderr``), improvement (held-out residual-variance
-        reduction per channel), excess_reduction (share of the held-out variance above the noise floor
+        reduction per channel), improvement_band (the same in the ambient band), excess_reduction (share of the held-out variance above the noise floor
         removed, per channel), penalised gain [nats], score_z, dm_z, significant.
     fit_before, fit_after : dict
         Held-out FD (eq. 9) and residual RMS [pu] of P and Q, before (plain) and after (the named cause;
@@ -312,7 +312,8 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         reason = cand.not_applicable(analyses[0].ctx)
         if reason:
             entries.append({"name": name, "parameters": {}, "stderr": {}, "derived": {}, "units": {},
-                            "improvement": {"p": 0.0, "q": 0.0}, "penalised_gain": -math.inf, "score_z": 0.0,
+                            "improvement": {"p": 0.0, "q": 0.0}, "improvement_band": {"p": None, "q": None},
+                            "penalised_gain": -math.inf, "score_z": 0.0,
                             "dm_z": 0.0, "n_params": cand.n_params, "significant": False,
                             "signature": cand.signature, "tested": False, "note": reason})
             continue
@@ -332,6 +333,8 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
             "units": {**dict(zip(cand.nl_names, cand.nl_units, strict=True)), **cand.lin_units},
             "improvement": {"p": float(np.mean([c.reduction_p for c in comps])),
                             "q": float(np.mean([c.reduction_q for c in comps]))},
+            "improvement_band": {ch: _mean_or_none([getattr(c, f"band_reduction_{ch}") for c in comps])
+                                 for ch in ("p", "q")},
             "excess_reduction": {ch: _mean_or_none([getattr(c, f"excess_{ch}") for c in comps]) for ch in ("p", "q")},
             "penalised_gain": pg, "score_z": z, "dm_z": dmz, "magnitude_z": float(min(mag_z, 1e6)), "n_params": cand.n_params, "significant": sig_,
             "signature": cand.signature, "tested": True,

@@ -348,6 +348,10 @@ class Comparison:
     excess_p, excess_q : float or None
         Share of the held-out ambient-band residual *above the noise* removed, (S0 − S1)/(S0 − m) per
         channel (noise-weighted sums of squares) [-]; None when the channel has (almost) no excess.
+    band_reduction_p, band_reduction_q : float or None
+        Held-out residual-variance reduction in the ambient band, 1 − S1/S0 per channel (noise-weighted
+        sums of squares of the band's coefficients) [-]: the band where the located mismatch lives, so
+        the white noise above it does not dilute the figure.
     n : int
         Held-out samples.
     """
@@ -361,6 +365,8 @@ class Comparison:
     n: int
     excess_p: float | None = None
     excess_q: float | None = None
+    band_reduction_p: float | None = None
+    band_reduction_q: float | None = None
 
 
 def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1.0, probes=None,
@@ -450,7 +456,7 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1
     ex = [(s0 - s1) / (s0 - m) if s0 - m > 0.05 * m else None for s0, s1 in ((S0p, S1p), (S0q, S1q))]
     s0p, s0q, s1p, s1q = (float(r @ r) for r in (r0p, r0q, r1p, r1q))
     return Comparison(score, z, gain, gain - 0.5 * k * math.log(m), 1.0 - s1p / s0p, 1.0 - s1q / s0q, n,
-                      ex[0], ex[1])
+                      ex[0], ex[1], 1.0 - S1p / S0p, 1.0 - S1q / S0q)
 
 
 def _gls_metric(vp: np.ndarray, vq: np.ndarray, cpq: np.ndarray, plain_cov):
