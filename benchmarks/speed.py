@@ -56,7 +56,7 @@ def main(argv=None) -> dict:
     p.add_argument("--n-de", type=int, default=None)
     args = p.parse_args(argv)
     q = args.quick
-    n_base = args.n_baseline or (3 if q else 20)
+    n_base = args.n_baseline or (3 if q else 60)
     n_de = args.n_de or (1 if q else 3)
     n_ours = 50 if q else 300
     n_batch = 200 if q else 1000
