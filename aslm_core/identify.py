@@ -189,21 +189,31 @@ def levenberg_marquardt(problem: Problem, d0: np.ndarray, max_iter: int = 60, xt
 
 def _standard_errors(problem: Problem, rr: tuple[float, float], rho: tuple[float, float],
                      jj: np.ndarray) -> np.ndarray:
-    """Standard errors of D from the projected Jacobian, per-channel noise, residual autocorrelation.
+    """Standard errors of D: sandwich covariance of the configured objective's estimator.
 
-    ``rr``: ‖r‖² per channel; ``rho``: lag-1 residual autocorrelation per channel; ``jj``: JᵀJ per channel.
+    ``rr``: ‖r‖² per channel; ``rho``: lag-1 residual autocorrelation per channel; ``jj``: JᵀJ per channel
+    (projected). At the optimum Σ_c w_c·J_cᵀr_c = 0 with the objective's channel weights w_c (eq. 7:
+    1/‖r_c‖; ``ml``: 1/σ_c²; ``ssq``: 1), so cov = B⁻¹·M·B⁻¹ with B = Σ w_c·J_cᵀJ_c and
+    M = Σ w_c²·σ_c²·g_c·J_cᵀJ_c, σ_c² the channel's noise variance from its residuals and
+    g_c = (1+ρ)/(1−ρ) the inflation for correlated residuals (fewer independent samples, e.g. after
+    low-pass filtering). For ``ml`` this is the inverse Fisher information; eq. 7 weights the channels
+    by 1/σ rather than 1/σ², and its spread is up to ~20 % above that bound in some windows.
     """
     n_free = problem.basis.shape[1]
-    fisher = np.zeros((4, 4))
+    obj = problem.config.objective
+    bread = np.zeros((4, 4))
+    meat = np.zeros((4, 4))
     for c in range(2):
-        var = rr[c] / max(problem.l - n_free - 2, 1)
+        var = max(rr[c] / max(problem.l - n_free - 2, 1), 1e-300)
         r1 = min(max(rho[c], 0.0), 0.95)
-        # Correlated residuals carry fewer independent samples: inflate by (1+ρ)/(1−ρ).
-        fisher += jj[c] / max(var * (1.0 + r1) / (1.0 - r1), 1e-300)
+        w = 1.0 / math.sqrt(max(rr[c], 1e-300)) if obj == "paper" else (1.0 / var if obj == "ml" else 1.0)
+        bread += w * jj[c]
+        meat += (w * w * var * (1.0 + r1) / (1.0 - r1)) * jj[c]
     try:
-        cov = np.linalg.inv(fisher)
+        binv = np.linalg.inv(bread)
     except np.linalg.LinAlgError:
         return np.full(4, np.inf)
+    cov = binv @ meat @ binv.T
     return np.sqrt(np.maximum(cov.diagonal(), 0.0))
 
 

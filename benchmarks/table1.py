@@ -27,13 +27,14 @@ def run_config(cs, config: IdentifyConfig) -> dict:
     t0 = time.perf_counter()
     res = identify_many([c.window for c in cs], config=config, workers=2)
     wall = time.perf_counter() - t0
-    ratios, rel_se, failed, flagged, miss = [], [], 0, {}, []
+    ratios, rel_se, zs, failed, flagged, miss = [], [], [], 0, {}, []
     for c, r in zip(cs, res, strict=True):
         if isinstance(r, WindowError):
             failed += 1
             continue
         ratios.append(r.d / c.truth.d)
         rel_se.append([r.stderr[p] / c.truth.dynamic[p] for p in common.PARAMS])
+        zs.append([(r.dynamic[p] - c.truth.dynamic[p]) / r.stderr[p] for p in common.PARAMS])
         # An optimiser miss: D_opt is off by > 5 % and the true D has a lower objective than D_opt.
         is_miss = False
         if np.max(np.abs(r.d / c.truth.d - 1)) > 0.05:
@@ -50,6 +51,10 @@ def run_config(cs, config: IdentifyConfig) -> dict:
     # The identifier's own standard errors (Jacobian at the optimum): the spread an efficient estimator
     # reaches on these data.  σ ≈ rms SE says the noise, not the method, sets σ.
     st["rms_rel_se"] = dict(zip(common.PARAMS, np.sqrt(np.mean(np.square(rel_se), axis=0)).tolist(), strict=True))
+    # Calibration of the reported SE: z = (D_opt − D_real)/SE is N(0, 1) if the SE is right.
+    z = np.array(zs)
+    st["z_sd"] = dict(zip(common.PARAMS, np.std(z, axis=0, ddof=1).tolist(), strict=True))
+    st["coverage_95"] = dict(zip(common.PARAMS, np.mean(np.abs(z) < 1.96, axis=0).tolist(), strict=True))
     st.update(misses=int(np.sum(~keep)), failed=failed, flags=flagged, wall_s=wall,
               snr_mean=float(np.mean([c.snr_db for c in cs])) if np.isfinite(cs[0].snr_db) else None)
     return st
@@ -109,6 +114,12 @@ def main(argv=None) -> dict:
     parts.append("RK4: σ of D_opt/D_real next to the rms of the identifier's own standard errors (SE/D_real, from the "
                  "Jacobian at the optimum, i.e. the information in each window):\n\n"
                  + common.md_table(["DL", "a: σ / SE", "b: σ / SE", "H2: σ / SE", "Tm: σ / SE"], se_rows))
+    cal_rows = [[lv, *[f"{main_tab['rk4'][lv]['z_sd'][p]:.2f} / {100 * main_tab['rk4'][lv]['coverage_95'][p]:.1f} %"
+                       for p in common.PARAMS]] for lv in (1, 2, 3)]
+    parts.append("RK4: calibration of the reported standard errors, z = (D_opt − D_real)/SE per case: its standard "
+                 "deviation (1 when the SE is right) and the share of cases inside ±1.96 SE (95 % when right):\n\n"
+                 + common.md_table(["DL", "a: sd(z) / cover", "b: sd(z) / cover", "H2: sd(z) / cover",
+                                    "Tm: sd(z) / cover"], cal_rows))
     paper_rows = [[lv, v[0], *[f"{x:.3f}" for x in v[1:]], 1000, "–", "–"] for lv, v in common.PAPER_TABLE1.items()]
     parts.append("**Paper, Table I** (1000 LMCs per level):\n\n" + common.md_table(HEAD, paper_rows))
     for k, title in (("rk4_no_filter", "RK4, noise ALSO on V and θ, no filter"),

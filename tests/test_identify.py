@@ -204,3 +204,26 @@ def test_coarse_to_fine_reaches_the_full_grid_optimum_for_less_work():
     w = cases[0].window
     slow = Window(t=w.t[::4], V=w.V[::4], theta=w.theta[::4], P=w.P[::4], Q=w.Q[::4], f0=w.f0)
     assert Problem(prepare(slow), slow.f0, IdentifyConfig()).coarse() is None
+
+
+def test_standard_errors_follow_the_objectives_own_spread_when_channels_differ_in_noise():
+    """Eq. 7 weights P and Q by 1/‖r‖, not 1/σ²: with P at 14 dB and Q at 34 dB its estimates spread
+    ~1.5× wider than the inverse Fisher information. The reported SE (sandwich form) must follow the
+    estimator actually used; the ``ml`` objective reaches the smaller spread."""
+    import dataclasses
+
+    c = make_cases(2, level=None, seed=77)[1]
+    w = c.window
+    rng = np.random.default_rng(0)
+    sp, sq = 10 ** (-14 / 20) * np.std(w.P), 10 ** (-34 / 20) * np.std(w.Q)
+    noisy = [dataclasses.replace(w, P=w.P + rng.normal(0, sp, w.P.size), Q=w.Q + rng.normal(0, sq, w.Q.size))
+             for _ in range(300)]
+    spread = {}
+    for obj in ("paper", "ml"):
+        res = identify_many(noisy, config=IdentifyConfig(objective=obj), workers=2)
+        d = np.array([r.d for r in res])
+        se = np.array([[r.stderr[k] for k in ("a", "b", "H2", "Tm")] for r in res])
+        ratio = d.std(axis=0) / se.mean(axis=0)
+        assert np.all((ratio > 0.85) & (ratio < 1.15)), (obj, ratio)
+        spread[obj] = d.std(axis=0)
+    assert np.all(spread["ml"] < 0.85 * spread["paper"]), spread
