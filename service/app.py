@@ -126,7 +126,7 @@ class Service:
         self.scheduler = Scheduler(
             self.store, self.executor, rules, late_s=s.late_s, f0=s.f0, period_s=lambda: self.period_s,
             on_results=self._on_results, on_period=self._on_period, warm_starts=self.warm_starts,
-            options={"n_starts": s.n_starts, "lowpass_hz": s.lowpass_hz}, n_starts_warm=s.n_starts_warm,
+            options={"n_starts": s.n_starts, "lowpass_hz": s.lowpass_hz, "objective": s.objective}, n_starts_warm=s.n_starts_warm,
             diagnose_every=s.diagnose_every, on_diagnosis=self._on_diagnosis,
         )
         self.scheduler.start()

@@ -66,6 +66,10 @@ class ServiceSettings(BaseSettings):
         2.0, description="Causal low-pass of V, θ, P, Q before identification [Hz] (None: off); it keeps "
                          "PMU noise on V and θ from biasing D (errors in variables), see docs/reproduction.md",
     )
+    objective: Literal["paper", "ml", "ssq"] = Field(
+        "paper", description="Identifier objective: 'paper' (eq. 7, (‖r_P‖ + ‖r_Q‖)/l), 'ml' (Gaussian likelihood, "
+                             "one noise variance per channel: efficient when P and Q differ in SNR), 'ssq'",
+    )
     diagnose_every: int = Field(
         4, description="Discrepancy diagnosis of every identified bus each k-th period (0: off); ~0.7 s of one "
                        "core per bus and diagnosis, queued after the period's identifications: raise k (or 0) "

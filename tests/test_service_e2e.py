@@ -23,7 +23,9 @@ REL_TOL = 0.10
 
 def test_fleet_to_parameters_over_rest_and_zenoh(tmp_path):
     zport = free_port()
-    settings = settings_for(tmp_path, zport, period_s=12.0, window_s=10.0, late_s=1.0, task_timeout_s=120)
+    # objective 'ml': a non-default identifier option travels from the settings to every worker.
+    settings = settings_for(tmp_path, zport, period_s=12.0, window_s=10.0, late_s=1.0, task_timeout_s=120,
+                            objective="ml")
     with Service(settings) as svc:
         sess = client_session(zport)
         got: dict[tuple[str, float], dict] = {}
@@ -48,6 +50,7 @@ def test_fleet_to_parameters_over_rest_and_zenoh(tmp_path):
             errors = {k: abs(est[k] - true[k]) / true[k] for k in ("a", "b", "H2", "Tm")}
             assert max(errors.values()) <= REL_TOL, (bus, est, true)
             assert res["n_frames"] >= 0.9 * 10 * 50
+            assert res["parameters"]["config"]["objective"] == "ml"
         # The same results over Zenoh: a subscriber got each bus's result of that period.
         wait_for(lambda: all((b, done["period"]) in got for b in fleet.bus_names), 10, 0.1)
         for bus in fleet.bus_names:

@@ -20,6 +20,7 @@ def test_defaults():
     assert (s.prefix, s.period_s, s.window_s, s.frame_rate, s.workers, s.executor) == (
         "aslm", 900.0, 10.0, 50.0, 2, "local")
     assert (s.n_starts, s.n_starts_warm) == (3, 1)
+    assert s.objective == "paper"
 
 
 def test_precedence_toml_env_cli(tmp_path, monkeypatch):
@@ -42,6 +43,7 @@ def test_precedence_toml_env_cli(tmp_path, monkeypatch):
     ({"workers": -1}, "workers"),
     ({"workers": 0}, "workers"),
     ({"n_starts_warm": -1}, "n_starts_warm"),
+    ({"objective": "l1"}, "objective"),
     ({"executor": "spark"}, "executor must be 'local' or a Dask scheduler address"),
     ({"prefix": "aslm/**"}, "prefix"),
     ({"late_s": -1}, "late_s must be >= 0"),
