@@ -238,6 +238,8 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
     ------
     WindowError
         When the window cannot give a trustworthy answer (see :func:`aslm_core.preprocess.prepare`).
+    ValueError
+        When there is no start (``n_starts`` = 0 and no ``warm_start``).
     """
     t_start = time.perf_counter()
     config = config or IdentifyConfig()
@@ -249,6 +251,8 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
     if warm_start is not None:
         starts.append(problem.into_feasible(np.asarray(warm_start, dtype=np.float64)))
     starts.extend(problem.random_start(rng) for _ in range(config.n_starts))
+    if not starts:
+        raise ValueError("no start to descend from: n_starts is 0 and no warm_start was given")
     runs = []
     for i, s in enumerate(starts):
         known = [r["d"] for r in runs if r["status"] in ("converged", "stalled")]
@@ -373,6 +377,8 @@ def identify_many(windows: Sequence[Window], *, warm_starts: Sequence[np.ndarray
     warm = list(warm_starts) if warm_starts is not None else [None] * len(windows)
     if len(warm) != len(windows):
         raise ValueError(f"{len(warm)} warm starts for {len(windows)} windows")
+    if config.n_starts == 0 and any(w is None for w in warm):
+        raise ValueError("no start to descend from: n_starts is 0 and some windows have no warm start")
 
     def one(i: int) -> IdentificationResult | WindowError:
         try:

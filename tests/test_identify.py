@@ -66,6 +66,14 @@ def test_warm_start_alone_reaches_the_same_optimum_with_fewer_evaluations(noisy_
     assert warm.evaluations < full.evaluations
 
 
+def test_no_start_at_all_is_a_clear_error(clean_cases):
+    with pytest.raises(ValueError, match="n_starts is 0 and no warm_start"):
+        identify(clean_cases[0].window, config=IdentifyConfig(n_starts=0))
+    with pytest.raises(ValueError, match="n_starts is 0 and some windows have no warm start"):
+        identify_many([c.window for c in clean_cases[:2]], warm_starts=[clean_cases[0].truth.d, None],
+                      config=IdentifyConfig(n_starts=0))
+
+
 def test_objectives_agree_on_clean_data(clean_cases):
     c = clean_cases[0]
     ds = [identify(c.window, config=IdentifyConfig(objective=o)).d for o in ("paper", "ml", "ssq")]
