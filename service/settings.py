@@ -144,7 +144,7 @@ class ServiceSettings(BaseSettings):
     @field_validator("workers", "n_starts", "n_starts_warm", "diagnose_every")
     @classmethod
     def _count(cls, v: int, info) -> int:
-        if v < (1 if info.field_name == "workers" else 0):
+        if v < (1 if info.field_name in ("workers", "n_starts") else 0):
             raise ValueError(f"{info.field_name} must be a positive count (got {v})")
         return v
 

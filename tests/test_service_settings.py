@@ -43,6 +43,7 @@ def test_precedence_toml_env_cli(tmp_path, monkeypatch):
     ({"workers": -1}, "workers"),
     ({"workers": 0}, "workers"),
     ({"n_starts_warm": -1}, "n_starts_warm"),
+    ({"n_starts": 0}, "n_starts must be a positive count"),
     ({"objective": "l1"}, "objective"),
     ({"executor": "spark"}, "executor must be 'local' or a Dask scheduler address"),
     ({"prefix": "aslm/**"}, "prefix"),
