@@ -81,7 +81,8 @@ class IdentificationResult:
     fit : dict
         Fit degree (eq. 9) of P and Q over the regression samples: {fd_p, fd_q}.
     stderr : dict
-        Standard errors of D from the Jacobian at the optimum (Gaussian, per-channel noise).
+        Standard errors of D from the Jacobian at the optimum, sandwich form of the configured objective
+        (per-channel noise, residual autocorrelation).
     quality : dict
         Indicators: SNR estimates [dB], excitation (std of V [pu]), constraint margin, n samples.
     flags : list of str
