@@ -30,6 +30,8 @@ EQUILIBRIUM_MARGIN = 1e-3
 # Longest RK4 step of the coarse grid random starts first descend on [s]; RK4 at 40 ms stays stable
 # over the box almost everywhere (where it does not, that start descends on the full grid).
 COARSE_MAX_STEP_S = 0.04
+# The coarse descent only has to reach the basin; the full grid polishes.
+COARSE_XTOL = 1e-3
 
 
 class Problem:
@@ -52,26 +54,30 @@ class Problem:
         self.rk4 = config.integrator == "rk4"
         self.vd, self.vq, self.vdm, self.vqm = motor.dq_inputs(prep.V, prep.theta)
         n = prep.V.shape[0]
-        self.k0 = min(int(math.ceil(config.skip_s / prep.dt - 1e-9)), n - 10)
-        self.l = n - self.k0
-        phi = static.regressors(prep.V[self.k0:], config.static)
-        self.basis, self.r_factor = optimize.thin_qr(np.ascontiguousarray(phi))
-        basis = self.basis
-        # Non-constant orthonormal regressors (the constant column comes first), padded to two.
-        self.basis2 = np.zeros((basis.shape[0], 2))
-        self.basis2[:, : basis.shape[1] - 1] = basis[:, 1:]
-        self.p_meas = np.ascontiguousarray(prep.P[self.k0:])
-        self.q_meas = np.ascontiguousarray(prep.Q[self.k0:])
+        self._set_samples(prep.V, prep.P, prep.Q, min(int(math.ceil(config.skip_s / prep.dt - 1e-9)), n - 10))
         self.v_min = float(prep.V.min())
         self.p_mean = float(prep.P.mean())
         self.lower, self.upper = dynamic_bounds(self.p_mean)
+        self._coarse: Problem | None | bool = False
+
+    def _set_samples(self, V: np.ndarray, P: np.ndarray, Q: np.ndarray, k0: int) -> None:
+        """Regression samples from k0 on, their projection basis, and the simulation buffers."""
+        n = V.shape[0]
+        self.k0 = k0
+        self.l = n - k0
+        phi = static.regressors(V[k0:], self.config.static)
+        self.basis, self.r_factor = optimize.thin_qr(np.ascontiguousarray(phi))
+        # Non-constant orthonormal regressors (the constant column comes first), padded to two.
+        self.basis2 = np.zeros((self.basis.shape[0], 2))
+        self.basis2[:, : self.basis.shape[1] - 1] = self.basis[:, 1:]
+        self.p_meas = np.ascontiguousarray(P[k0:])
+        self.q_meas = np.ascontiguousarray(Q[k0:])
         self._p = np.empty(n)
         self._q = np.empty(n)
         self._dp = np.empty((n, 4))
         self._dq = np.empty((n, 4))
         self._x = np.empty((n, 3))
         self.evaluations = 0
-        self._coarse: Problem | None | bool = False
 
     def coarse(self) -> Problem | None:
         """The same problem on every m-th sample (m even, m·dt ≤ COARSE_MAX_STEP_S), or None.
@@ -87,25 +93,15 @@ class Problem:
             return None
         c = object.__new__(Problem)
         c.__dict__.update(self.__dict__)
-        h = m // 2
         c.vd, c.vq = np.ascontiguousarray(self.vd[::m]), np.ascontiguousarray(self.vq[::m])
         n = c.vd.size
-        c.vdm = np.ascontiguousarray(self.vd[h::m][: n - 1])
-        c.vqm = np.ascontiguousarray(self.vq[h::m][: n - 1])
+        c.vdm = np.ascontiguousarray(self.vd[m // 2::m][: n - 1])
+        c.vqm = np.ascontiguousarray(self.vq[m // 2::m][: n - 1])
         if c.vdm.size < n - 1:
             return None
         c.dt = self.dt * m
-        c.k0 = int(math.ceil(self.k0 / m))
-        v = self.prep.V[::m]
-        c.basis, c.r_factor = optimize.thin_qr(np.ascontiguousarray(static.regressors(v[c.k0:], self.config.static)))
-        c.basis2 = np.zeros((c.basis.shape[0], 2))
-        c.basis2[:, : c.basis.shape[1] - 1] = c.basis[:, 1:]
-        c.p_meas = np.ascontiguousarray(self.prep.P[::m][c.k0:])
-        c.q_meas = np.ascontiguousarray(self.prep.Q[::m][c.k0:])
-        c.l = c.p_meas.size
-        c._p, c._q = np.empty(n), np.empty(n)
-        c._dp, c._dq, c._x = np.empty((n, 4)), np.empty((n, 4)), np.empty((n, 3))
-        c.evaluations = 0
+        p = self.prep
+        c._set_samples(p.V[::m], p.P[::m], p.Q[::m], int(math.ceil(self.k0 / m)))
         c._coarse = None
         self._coarse = c
         return c
@@ -276,7 +272,7 @@ def _descend(problem: Problem, start: np.ndarray, config: IdentifyConfig, known:
     """
     cp = problem.coarse() if coarse else None
     if cp is not None:
-        rc = levenberg_marquardt(cp, start, max_iter=config.max_iter, xtol=1e-3, known=known)
+        rc = levenberg_marquardt(cp, start, max_iter=config.max_iter, xtol=COARSE_XTOL, known=known)
         problem.evaluations += rc["evaluations"]
         if rc["status"] == "duplicate":
             return {**rc, "cost": math.inf}

@@ -62,6 +62,17 @@ def test_hung_task_times_out_and_others_finish(env):
         pool.close()
 
 
+def _one_bad_task_fails_alone(pool: LocalPool, bad: str, at: int, reason: str) -> None:
+    """40 tasks with ``bad`` at position ``at``: it alone fails with ``reason``; its worker is replaced."""
+    assert pool.wait_ready(60)
+    names = [f"b{i}" for i in range(at)] + [bad] + [f"b{i}" for i in range(at, 40)]
+    futs = pool.submit_many([task(n) for n in names])
+    outs = {n: f.result(timeout=60) for n, f in zip(names, futs, strict=True)}
+    assert (outs[bad].ok, outs[bad].reason) == (False, reason)
+    assert all(o.ok for n, o in outs.items() if n != bad)
+    assert pool.replaced == 1
+
+
 @pytest.mark.parametrize("depth", [1, 8])
 def test_window_crashing_its_worker_fails_that_bus_only_with_tasks_queued_behind_it(monkeypatch, depth):
     # With depth 8 a worker holds up to 8 tasks: the crash fails the one running, the ones queued
@@ -69,13 +80,7 @@ def test_window_crashing_its_worker_fails_that_bus_only_with_tasks_queued_behind
     monkeypatch.setenv("ASLM_TEST_CRASH_BUS", "crash")
     pool = LocalPool(2, "service_helpers:crash_identify", timeout_s=60, depth=depth)
     try:
-        assert pool.wait_ready(60)
-        names = [f"b{i}" for i in range(10)] + ["crash"] + [f"b{i}" for i in range(10, 40)]
-        futs = pool.submit_many([task(n) for n in names])
-        outs = {n: f.result(timeout=60) for n, f in zip(names, futs, strict=True)}
-        assert (outs["crash"].ok, outs["crash"].reason) == (False, "worker_crashed")
-        assert all(o.ok for n, o in outs.items() if n != "crash")
-        assert pool.replaced == 1
+        _one_bad_task_fails_alone(pool, "crash", 10, "worker_crashed")
     finally:
         pool.close()
 
@@ -83,13 +88,7 @@ def test_window_crashing_its_worker_fails_that_bus_only_with_tasks_queued_behind
 def test_hung_task_in_a_full_worker_times_out_alone(env):
     pool = LocalPool(2, "service_helpers:hang_once_identify", timeout_s=2.0, depth=8)
     try:
-        assert pool.wait_ready(60)
-        names = [f"b{i}" for i in range(5)] + ["hang"] + [f"b{i}" for i in range(5, 30)]
-        futs = pool.submit_many([task(n) for n in names])
-        outs = {n: f.result(timeout=60) for n, f in zip(names, futs, strict=True)}
-        assert (outs["hang"].ok, outs["hang"].reason) == (False, "timeout")
-        assert all(o.ok for n, o in outs.items() if n != "hang")
-        assert pool.replaced == 1
+        _one_bad_task_fails_alone(pool, "hang", 5, "timeout")
     finally:
         pool.close()
 
