@@ -1,8 +1,9 @@
 """Upper stage: constrained Levenberg–Marquardt over D on the projected (lower-stage) residuals.
 
 Compiled end to end with numba: one iteration is one simulation with sensitivities plus O(n) work,
-no Python in the loop.  Bounds are handled by freezing variables at an active bound and clipping;
-the equilibrium constraint a·Vmin² − 2b·Tm > margin·a·Vmin² by backtracking into the feasible set.
+no Python in the loop.  Each step solves the damped model in the box and the linearised equilibrium
+constraint a·Vmin²·(1 − margin) − 2b·Tm > 0 (a 4-variable active-set QP); the constraint's curvature is
+corrected along Tm, with backtracking as the fallback.
 """
 
 from __future__ import annotations
@@ -283,6 +284,145 @@ def _solve_small(M, rhs, n):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def _eqp_direction(M, q, gc, work, free, use_con, p, w, idx):
+    """Direction p minimising qᵀp + ½pᵀMp with p = 0 off ``free`` (and gcᵀp = 0 if ``use_con``).
+
+    Returns (ok, ν): ν is the multiplier of the linear constraint (q + M·p = ν·gc on the free variables).
+    """
+    nf = 0
+    for u in range(4):
+        p[u] = 0.0
+        if free[u]:
+            idx[nf] = u
+            nf += 1
+    if nf == 0:
+        return True, 0.0
+    for u in range(nf):
+        for v in range(nf):
+            work[u, v] = M[idx[u], idx[v]]
+        w[u] = -q[idx[u]]
+    if not _solve_small(work, w, nf):
+        return False, 0.0
+    for u in range(nf):
+        p[idx[u]] = w[u]
+    if not use_con:
+        return True, 0.0
+    for u in range(nf):
+        for v in range(nf):
+            work[u, v] = M[idx[u], idx[v]]
+        w[u] = gc[idx[u]]
+    if not _solve_small(work, w, nf):
+        return False, 0.0
+    cp = 0.0
+    cmc = 0.0
+    for u in range(nf):
+        cp += gc[idx[u]] * p[idx[u]]
+        cmc += gc[idx[u]] * w[u]
+    if not cmc > 0.0:
+        return True, 0.0  # no free variable enters the constraint: the bounds hold it
+    nu = -cp / cmc
+    for u in range(nf):
+        p[idx[u]] += nu * w[u]
+    return True, nu
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def qp_step(M, g, d, lower, upper, gc, c_d, s, work, vec, ivec):
+    """Step s minimising gᵀs + ½sᵀMs with lower ≤ d + s ≤ upper and gcᵀs ≥ −c_d; False if singular.
+
+    ``work`` (4×4), ``vec`` (3×4) and ``ivec`` (3×4, int64) are scratch space (no allocation per step).
+
+    Primal active-set method from s = 0 (feasible when d is): the damped LM subproblem with the bounds
+    and the linearised equilibrium constraint.  A bound or the constraint leaves the working set when
+    its multiplier is negative, so an iterate stops only at a KKT point of the model, not at a corner
+    where freezing variables by the sign of the gradient alone would hold it.
+    """
+    state = ivec[0]  # 0 free, −1 at lower, +1 at upper
+    free = ivec[1]
+    idx = ivec[2]
+    w = vec[0]
+    p = vec[1]
+    q = vec[2]
+    for u in range(4):
+        s[u] = 0.0
+        state[u] = 0
+        if d[u] <= lower[u] and g[u] > 0.0:
+            state[u] = -1
+        elif d[u] >= upper[u] and g[u] < 0.0:
+            state[u] = 1
+    con = False
+    gscale = 0.0
+    for u in range(4):
+        gscale = max(gscale, abs(g[u]) * (abs(d[u]) + 1e-3))
+    for _ in range(12):
+        for u in range(4):
+            free[u] = 1 if state[u] == 0 else 0
+            acc = g[u]
+            for v in range(4):
+                acc += M[u, v] * s[v]
+            q[u] = acc
+        ok, nu = _eqp_direction(M, q, gc, work, free, con, p, w, idx)
+        if not ok:
+            return False
+        # Longest feasible fraction of p; the first constraint it meets joins the working set.
+        alpha = 1.0
+        block = -1
+        for u in range(4):
+            if free[u]:
+                if p[u] < 0.0 and d[u] + s[u] + p[u] < lower[u]:
+                    a_u = (lower[u] - d[u] - s[u]) / p[u]
+                    if a_u < alpha:
+                        alpha, block = a_u, u
+                elif p[u] > 0.0 and d[u] + s[u] + p[u] > upper[u]:
+                    a_u = (upper[u] - d[u] - s[u]) / p[u]
+                    if a_u < alpha:
+                        alpha, block = a_u, u
+        if not con:
+            cp = 0.0
+            cs = c_d
+            for u in range(4):
+                cp += gc[u] * p[u]
+                cs += gc[u] * s[u]
+            if cp < 0.0 and cs + cp < 0.0:
+                a_c = max(cs, 0.0) / -cp
+                if a_c < alpha:
+                    alpha, block = a_c, 4
+        alpha = max(alpha, 0.0)
+        for u in range(4):
+            s[u] += alpha * p[u]
+        if block >= 0:
+            if block == 4:
+                con = True
+            else:
+                state[block] = -1 if p[block] < 0.0 else 1
+                s[block] = (lower[block] if p[block] < 0.0 else upper[block]) - d[block]
+            continue
+        # Full step: a minimiser on the working set.  Release the constraint with the most negative
+        # multiplier, if any (q + M·p = ν·gc on the free variables; on a bound, its component).
+        worst = 0.0
+        drop = -1
+        tol = -1e-12 * gscale
+        if con and nu * gc[0] * abs(d[0]) < tol:
+            worst, drop = nu * gc[0] * abs(d[0]), 4
+        for u in range(4):
+            if state[u] != 0:
+                r = q[u] - (nu * gc[u] if con else 0.0)
+                for v in range(4):
+                    r += M[u, v] * p[v]
+                lam_u = r if state[u] < 0 else -r
+                lam_u *= abs(d[u]) + 1e-3
+                if lam_u < tol and lam_u < worst:
+                    worst, drop = lam_u, u
+        if drop < 0:
+            return True
+        if drop == 4:
+            con = False
+        else:
+            state[drop] = 0
+    return True
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, lower, upper, vmin,
               margin, objective, max_iter, xtol, ftol, dup_rtol, known, n_known, out_d):
     """Levenberg–Marquardt from d0 (feasible). Returns (cost, iterations, evaluations, status code).
@@ -310,11 +450,13 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
     A = np.empty((4, 4))
     g = np.empty(4)
     M = np.empty((4, 4))
-    rhs = np.empty(4)
+    gc = np.empty(4)
+    qp_work = np.empty((4, 4))
+    qp_vec = np.empty((3, 4))
+    qp_int = np.empty((3, 4), dtype=np.int64)
     d = d0.copy()
     trial = np.empty(4)
     step = np.empty(4)
-    idx = np.empty(4, dtype=np.int64)
     evals = 1
     ok, rr_p, rr_q = _evaluate(d, vd, vq, vdm, vqm, dt, w0, rk4, k0, p_meas, q_meas, basis2, X, G,
                                Ap, Aq, gp, gq, dummy1, dummy2)
@@ -337,32 +479,24 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
             for v in range(4):
                 A[u, v] = wp * Ap[u, v] + wq * Aq[u, v]
             dmax = max(dmax, A[u, u])
-        nf = 0
-        for u in range(4):
-            at_lo = d[u] <= lower[u] and g[u] > 0.0
-            at_hi = d[u] >= upper[u] and g[u] < 0.0
-            if not (at_lo or at_hi):
-                idx[nf] = u
-                nf += 1
+        gc[0] = vmin * vmin * (1.0 - margin)
+        gc[1] = -2.0 * d[3]
+        gc[2] = 0.0
+        gc[3] = -2.0 * d[1]
+        c_d = gc[0] * d[0] - 2.0 * d[1] * d[3]  # > 0 inside the equilibrium set
         accepted = False
         converged = False
         moved = 0.0
         heading_to_known = False
         for attempt in range(14):
             for u in range(4):
-                step[u] = 0.0
-            if nf > 0:
-                for u in range(nf):
-                    for v in range(nf):
-                        M[u, v] = A[idx[u], idx[v]]
-                    M[u, u] += lam * max(A[idx[u], idx[u]], 1e-12 * dmax + 1e-300)
-                    rhs[u] = -g[idx[u]]
-                if not _solve_small(M, rhs, nf):
-                    lam *= nu
-                    nu *= 2.0
-                    continue
-                for u in range(nf):
-                    step[idx[u]] = rhs[u]
+                for v in range(4):
+                    M[u, v] = A[u, v]
+                M[u, u] += lam * max(A[u, u], 1e-12 * dmax + 1e-300)
+            if not qp_step(M, g, d, lower, upper, gc, c_d, step, qp_work, qp_vec, qp_int):
+                lam *= nu
+                nu *= 2.0
+                continue
             if attempt == 0 and n_known > 0:
                 # The model's next point already lies in a known optimum's neighbourhood: same basin.
                 for u in range(4):
@@ -370,8 +504,8 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
                 if _near_known(trial, known, n_known, dup_rtol):
                     heading_to_known = True
                     break
-            # Predicted decrease of the full (unclipped) damped step: the convergence test.  A step cut
-            # short by a bound or the equilibrium constraint says nothing about convergence.
+            # Predicted decrease of the step (the model's minimiser in the box and the linearised
+            # equilibrium set, so ≥ 0): the convergence test.
             pred_full = 0.0
             for u in range(4):
                 pred_full -= g[u] * step[u]
@@ -383,16 +517,11 @@ def lm_kernel(d0, vd, vq, vdm, vqm, dt, w0, rk4, basis2, p_meas, q_meas, k0, low
             for u in range(4):
                 trial[u] = min(max(d[u] + step[u], lower[u]), upper[u])
             if not feasible(trial, lower, upper, vmin, margin):
-                # Moving into the equilibrium constraint: keep the part of the step along its boundary.
-                gc0 = vmin * vmin * (1.0 - margin)
-                gc1 = -2.0 * d[3]
-                gc3 = -2.0 * d[1]
-                into = gc0 * step[0] + gc1 * step[1] + gc3 * step[3]
-                if into < 0.0:
-                    f = into / (gc0 * gc0 + gc1 * gc1 + gc3 * gc3)
-                    step[0] -= f * gc0
-                    step[1] -= f * gc1
-                    step[3] -= f * gc3
+                # The constraint is bilinear: a step on its tangent leaves the set at second order.
+                # Back onto it along Tm.
+                tm_max = (1.0 - margin) * trial[0] * vmin * vmin / (2.0 * trial[1]) * (1.0 - 1e-9)
+                if lower[3] <= tm_max < trial[3]:
+                    step[3] = tm_max - d[3]
             alpha = 1.0
             ok_feas = False
             for _b in range(25):
