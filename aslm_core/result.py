@@ -30,7 +30,9 @@ class IdentifyConfig:
     static : {"zip", "exponential"}
         Static load model regressed in the lower stage.
     skip_s : float
-        Initial transient excluded from the objective [s].
+        Initial transient excluded from the objective [s].  The motor starts from the steady state at
+        the first sample; a slow slip mode (τ ≈ H2·b²/(ω0·a·V²) up to ~0.5 s in the box) carries that
+        assumption's error for seconds: with 1 s, 3 of 1,000 noise-free cases were off by 1–5 %.
     n_starts : int
         Random feasible starts (in addition to the warm start, if given).
     lowpass_hz : float or None
@@ -52,7 +54,7 @@ class IdentifyConfig:
     integrator: Integrator = "rk4"
     objective: Objective = "paper"
     static: StaticModel = "zip"
-    skip_s: float = 1.0
+    skip_s: float = 1.5
     n_starts: int = 3
     lowpass_hz: float | None = None
     max_iter: int = 60

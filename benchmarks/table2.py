@@ -43,7 +43,7 @@ def playback_fd(event, d, static_coef) -> float:
     return 0.5 * (fd(event.P, p_im + p_st) + fd(event.Q, q_im + q_st))
 
 
-def regressed_static(window, d, skip_s: float = 1.0) -> dict:
+def regressed_static(window, d, skip_s: float = IdentifyConfig().skip_s) -> dict:
     """OS(D): the lower-stage ZIP regression of the ambient window for a fixed D (RK4 playback)."""
     prep = prepare(window)
     p_im, q_im, _ = motor.simulate(prep.V, prep.theta, np.asarray(d, float), prep.dt, motor.omega0_of(window.f0))

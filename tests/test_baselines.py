@@ -29,7 +29,8 @@ def test_same_optimum_as_fast_euler_path(case):
     w = case.window
     start = _start(case.truth.d)
     base = baselines.faithful_identify(w, starts=[start])
-    ours = identify(w, warm_start=start, config=IdentifyConfig(integrator="euler", n_starts=0))
+    ours = identify(w, warm_start=start, config=IdentifyConfig(integrator="euler", n_starts=0,
+                                                                        skip_s=baselines.SKIP_S))
     assert math.isfinite(base.of)
     assert np.max(np.abs(base.d / ours.d - 1)) < 1e-3
     assert base.of == pytest.approx(ours.quality["of_paper"], rel=1e-6)

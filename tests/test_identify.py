@@ -111,7 +111,8 @@ def test_fit_degree_is_eq9_over_the_regression_samples(clean_cases):
     c = clean_cases[2]
     r = identify(c.window)
     assert 0.99 < r.fit["fd_p"] <= 1.0 and 0.99 < r.fit["fd_q"] <= 1.0
-    assert r.quality["n_regression"] == pytest.approx(c.window.t.size - 100)
+    skipped = round(IdentifyConfig().skip_s / (c.window.t[1] - c.window.t[0]))
+    assert r.quality["n_regression"] == c.window.t.size - skipped
 
 
 # ----------------------------------------------------------------------------------- bad input
