@@ -15,11 +15,12 @@ import os
 import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 
 import numpy as np
 
 from aslm_core import motor, optimize, static
-from aslm_core.errors import WindowError
+from aslm_core.errors import NoEquilibriumError, WindowError
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import Prepared, prepare
 from aslm_core.result import IdentificationResult, IdentifyConfig
@@ -258,7 +259,27 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
     best = min(runs, key=lambda r: r["cost"])
     if not math.isfinite(best["cost"]):
         raise WindowError("no_solution", "no start produced a finite objective")
-    return _result(problem, window, best, runs, prep, config, t_start)
+    final, final_problem = best, problem
+    skip = _transient_skip(best["d"], prep, window.f0, config)
+    if skip > config.skip_s + 0.5 * prep.dt:
+        # The initial-state error of a slow motor outlives the skip: polish on the later samples only.
+        longer = Problem(prep, window.f0, replace(config, skip_s=skip))
+        r = levenberg_marquardt(longer, best["d"], max_iter=config.max_iter)
+        if math.isfinite(r["cost"]):
+            longer.evaluations += problem.evaluations
+            final, final_problem = r, longer
+    return _result(final_problem, window, best, runs, prep, config, t_start, final=final)
+
+
+def _transient_skip(d: np.ndarray, prep: Prepared, f0: float, config: IdentifyConfig) -> float:
+    """Seconds to skip for the motor D: ``transient_tau`` slowest time constants, within the limits [s]."""
+    if config.transient_tau <= 0.0:
+        return config.skip_s
+    try:
+        tau = motor.slowest_time_constant(float(prep.V[0]), float(prep.theta[0]), d, motor.omega0_of(f0))
+    except NoEquilibriumError:
+        return config.skip_s
+    return float(min(max(config.transient_tau * tau, config.skip_s), config.skip_max_s))
 
 
 def _descend(problem: Problem, start: np.ndarray, config: IdentifyConfig, known: list,
@@ -285,8 +306,10 @@ def _descend(problem: Problem, start: np.ndarray, config: IdentifyConfig, known:
 
 
 def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prepared,
-            config: IdentifyConfig, t_start: float) -> IdentificationResult:
-    d = best["d"]
+            config: IdentifyConfig, t_start: float, final: dict | None = None) -> IdentificationResult:
+    """The result at ``final`` (default ``best``, the best of ``runs``, which the restart checks use)."""
+    final = best if final is None else final
+    d = final["d"]
     pb = problem
     if not motor.simulate_kernel(pb.vd, pb.vq, pb.vdm, pb.vqm, d, pb.dt, pb.omega0, pb.rk4, True, pb._p, pb._q,
                                  pb._dp, pb._dq, pb._x, True, pb.k0, pb.p_meas, pb.q_meas, pb._dp):
@@ -327,18 +350,19 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         "snr_p_db": snr_p, "snr_q_db": snr_q, "v_std_rel": v_rel,
         "f_dev_std_hz": dth_std / prep.dt / (2 * math.pi), "equilibrium_margin": float(margin),
         "n_samples": float(prep.V.size), "n_regression": float(problem.l), "dt_s": prep.dt,
+        "skip_s": problem.k0 * prep.dt,
         "of_paper": (math.sqrt(rr_p) + math.sqrt(rr_q)) / problem.l,
         "residual_rho_p": min(max(rho_p, 0.0), 0.95), "residual_rho_q": min(max(rho_q, 0.0), 0.95),
     }
     return IdentificationResult(
         dynamic={k: float(v) for k, v in zip(DYNAMIC_NAMES, d, strict=True)},
         static=static.coefficients(beta[:, 0], beta[:, 1], config.static),
-        objective=float(best["cost"]),
+        objective=float(final["cost"]),
         fit={"fd_p": fd_p, "fd_q": fd_q},
         stderr={k: float(v) for k, v in zip(DYNAMIC_NAMES, se, strict=True)},
         quality=quality,
         flags=flags,
-        iterations=int(sum(r["iterations"] for r in runs)),
+        iterations=int(sum(r["iterations"] for r in runs)) + (final["iterations"] if final is not best else 0),
         starts=len(runs),
         evaluations=problem.evaluations,
         elapsed_s=time.perf_counter() - t_start,

@@ -343,6 +343,40 @@ def steady_state(V0: float, theta0: float, d: np.ndarray, omega0: float) -> np.n
     return x0
 
 
+def slowest_time_constant(V0: float, theta0: float, d: np.ndarray, omega0: float) -> float:
+    """Time constant of the slowest mode of eq. 4 linearised at its steady state [s].
+
+    Parameters
+    ----------
+    V0, theta0 : float
+        Voltage magnitude [pu] and angle [rad] of the operating point.
+    d : array_like
+        D = [a [1/s], b [1/s], H2 [s], Tm [pu]].
+    omega0 : float
+        Synchronous speed [rad/s].
+
+    Returns
+    -------
+    float
+        1/min|Re λ| over the eigenvalues λ of the state Jacobian [s] (inf if a mode does not decay).
+        The initial state's error decays at this rate: the slip mode, ≈ H2·b²/(ω0·a·V²) for small
+        slip, or the flux mode, ≈ 1/b.
+
+    Raises
+    ------
+    NoEquilibriumError
+        When D has no equilibrium at V0.
+    """
+    a, b, h2, _ = (float(x) for x in d)
+    fd, fq, s = steady_state(V0, theta0, d, omega0)
+    vd, vq = V0 * math.cos(theta0), V0 * math.sin(theta0)
+    jac = np.array([[-b, s * omega0, omega0 * fq],
+                    [-s * omega0, -b, -omega0 * fd],
+                    [-vq / h2, vd / h2, 0.0]])
+    rate = -float(np.linalg.eigvals(jac).real.max())
+    return 1.0 / rate if rate > 0.0 else math.inf
+
+
 def simulate(
     V: np.ndarray,
     theta: np.ndarray,

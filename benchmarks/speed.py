@@ -73,7 +73,7 @@ def main(argv=None) -> dict:
     cs = common.cases(max(n_ours, n_batch), level=1, seed=SEED, input_noise=False)
     windows = [c.window for c in cs]
     cfg = IdentifyConfig()
-    cfg_euler = IdentifyConfig(integrator="euler", skip_s=baselines.SKIP_S)  # the baseline's objective
+    cfg_euler = IdentifyConfig(integrator="euler", skip_s=baselines.SKIP_S, transient_tau=0.0)  # baseline's OF
     identify(windows[0], config=cfg)  # compile / load the numba cache outside the timings
     identify(windows[0], config=cfg_euler)
 

@@ -30,7 +30,7 @@ def test_same_optimum_as_fast_euler_path(case):
     start = _start(case.truth.d)
     base = baselines.faithful_identify(w, starts=[start])
     ours = identify(w, warm_start=start, config=IdentifyConfig(integrator="euler", n_starts=0,
-                                                                        skip_s=baselines.SKIP_S))
+                                                                        skip_s=baselines.SKIP_S, transient_tau=0.0))
     assert math.isfinite(base.of)
     assert np.max(np.abs(base.d / ours.d - 1)) < 1e-3
     assert base.of == pytest.approx(ours.quality["of_paper"], rel=1e-6)

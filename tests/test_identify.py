@@ -111,8 +111,9 @@ def test_fit_degree_is_eq9_over_the_regression_samples(clean_cases):
     c = clean_cases[2]
     r = identify(c.window)
     assert 0.99 < r.fit["fd_p"] <= 1.0 and 0.99 < r.fit["fd_q"] <= 1.0
-    skipped = round(IdentifyConfig().skip_s / (c.window.t[1] - c.window.t[0]))
-    assert r.quality["n_regression"] == c.window.t.size - skipped
+    dt = c.window.t[1] - c.window.t[0]
+    assert r.quality["skip_s"] >= IdentifyConfig().skip_s - 1e-9
+    assert r.quality["n_regression"] == c.window.t.size - round(r.quality["skip_s"] / dt)
 
 
 # ----------------------------------------------------------------------------------- bad input
@@ -252,3 +253,17 @@ def test_standard_errors_follow_the_objectives_own_spread_when_channels_differ_i
         assert np.all((ratio > 0.85) & (ratio < 1.15)), (obj, ratio)
         spread[obj] = d.std(axis=0)
     assert np.all(spread["ml"] < 0.85 * spread["paper"]), spread
+
+
+def test_slow_motor_skips_its_initial_transient():
+    """A slow slip mode (τ ≈ 0.43 s) carries the steady-state-at-the-first-sample error past 1 s.
+
+    With the paper's fixed 1 s skip this noise-free case is off by 4 % (a); five time constants of the
+    identified motor's slowest mode recover it within the 1 % target.
+    """
+    c = make_cases(1, level=None, seed=818, input_noise=False)[0]
+    fixed = identify(c.window, config=IdentifyConfig(transient_tau=0.0))
+    assert np.abs(rel_err(fixed, c)).max() > 0.02
+    r = identify(c.window)
+    assert 1.8 < r.quality["skip_s"] <= IdentifyConfig().skip_max_s
+    assert np.abs(rel_err(r, c)).max() < 0.01, rel_err(r, c)

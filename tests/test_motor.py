@@ -152,3 +152,28 @@ def test_initial_state_turns_with_an_off_nominal_frequency():
     # The paper's Euler mode keeps the ω0 steady state, so the same window starts with a transient.
     pe, _, _ = motor.simulate(V, theta, d, 0.01, w0, integrator="euler")
     assert np.ptp(pe) > 1e-3
+
+
+def test_slowest_time_constant_is_the_decay_of_an_initial_state_error():
+    """A perturbed initial state, integrated finely at constant voltage, returns at the stated rate."""
+    d = np.array([19.4, 27.9, 2.63, 0.19])  # a slow motor: large b and H2, small a
+    v0, w0 = 1.0, motor.omega0_of(50.0)
+    tau = motor.slowest_time_constant(v0, 0.0, d, w0)
+    x_ss = motor.steady_state(v0, 0.0, d, w0)
+
+    def rhs(x):
+        fd, fq, s = x
+        return np.array([-d[1] * fd + s * w0 * fq + d[0] * v0, -d[1] * fq - s * w0 * fd, (d[3] + v0 * fq) / d[2]])
+
+    x, h = x_ss * np.array([1.0, 1.0, 1.2]), 1e-4
+    dev = []
+    for k in range(int(6 * tau / h)):
+        k1 = rhs(x)
+        k2 = rhs(x + 0.5 * h * k1)
+        k3 = rhs(x + 0.5 * h * k2)
+        k4 = rhs(x + h * k3)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        if k % int(tau / h) == 0:
+            dev.append(np.abs(x - x_ss).max())
+    rates = -np.diff(np.log(dev[2:]))  # per τ, after the faster modes have gone
+    np.testing.assert_allclose(rates, 1.0, atol=0.1)
