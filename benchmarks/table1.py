@@ -11,6 +11,7 @@ Also noise-free recovery (max |D_opt/D_real − 1| over the cases).
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -38,7 +39,9 @@ def run_config(cs, config: IdentifyConfig) -> dict:
         # An optimiser miss: D_opt is off by > 5 % and the true D has a lower objective than D_opt.
         is_miss = False
         if np.max(np.abs(r.d / c.truth.d - 1)) > 0.05:
-            pr = Problem(prepare(c.window, lowpass_hz=config.lowpass_hz), c.window.f0, config)
+            # The truth's OF on the samples the result's OF used (the skip may be longer for a slow motor).
+            pr = Problem(prepare(c.window, lowpass_hz=config.lowpass_hz), c.window.f0,
+                         replace(config, skip_s=r.quality["skip_s"]))
             rt = pr.residuals(c.truth.d, jacobian=False)
             is_miss = rt is not None and pr.cost(rt[0], rt[1]) < r.objective
         miss.append(is_miss)
