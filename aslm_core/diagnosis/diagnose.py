@@ -155,7 +155,9 @@ def _plain_d(seg: Segment, previous, config: DiagnosisConfig) -> np.ndarray:
     warm = None
     if previous is not None:
         warm = previous.d if hasattr(previous, "d") else np.array([previous["dynamic"][k] for k in DYNAMIC_NAMES])
-    cfg = IdentifyConfig(skip_s=config.skip_s, min_duration_s=2.0, n_starts=1 if warm is not None else 3)
+    # The diagnosis's own fits use its fixed skip; the plain D is their start, on the same samples.
+    cfg = IdentifyConfig(skip_s=config.skip_s, transient_tau=0.0, min_duration_s=2.0,
+                         n_starts=1 if warm is not None else 3)
     return identify(w, warm_start=warm, config=cfg).d
 
 
