@@ -11,6 +11,7 @@ from aslm_core.identify import EQUILIBRIUM_MARGIN, Problem, levenberg_marquardt
 from aslm_core.optimize import qp_step
 from aslm_core.preprocess import prepare
 from aslm_core.synthetic import make_cases
+from benchmarks.lm_stops import kkt_residual
 
 LOWER = np.array([10.0, 3.0, 0.5, 0.0])
 UPPER = np.array([80.0, 30.0, 3.0, 4.0])
@@ -70,29 +71,6 @@ def test_qp_step_is_the_constrained_minimiser_of_the_model():
     assert n_active > 30  # the constraint binds in a good share of the instances
 
 
-def _kkt_residual(problem: Problem, d: np.ndarray) -> float:
-    """Relative norm of the part of the objective's gradient no active constraint's multiplier can take."""
-    rp, rq, jp, jq = problem.residuals(d, jacobian=True)
-    g = (jp.T @ rp / np.linalg.norm(rp) + jq.T @ rq / np.linalg.norm(rq)) / problem.l
-    active = []
-    for u in range(4):
-        if d[u] <= problem.lower[u] * (1 + 1e-9):
-            active.append(np.eye(4)[u])
-        if d[u] >= problem.upper[u] * (1 - 1e-9):
-            active.append(-np.eye(4)[u])
-    v2 = problem.v_min**2
-    if (d[0] * v2 * (1 - EQUILIBRIUM_MARGIN) - 2 * d[1] * d[3]) / (d[0] * v2) < 1e-6:
-        active.append(np.array([v2 * (1 - EQUILIBRIUM_MARGIN), -2 * d[3], 0.0, -2 * d[1]]))
-    gs = g * d  # per relative change of each parameter
-    if not active:
-        return float(np.linalg.norm(gs) / problem.cost(rp, rq))
-    from scipy.optimize import nnls
-
-    C = np.array(active).T * d[:, None]
-    _, res = nnls(C, gs)  # non-negative multipliers only
-    return float(res / problem.cost(rp, rq))
-
-
 def test_lm_stops_only_at_kkt_points_on_the_equilibrium_boundary():
     """Starts that used to stop on the constraint a·Vmin² = 2b·Tm with a descent direction along it.
 
@@ -108,7 +86,7 @@ def test_lm_stops_only_at_kkt_points_on_the_equilibrium_boundary():
     best = levenberg_marquardt(problem, starts[0])
     for r in runs:
         assert r["status"] == "converged"
-        assert _kkt_residual(problem, r["d"]) < 1e-3
+        assert kkt_residual(problem, r["d"]) < 1e-3
         assert r["cost"] <= best["cost"] * (1 + 1e-6), (r["d"], best["d"])
 
 
@@ -122,4 +100,4 @@ def test_converged_starts_end_at_kkt_points(integrator):
         for _ in range(12):
             r = levenberg_marquardt(problem, problem.random_start(rng))
             if r["status"] == "converged":
-                assert _kkt_residual(problem, r["d"]) < 1e-3, (seed, r)
+                assert kkt_residual(problem, r["d"]) < 1e-3, (seed, r)
