@@ -1,12 +1,26 @@
-"""Shared fixtures: hermetic, deterministic data built from the paper's equations."""
+"""Shared fixtures: hermetic settings, and deterministic data built from the paper's equations."""
 
 from __future__ import annotations
+
+import os
 
 import numpy as np
 import pytest
 from scipy import signal
 
 from aslm_core import Window, motor
+
+
+@pytest.fixture(autouse=True)
+def hermetic_settings(monkeypatch):
+    """No ``ASLM_*`` variable of the developer's environment reaches a test (or the processes it starts).
+
+    Tests that need one set it themselves with ``monkeypatch.setenv`` after this has run.
+    """
+    for key in list(os.environ):
+        if key.startswith("ASLM_"):
+            monkeypatch.delenv(key)
+
 
 D_TRUE = np.array([40.0, 15.0, 1.3, 1.2])
 ZIP_P = (2.0, 1.0, 3.0)  # Pz, Pi, Pp

@@ -7,15 +7,8 @@ import pytest
 from service.settings import SettingsError, load_settings
 
 
-@pytest.fixture(autouse=True)
-def clean_env(monkeypatch):
-    import os
-    for k in list(os.environ):
-        if k.startswith("ASLM_"):
-            monkeypatch.delenv(k)
-
-
 def test_defaults():
+    # tests/test_hermetic.py runs this test with ASLM_* variables set: the defaults must still hold.
     s = load_settings()
     assert (s.prefix, s.period_s, s.window_s, s.frame_rate, s.workers, s.executor) == (
         "aslm", 900.0, 10.0, 50.0, 2, "local")
