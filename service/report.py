@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from aslm_core.diagnosis.diagnose import DiagnosisReport
+from aslm_core.diagnosis.pipeline import DiagnosisReport
 from aslm_core.diagnosis.locate import periodogram
 
 

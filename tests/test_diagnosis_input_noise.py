@@ -13,7 +13,7 @@ from aslm_core.diagnosis.effects import apply_effect
 from aslm_core.diagnosis.locate import band_excess, noise_floor, periodogram
 from aslm_core.synthetic import make_case, make_cases
 
-dg = importlib.import_module("aslm_core.diagnosis.diagnose")
+dg = importlib.import_module("aslm_core.diagnosis.pipeline")
 
 
 @pytest.fixture(scope="module")
