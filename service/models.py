@@ -59,14 +59,14 @@ class PeriodSummary(BaseModel):
 
 
 class PerChannelModel(BaseModel):
-    """One value for each of the load's channels (mirror of :class:`aslm_core.diagnosis.report.PerChannel`)."""
+    """One value for each of the load's channels."""
 
     p: float | None = Field(description="For the active power P (null where not defined).")
     q: float | None = Field(description="For the reactive power Q (null where not defined).")
 
 
 class CandidateEntryModel(BaseModel):
-    """One candidate physics in ``missing_physics``, tested or not (the same fields either way) (mirror of :class:`aslm_core.diagnosis.report.CandidateEntry`)."""
+    """One candidate physics in ``missing_physics``, tested or not (the same fields either way)."""
 
     name: str = Field(description="Library name of the candidate (aslm_core.diagnosis.candidates).")
     parameters: dict[str, float] = Field(description="Its fitted parameters, combined over windows by inverse variance (units in ``units``); empty when untested.")
@@ -90,7 +90,7 @@ class CandidateEntryModel(BaseModel):
 
 
 class NoiseFloorModel(BaseModel):
-    """Expected noise of one channel's residual (mirror of :class:`aslm_core.diagnosis.report.NoiseFloor`)."""
+    """Expected noise of one channel's residual."""
 
     psd: float = Field(description="White-noise floor: median periodogram above 5 Hz / ln 2 [pu²/Hz].")
     sigma: float = Field(description="Whole residual noise std, measurement plus propagated input noise [pu].")
@@ -100,7 +100,7 @@ class NoiseFloorModel(BaseModel):
 
 
 class BandTestModel(BaseModel):
-    """Residual power in one band against the expected noise (F test) (mirror of :class:`aslm_core.diagnosis.report.BandTest`)."""
+    """Residual power in one band against the expected noise (F test)."""
 
     band: list[float] = Field(description="Band edges [Hz].")
     ratio: float = Field(description="Mean residual PSD over the expected noise PSD in the band [-].")
@@ -110,14 +110,14 @@ class BandTestModel(BaseModel):
 
 
 class CoherenceStatModel(BaseModel):
-    """Coherence of a residual with one driver over 0.1-2 Hz (mirror of :class:`aslm_core.diagnosis.report.CoherenceStat`)."""
+    """Coherence of a residual with one driver over 0.1-2 Hz."""
 
     mean: float = Field(description="Mean magnitude-squared coherence [-].")
     max: float = Field(description="Largest magnitude-squared coherence [-].")
 
 
 class CoherenceModel(BaseModel):
-    """Coherence (Welch) of one channel's residual with what drives the load (mirror of :class:`aslm_core.diagnosis.report.Coherence`)."""
+    """Coherence (Welch) of one channel's residual with what drives the load."""
 
     threshold: float = Field(description="Level one bin exceeds with probability 1 % when residual and driver are independent [-].")
     V: CoherenceStatModel = Field(description="With the voltage magnitude V.")
@@ -126,7 +126,7 @@ class CoherenceModel(BaseModel):
 
 
 class LocationModel(BaseModel):
-    """Where the residual exceeds the expected noise (on the model refitted on the whole window) (mirror of :class:`aslm_core.diagnosis.report.Location`)."""
+    """Where the residual exceeds the expected noise (on the model refitted on the whole window)."""
 
     channels: list[str] = Field(description="Channels (P, Q) with a significant and material excess.")
     bands: dict[str, list[list[float]]] = Field(description="Per located channel, the significant bands [[f_lo, f_hi], ...] [Hz].")
@@ -139,7 +139,7 @@ class LocationModel(BaseModel):
 
 
 class HeldOutFitModel(BaseModel):
-    """Fit of a model on the held-out samples (mirror of :class:`aslm_core.diagnosis.report.HeldOutFit`)."""
+    """Fit of a model on the held-out samples."""
 
     fd_p: float = Field(description="Fit degree of P (paper eq. 9) [-].")
     fd_q: float = Field(description="Fit degree of Q (paper eq. 9) [-].")
@@ -148,7 +148,7 @@ class HeldOutFitModel(BaseModel):
 
 
 class NoiseSummaryModel(BaseModel):
-    """The noise model, averaged over windows (mirror of :class:`aslm_core.diagnosis.report.NoiseSummary`)."""
+    """The noise model, averaged over windows."""
 
     sigma_p: float = Field(description="Whole residual noise std of P: measurement plus propagated input noise [pu].")
     sigma_q: float = Field(description="The same for Q [pu].")
@@ -159,7 +159,7 @@ class NoiseSummaryModel(BaseModel):
 
 
 class HeldOutInfoModel(BaseModel):
-    """The held-out samples every comparison is made on (mirror of :class:`aslm_core.diagnosis.report.HeldOutInfo`)."""
+    """The held-out samples every comparison is made on."""
 
     windows: int = Field(description="Windows diagnosed together.")
     t_start: list[float] = Field(description="Per window, time of the first held-out sample [s].")
@@ -169,19 +169,19 @@ class HeldOutInfoModel(BaseModel):
 
 
 class MotorModel(BaseModel):
-    """A motor's parameters (mirror of :class:`aslm_core.diagnosis.report.Motor`)."""
+    """A motor's parameters."""
 
     dynamic: dict[str, float] = Field(description="D = {a [1/s], b [1/s], H2 [s], Tm [pu]}.")
 
 
 class DiagnosedModel(MotorModel):
-    """The plain ZIP + IM model the candidates extend (of the first window; mirror of :class:`aslm_core.diagnosis.report.Diagnosed`)."""
+    """The plain ZIP + IM model the candidates extend (of the first window)."""
 
     mode: Literal["identified", "user"] = Field(description="identified (fitted on the training samples) or user (the given model, frozen).")
 
 
 class ParameterMismatchModel(BaseModel):
-    """Against a user model: would re-identifying the same ZIP + IM structure fit the held-out data better (mirror of :class:`aslm_core.diagnosis.report.ParameterMismatch`)."""
+    """Against a user model: would re-identifying the same ZIP + IM structure fit the held-out data better."""
 
     significant: bool = Field(description="Whether the re-identified model passes the score test and the penalty (wrong parameters, not missing physics).")
     score_z: float = Field(description="Its held-out score statistic [-].")
@@ -190,7 +190,7 @@ class ParameterMismatchModel(BaseModel):
 
 
 class DiagnosisReportModel(BaseModel):
-    """Outcome of a diagnosis (DESIGN §4; mirror of :class:`aslm_core.diagnosis.report.DiagnosisReport`)."""
+    """Outcome of a diagnosis (DESIGN §4)."""
 
     verdict: Literal["explained", "consistent", "unexplained"] = Field(description="explained, consistent or unexplained.")
     cause: str | None = Field(description="The named cause when explained; null otherwise.")

@@ -14,6 +14,7 @@ effects = importlib.import_module("aslm_core.diagnosis.effects")
 engine = importlib.import_module("aslm_core.diagnosis.engine")
 locate = importlib.import_module("aslm_core.diagnosis.locate")
 playback = importlib.import_module("aslm_core.diagnosis.playback")
+report = importlib.import_module("aslm_core.diagnosis.report")
 
 
 def _undocumented(func) -> list[str]:
@@ -30,7 +31,8 @@ def test_exported_names():
 def test_every_argument_of_public_functions_is_documented():
     funcs = [diag.diagnose, diag.diagnose_dict, playback.playback, playback.model_power, locate.noise_floor,
              locate.band_excess, locate.coherence, locate.time_segments, locate.locate, engine.fit_candidate,
-             effects.apply_effect, effects.original_motor_power, effects.make_effect_cases]
+             effects.apply_effect, effects.original_motor_power, effects.make_effect_cases, report.field_docs,
+             report.Location.from_locate, report.DiagnosisReport.candidate]
     missing = {f.__name__: _undocumented(f) for f in funcs if _undocumented(f)}
     assert not missing, f"undocumented arguments: {missing}"
 

@@ -44,7 +44,7 @@ def test_clean_cases_with_input_noise_are_consistent(noisy_cases):
     for c in noisy_cases:
         rep = diagnose(c.window)
         assert rep.verdict == "consistent", (c.level, rep.message, rep.missing_physics[:2])
-        assert not rep.located["channels"]
+        assert not rep.located.channels
 
 
 def test_clean_case_with_input_noise_against_its_true_model_is_consistent():
