@@ -481,4 +481,7 @@ class DiagnosisReport(_Part):
         name : str
             Library name.
         """
-        return next(e for e in self.missing_physics if e.name == name)
+        for e in self.missing_physics:
+            if e.name == name:
+                return e
+        raise KeyError(f"no candidate {name!r} in the report (not in DiagnosisConfig.candidates?)")
