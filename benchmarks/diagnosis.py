@@ -74,22 +74,22 @@ def run_one(job: tuple) -> dict:
     t0, c0 = time.perf_counter(), time.process_time()
     rep = diagnose(ec.window, model)
     elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
-    top = next((e for e in rep.missing_physics if e.get("tested", True)), None)
+    top = next((e for e in rep.missing_physics if e.tested), None)
     rec = {
         "effect": effect, "level": level, "case": i, "snr_db": base.snr_db, "mode": "user" if user else "identified",
         "input_noise": input_noise,
-        "verdict": rep.verdict, "cause": rep.cause, "top": top["name"] if top else None,
-        "top_significant": bool(top and top["significant"]), "fd_plain": ec.fd_plain, "conceal_scale": ec.scale,
-        "fit_before": rep.fit_before, "fit_after": rep.fit_after, "elapsed_s": elapsed, "cpu_s": cpu,
-        "located": rep.located.get("channels", []), "truth": {k: float(v) for k, v in ec.truth.items()},
+        "verdict": rep.verdict, "cause": rep.cause, "top": top.name if top else None,
+        "top_significant": bool(top and top.significant), "fd_plain": ec.fd_plain, "conceal_scale": ec.scale,
+        "fit_before": rep.fit_before.to_dict(), "fit_after": rep.fit_after.to_dict(), "elapsed_s": elapsed, "cpu_s": cpu,
+        "located": rep.located.channels, "truth": {k: float(v) for k, v in ec.truth.items()},
     }
     if rep.cause:
-        e = next(e for e in rep.missing_physics if e["name"] == rep.cause)
-        rec["improvement"] = e["improvement"]
-        rec["excess_reduction"] = e["excess_reduction"]
-        rec["improvement_band"] = e["improvement_band"]
-        rec["parameters"] = {**e["parameters"], **e.get("derived", {})}
-        rec["stderr"] = e["stderr"]
+        e = rep.candidate(rep.cause)
+        rec["improvement"] = e.improvement.to_dict()
+        rec["excess_reduction"] = e.excess_reduction.to_dict()
+        rec["improvement_band"] = e.improvement_band.to_dict()
+        rec["parameters"] = {**e.parameters, **e.derived}
+        rec["stderr"] = e.stderr
     return rec
 
 

@@ -60,10 +60,10 @@ def main(argv: list[str] | None = None) -> int:
                     rep = diagnose(w)
                     top = rep.missing_physics[0]
                     rows.append({"scenario": scen, "seed": seed, "snr_db": snr, "window": [t0, t1],
-                                 "verdict": rep.verdict, "cause": rep.cause, "top": top["name"],
-                                 "top_z": top["score_z"], "top_parameters": top["parameters"],
-                                 "located": rep.located.get("channels", []), "fit_before": rep.fit_before,
-                                 "fit_after": rep.fit_after, "elapsed_s": time.perf_counter() - t_})
+                                 "verdict": rep.verdict, "cause": rep.cause, "top": top.name,
+                                 "top_z": top.score_z, "top_parameters": top.parameters,
+                                 "located": rep.located.channels, "fit_before": rep.fit_before.to_dict(),
+                                 "fit_after": rep.fit_after.to_dict(), "elapsed_s": time.perf_counter() - t_})
                     r = rows[-1]
                     print(f"{scen:14s} seed {seed} SNR {snr:4.1f} dB [{t0:4.1f},{t1:4.1f}] s: {r['verdict']:11s} "
                           f"{r['cause'] or '-':24s} top {r['top']} z={r['top_z']:.1f} "

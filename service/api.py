@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Annotated
 from fastapi import Depends, FastAPI, Header, HTTPException, Query, Response
 from pydantic import BaseModel, Field
 
-from service.models import BusResult, PeriodSummary
+from service.models import BusResult, LatestDiagnosis, PeriodSummary
 
 if TYPE_CHECKING:
     from service.app import Service
@@ -125,9 +125,12 @@ def create_app(service: Service) -> FastAPI:
                 limit: Annotated[int, Query(ge=1, le=10000)] = 100) -> list[BusResult]:
         return service.storage.history(bus, since, until, limit)
 
-    @app.get("/buses/{bus:path}/diagnosis/latest")
+    @app.get("/buses/{bus:path}/diagnosis/latest", response_model=LatestDiagnosis)
     async def diagnosis(bus: str) -> Response:
-        """The bus's latest discrepancy diagnosis (DESIGN §3: verdict, located, missing_physics, fit)."""
+        """The bus's latest discrepancy diagnosis (DESIGN §3: verdict, located, missing_physics, fit).
+
+        Served pre-serialised like ``parameters/latest``; the response model documents the payload.
+        """
         js = service.latest_diagnosis_json.get(bus)
         if js is None:
             every = service.settings.diagnose_every

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -50,3 +50,180 @@ class PeriodSummary(BaseModel):
     n_skipped: int
     latency_s: float = Field(description="From the end of the late-data allowance to the last result published [s]")
     completed_at: float
+
+
+# --- diagnosis ------------------------------------------------------------------------------------
+# A field-for-field mirror of aslm_core.diagnosis.report (descriptions are its Attributes sections;
+# tests/test_diagnosis_report.py keeps the two from drifting).  The service never imports aslm_core in its
+# main process (numba), hence a mirror and not the dataclasses themselves.
+
+
+class PerChannelModel(BaseModel):
+    """One value for each of the load's channels."""
+
+    p: float | None = Field(description="For the active power P (null where not defined).")
+    q: float | None = Field(description="For the reactive power Q (null where not defined).")
+
+
+class CandidateEntryModel(BaseModel):
+    """One candidate physics in ``missing_physics``, tested or not (the same fields either way)."""
+
+    name: str = Field(description="Library name of the candidate (aslm_core.diagnosis.candidates).")
+    parameters: dict[str, float] = Field(description="Its fitted parameters, combined over windows by inverse variance (units in ``units``); empty when untested.")
+    stderr: dict[str, float] = Field(description="Standard errors of ``parameters``, same units (Infinity where not determined); empty when untested.")
+    derived: dict[str, float] = Field(description="Quantities derived from the parameters, e.g. the exponents np, nq [-] or Xp [pu]; empty when none.")
+    units: dict[str, str] = Field(description="Unit of each parameter.")
+    improvement: PerChannelModel = Field(description="Held-out residual-variance reduction per channel over the full band [-] (0 when untested).")
+    improvement_band: PerChannelModel = Field(description="The same in the ambient band below 5 Hz [-] (null when untested).")
+    excess_reduction: PerChannelModel = Field(description="Share of the held-out ambient-band residual above the noise expectation removed, per channel [-] (null without excess or when untested).")
+    penalised_gain: float | None = Field(description="Held-out Gaussian log-likelihood gain minus the BIC penalty, summed over windows [nats] (null when untested).")
+    score_z: float = Field(description="Held-out score statistic, Stouffer-combined over windows [-] (0 when untested).")
+    dm_z: float = Field(description="Diebold-Mariano statistic, reported only, not used for the verdict [-] (0 when untested).")
+    magnitude_z: float | None = Field(description="Largest |magnitude parameter| / standard error, capped at 1e6 [-] (null when untested).")
+    n_params: int = Field(description="Parameters the candidate adds to ZIP + IM (the penalty's k).")
+    significant: bool = Field(description="Passes the score test, the penalty and the magnitude guard.")
+    signature: str = Field(description="What in the residual makes the candidate plausible.")
+    tested: bool = Field(description="Whether the candidate was fitted and tested against this model.")
+    note: str | None = Field(None, description="Why it was not tested (null when tested).")
+    explained_fraction: float | None = Field(None, description="Share of the held-out ambient-band excess the candidate removes [-]; set on the top significant candidate only.")
+    remaining_excess_channels: list[str] | None = Field(None, description="Channels still above the noise floor after the candidate; set on the top significant candidate only.")
+
+
+class NoiseFloorModel(BaseModel):
+    """Expected noise of one channel's residual."""
+
+    psd: float = Field(description="White-noise floor: median periodogram above 5 Hz / ln 2 [pu²/Hz].")
+    sigma: float = Field(description="Whole residual noise std, measurement plus propagated input noise [pu].")
+    band_hz: list[float] = Field(description="Band the floor was measured in [Hz].")
+    bins: int = Field(description="Periodogram bins in that band.")
+    input_share: float = Field(description="Share of the noise variance propagated from the V and θ noise [-].")
+
+
+class BandTestModel(BaseModel):
+    """Residual power in one band against the expected noise (F test)."""
+
+    band: list[float] = Field(description="Band edges [Hz].")
+    ratio: float = Field(description="Mean residual PSD over the expected noise PSD in the band [-].")
+    excess_var: float = Field(description="Residual variance above the expected noise in the band [pu²].")
+    p_value: float = Field(description="P-value of the F test [-].")
+    significant: bool = Field(description="Below 1 % Bonferroni-corrected over 8 tests.")
+
+
+class CoherenceStatModel(BaseModel):
+    """Coherence of a residual with one driver over 0.1-2 Hz."""
+
+    mean: float = Field(description="Mean magnitude-squared coherence [-].")
+    max: float = Field(description="Largest magnitude-squared coherence [-].")
+
+
+class CoherenceModel(BaseModel):
+    """Coherence (Welch) of one channel's residual with what drives the load."""
+
+    threshold: float = Field(description="Level one bin exceeds with probability 1 % when residual and driver are independent [-].")
+    V: CoherenceStatModel = Field(description="With the voltage magnitude V.")
+    dVdt: CoherenceStatModel = Field(description="With its derivative dV/dt.")
+    df: CoherenceStatModel = Field(description="With the bus frequency deviation Δf.")
+
+
+class LocationModel(BaseModel):
+    """Where the residual exceeds the expected noise (on the model refitted on the whole window)."""
+
+    channels: list[str] = Field(description="Channels (P, Q) with a significant and material excess.")
+    bands: dict[str, list[list[float]]] = Field(description="Per located channel, the significant bands [[f_lo, f_hi], ...] [Hz].")
+    time_segments: dict[str, list[list[float]]] = Field(description="Per located channel, the intervals above the floor: [t_start, t_end] [s] for one window, [window index, t_start, t_end] for several.")
+    noise_floor: dict[str, NoiseFloorModel] | None = Field(None, description="Per channel, the expected noise (one window; null for several: see ``windows``).")
+    spectrum: dict[str, list[BandTestModel]] | None = Field(None, description="Per channel, the band tests of 0.05-0.5, 0.5-1, 1-2, 2-5 Hz (one window; null for several).")
+    coherence: dict[str, CoherenceModel] | None = Field(None, description="Per channel, the residual's coherence with V, dV/dt and Δf (one window; null for several).")
+    excess_over_noise: dict[str, float] | None = Field(None, description="Per channel, the in-band variance above the noise over the noise variance [-] (one window; null for several).")
+    windows: list[LocationModel] | None = Field(None, description="The location of each window when several are diagnosed together (null for one).")
+
+
+class HeldOutFitModel(BaseModel):
+    """Fit of a model on the held-out samples."""
+
+    fd_p: float = Field(description="Fit degree of P (paper eq. 9) [-].")
+    fd_q: float = Field(description="Fit degree of Q (paper eq. 9) [-].")
+    rms_p: float = Field(description="RMS of the P residual [pu].")
+    rms_q: float = Field(description="RMS of the Q residual [pu].")
+
+
+class NoiseSummaryModel(BaseModel):
+    """The noise model, averaged over windows."""
+
+    sigma_p: float = Field(description="Whole residual noise std of P: measurement plus propagated input noise [pu].")
+    sigma_q: float = Field(description="The same for Q [pu].")
+    sigma_v: float = Field(description="White noise floor of V [pu].")
+    sigma_theta: float = Field(description="White noise floor of θ [rad].")
+    input_share_p: float = Field(description="Share of P's noise variance propagated from the V and θ noise [-].")
+    input_share_q: float = Field(description="The same for Q [-].")
+
+
+class HeldOutInfoModel(BaseModel):
+    """The held-out samples every comparison is made on."""
+
+    windows: int = Field(description="Windows diagnosed together.")
+    t_start: list[float] = Field(description="Per window, time of the first held-out sample [s].")
+    t_end: list[float] = Field(description="Per window, time of the last held-out sample [s].")
+    n: int = Field(description="Held-out samples over all windows.")
+    dm_critical: float = Field(description="One-sided critical value of the score statistic, 1 % Bonferroni-corrected over the tested candidates [-].")
+
+
+class MotorModel(BaseModel):
+    """A motor's parameters."""
+
+    dynamic: dict[str, float] = Field(description="D = {a [1/s], b [1/s], H2 [s], Tm [pu]}.")
+
+
+class DiagnosedModel(MotorModel):
+    """The plain ZIP + IM model the candidates extend (of the first window)."""
+
+    mode: Literal["identified", "user"] = Field(description="identified (fitted on the training samples) or user (the given model, frozen).")
+
+
+class ParameterMismatchModel(BaseModel):
+    """Against a user model: would re-identifying the same ZIP + IM structure fit the held-out data better."""
+
+    significant: bool = Field(description="Whether the re-identified model passes the score test and the penalty (wrong parameters, not missing physics).")
+    score_z: float = Field(description="Its held-out score statistic [-].")
+    improvement: PerChannelModel = Field(description="Its held-out residual-variance reduction per channel [-].")
+    reidentified: MotorModel = Field(description="The re-identified motor.")
+
+
+class DiagnosisReportModel(BaseModel):
+    """Outcome of a diagnosis (DESIGN §4)."""
+
+    verdict: Literal["explained", "consistent", "unexplained"] = Field(description="explained, consistent or unexplained.")
+    cause: str | None = Field(description="The named cause when explained; null otherwise.")
+    located: LocationModel = Field(description="Where the residual exceeds the expected noise.")
+    missing_physics: list[CandidateEntryModel] = Field(description="Every candidate of the library, ranked by penalised gain (untested ones last).")
+    fit_before: HeldOutFitModel = Field(description="Held-out fit of the plain model.")
+    fit_after: HeldOutFitModel = Field(description="Held-out fit of the named cause (equal to fit_before when nothing is named).")
+    model: DiagnosedModel = Field(description="The plain model.")
+    noise: NoiseSummaryModel = Field(description="The noise model.")
+    held_out: HeldOutInfoModel = Field(description="The held-out samples and the test's critical value.")
+    message: str = Field(description="One sentence for people.")
+    mode: Literal["identified", "user"] = Field("identified", description="identified or user.")
+    parameter_mismatch: ParameterMismatchModel | None = Field(None, description="Against a user model only (null otherwise).")
+    elapsed_s: float = Field(0.0, description="Time the diagnosis took [s].")
+
+
+
+class BusDiagnosis(DiagnosisReportModel):
+    """A bus's diagnosis as the service stores, publishes on {prefix}/diagnosis/{bus} and serves it."""
+
+    bus: str = Field(description="Bus identifier (the {bus} of {prefix}/pmu/{bus})")
+    period: float = Field(description="Period boundary of the diagnosed window, UTC since the epoch [s]")
+
+
+class FailedDiagnosis(BaseModel):
+    """A diagnosis the worker could not complete: why, and nothing else."""
+
+    bus: str = Field(description="Bus identifier (the {bus} of {prefix}/pmu/{bus})")
+    period: float = Field(description="Period boundary of the diagnosed window, UTC since the epoch [s]")
+    verdict: Literal["failed"] = Field(description="failed")
+    reason: str | None = Field(description="window:<reason>, error:<ExceptionType>, timeout, worker_crashed or shutdown")
+    message: str = Field(description="What went wrong, for people")
+
+
+#: What ``GET /buses/{bus}/diagnosis/latest`` answers: a report, or a failure (told apart by ``verdict``).
+LatestDiagnosis = Annotated[BusDiagnosis | FailedDiagnosis, Field(discriminator="verdict")]

@@ -9,8 +9,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from aslm_core.diagnosis.diagnose import DiagnosisReport
 from aslm_core.diagnosis.locate import periodogram
+from aslm_core.diagnosis.report import DiagnosisReport
 
 
 def _plt():
@@ -55,7 +55,7 @@ def _spectrum(plt, s: dict, report: DiagnosisReport, floors: dict, path: Path) -
         if expected is not None:  # white floor + V/θ noise propagated through the model
             ax.semilogy(expected["f"][1:], expected[ch][1:], color="k", ls=":", label="expected noise")
         else:
-            ax.axhline(floors[ch]["psd"], color="k", ls=":", label="noise floor")
+            ax.axhline(floors[ch].psd, color="k", ls=":", label="noise floor")
         ax.set_xscale("log")
         ax.set_xlabel("f [Hz]")
         ax.set_ylabel(f"PSD of {ch} residual [pu²/Hz]")
@@ -96,7 +96,8 @@ def write_report(report: DiagnosisReport, directory: str | Path, *, title: str =
     out.mkdir(parents=True, exist_ok=True)
     d = report.to_dict()
     (out / "report.json").write_text(json.dumps(d, indent=2))
-    floors = report.located["noise_floor"] if "noise_floor" in report.located else report.located["windows"][0]["noise_floor"]
+    loc = report.located
+    floors = loc.noise_floor or loc.windows[0].noise_floor
     figs = []
     for i, s in enumerate(report.series):
         suffix = f"_{i}" if len(report.series) > 1 else ""
@@ -111,28 +112,27 @@ def write_report(report: DiagnosisReport, directory: str | Path, *, title: str =
              report.message, "",
              "## Fit on held-out data (paper eq. 9)", "",
              "| | FD P | FD Q | RMS P [pu] | RMS Q [pu] |", "|---|---|---|---|---|",
-             f"| before (plain ZIP + IM) | {fb['fd_p']:.4f} | {fb['fd_q']:.4f} | {fb['rms_p']:.3g} | {fb['rms_q']:.3g} |",
-             f"| after | {fa['fd_p']:.4f} | {fa['fd_q']:.4f} | {fa['rms_p']:.3g} | {fa['rms_q']:.3g} |", "",
+             f"| before (plain ZIP + IM) | {fb.fd_p:.4f} | {fb.fd_q:.4f} | {fb.rms_p:.3g} | {fb.rms_q:.3g} |",
+             f"| after | {fa.fd_p:.4f} | {fa.fd_q:.4f} | {fa.rms_p:.3g} | {fa.rms_q:.3g} |", "",
              "## Where", ""]
-    loc = report.located
-    if loc.get("channels"):
-        for ch in loc["channels"]:
-            bands = ", ".join(f"{b[0]:g}–{b[1]:g} Hz" for b in loc["bands"].get(ch, []))
-            segs = ", ".join(f"{x[-2]:.1f}–{x[-1]:.1f} s" for x in loc["time_segments"].get(ch, [])) or "-"
+    if loc.channels:
+        for ch in loc.channels:
+            bands = ", ".join(f"{b[0]:g}–{b[1]:g} Hz" for b in loc.bands.get(ch, []))
+            segs = ", ".join(f"{x[-2]:.1f}–{x[-1]:.1f} s" for x in loc.time_segments.get(ch, [])) or "-"
             lines.append(f"- {ch}: residual above the noise floor in {bands}; time segments {segs}")
     else:
         lines.append("- no channel carries residual energy materially above the noise floor")
-    lines += ["", f"Noise floor: σ_P = {report.noise['sigma_p']:.3g} pu, σ_Q = {report.noise['sigma_q']:.3g} pu.", "",
+    lines += ["", f"Noise floor: σ_P = {report.noise.sigma_p:.3g} pu, σ_Q = {report.noise.sigma_q:.3g} pu.", "",
               "## Candidates (ranked by penalised held-out log-likelihood gain)", "",
               "| candidate | significant | score z | ΔVar P | ΔVar Q | parameters |", "|---|---|---|---|---|---|"]
     for e in report.missing_physics:
-        if not e.get("tested", True):
-            lines.append(f"| {e['name']} | not tested | | | | {e.get('note', '')} |")
+        if not e.tested:
+            lines.append(f"| {e.name} | not tested | | | | {e.note or ''} |")
             continue
-        pars = ", ".join(f"{k} = {v:.4g} ± {e['stderr'].get(k, float('nan')):.2g} {e['units'].get(k, '')}".strip()
-                         for k, v in e["parameters"].items())
-        lines.append(f"| {e['name']} | {'yes' if e['significant'] else 'no'} | {e['score_z']:.2f} | "
-                     f"{100 * e['improvement']['p']:.1f} % | {100 * e['improvement']['q']:.1f} % | {pars} |")
+        pars = ", ".join(f"{k} = {v:.4g} ± {e.stderr.get(k, float('nan')):.2g} {e.units.get(k, '')}".strip()
+                         for k, v in e.parameters.items())
+        lines.append(f"| {e.name} | {'yes' if e.significant else 'no'} | {e.score_z:.2f} | "
+                     f"{100 * e.improvement.p:.1f} % | {100 * e.improvement.q:.1f} % | {pars} |")
     lines += ["", "## Figures", ""]
     for names in figs:
         lines += [f"![measured vs model]({names[0]})", "", f"![residual spectrum]({names[1]})", "",

@@ -14,49 +14,45 @@ def _case(seed: int, level: int = 3):
     return make_case(seed, level=level, input_noise=False)
 
 
-def _entry(report, name):
-    return next(e for e in report.missing_physics if e["name"] == name)
-
-
 def test_frequency_dependence_recovers_kpf_kqf():
     ec = apply_effect(_case(11), "frequency_dependence", 2.0, seed=1)
     assert min(ec.fd_plain.values()) >= 0.9  # concealed
     rep = diagnose(ec.window)
     assert rep.verdict == "explained" and rep.cause == "frequency_dependence"
-    e = _entry(rep, "frequency_dependence")
+    e = rep.candidate("frequency_dependence")
     for k in ("Kpf", "Kqf"):
-        assert e["parameters"][k] == pytest.approx(ec.truth[k], rel=0.15, abs=3 * e["stderr"][k])
-    assert rep.fit_after["fd_p"] > rep.fit_before["fd_p"]
+        assert e.parameters[k] == pytest.approx(ec.truth[k], rel=0.15, abs=3 * e.stderr[k])
+    assert rep.fit_after.fd_p > rep.fit_before.fd_p
     # In the ambient band, where the effect lives, the held-out residual falls by more than over the
     # full band, whose white noise above 5 Hz no model removes.
-    assert e["improvement_band"]["p"] >= 0.5
-    assert e["improvement_band"]["p"] > e["improvement"]["p"]
+    assert e.improvement_band.p >= 0.5
+    assert e.improvement_band.p > e.improvement.p
 
 
 def test_measurement_skew_recovers_tau():
     ec = apply_effect(_case(12), "measurement_skew", 0.025, seed=2)
     rep = diagnose(ec.window)
     assert rep.cause == "measurement_skew"
-    e = _entry(rep, "measurement_skew")
-    assert abs(e["parameters"]["tau"] - ec.truth["tau"]) < 0.002
-    assert e["improvement"]["p"] > 0.5 and e["improvement"]["q"] > 0.5
+    e = rep.candidate("measurement_skew")
+    assert abs(e.parameters["tau"] - ec.truth["tau"]) < 0.002
+    assert e.improvement.p > 0.5 and e.improvement.q > 0.5
 
 
 def test_exponential_static_recovers_exponents_against_a_user_model():
     ec = apply_effect(_case(13), "exponential_static", 1.0, seed=3)
     rep = diagnose(ec.window, ec.model)
     assert rep.mode == "user" and rep.cause == "exponential_static"
-    e = _entry(rep, "exponential_static")
-    assert e["derived"]["np"] == pytest.approx(ec.truth["np"], abs=0.1)
-    assert e["derived"]["nq"] == pytest.approx(ec.truth["nq"], abs=0.1)
+    e = rep.candidate("exponential_static")
+    assert e.derived["np"] == pytest.approx(ec.truth["np"], abs=0.1)
+    assert e.derived["nq"] == pytest.approx(ec.truth["nq"], abs=0.1)
 
 
 def test_exponential_static_is_not_claimed_against_a_reidentified_zip():
     """Honest identifiability: against re-identified ZIP the candidate is not tested (ZIP spans V^n)."""
     ec = apply_effect(_case(13), "exponential_static", 1.0, seed=3)
     rep = diagnose(ec.window, config=DiagnosisConfig(candidates=("exponential_static", "frequency_dependence")))
-    e = _entry(rep, "exponential_static")
-    assert e["tested"] is False and not e["significant"]
+    e = rep.candidate("exponential_static")
+    assert e.tested is False and not e.significant
     assert rep.verdict == "consistent"
 
 
@@ -64,10 +60,10 @@ def test_skew_fit_shifts_the_model_not_the_data():
     """With no skew in the data the fitted τ is ~0 and not significant (interpolating noise gains nothing)."""
     ec = apply_effect(_case(14, level=1), "none")
     rep = diagnose(ec.window, config=DiagnosisConfig(candidates=("measurement_skew",)))
-    e = _entry(rep, "measurement_skew")
-    assert not e["significant"]
-    assert abs(e["parameters"]["tau"]) < 0.005
-    assert np.isfinite(e["stderr"]["tau"])
+    e = rep.candidate("measurement_skew")
+    assert not e.significant
+    assert abs(e.parameters["tau"]) < 0.005
+    assert np.isfinite(e.stderr["tau"])
 
 
 def test_second_motor_recovers_its_torque():
@@ -75,12 +71,12 @@ def test_second_motor_recovers_its_torque():
     assert min(ec.fd_plain.values()) >= 0.9
     rep = diagnose(ec.window)
     assert rep.cause == "second_motor", rep.missing_physics[:2]
-    e = _entry(rep, "second_motor")
+    e = rep.candidate("second_motor")
     # Which of the two fitted motors is "second" is a label; the torque sum and the pair are what count.
-    d1, d2 = rep.model["dynamic"], e["parameters"]
+    d1, d2 = rep.model.dynamic, e.parameters
     truth2 = ec.truth["Tm2"]
-    tms = sorted([e["parameters"]["Tm2"], e["parameters"].get("D.Tm", d1["Tm"])])
-    assert min(abs(t - truth2) for t in tms) < 0.15 * truth2 + 3 * e["stderr"]["Tm2"]
+    tms = sorted([e.parameters["Tm2"], e.parameters.get("D.Tm", d1["Tm"])])
+    assert min(abs(t - truth2) for t in tms) < 0.15 * truth2 + 3 * e.stderr["Tm2"]
     assert d2["Tm2"] > 0
 
 
@@ -88,8 +84,8 @@ def test_speed_dependent_torque_recovers_k():
     ec = apply_effect(_case(16), "speed_dependent_torque", 3.0, seed=6)
     rep = diagnose(ec.window)
     assert rep.cause == "speed_dependent_torque", rep.missing_physics[:2]
-    e = _entry(rep, "speed_dependent_torque")
-    assert e["parameters"]["k"] == pytest.approx(3.0, abs=max(0.5, 3 * e["stderr"]["k"]))
+    e = rep.candidate("speed_dependent_torque")
+    assert e.parameters["k"] == pytest.approx(3.0, abs=max(0.5, 3 * e.stderr["k"]))
 
 
 def test_motor_stator_dynamics_recovers_transient_reactance():
@@ -97,14 +93,14 @@ def test_motor_stator_dynamics_recovers_transient_reactance():
     ec = apply_effect(c, "motor_stator_dynamics", 0.1, seed=7)
     rep = diagnose(ec.window)
     assert rep.cause == "motor_stator_dynamics", rep.missing_physics[:2]
-    e = _entry(rep, "motor_stator_dynamics")
-    assert e["parameters"]["inv_Xp"] == pytest.approx(1.0 / c.truth.Xp, rel=0.1)
+    e = rep.candidate("motor_stator_dynamics")
+    assert e.parameters["inv_Xp"] == pytest.approx(1.0 / c.truth.Xp, rel=0.1)
 
 
 def test_inverter_der_recovers_lag_and_droop():
     ec = apply_effect(_case(18), "inverter_der", 3.0, seed=8)
     rep = diagnose(ec.window)
     assert rep.cause == "inverter_der", rep.missing_physics[:2]
-    e = _entry(rep, "inverter_der")
-    assert e["parameters"]["T"] == pytest.approx(ec.truth["T"], rel=0.15)
-    assert e["parameters"]["Kq"] == pytest.approx(ec.truth["Kq"], rel=0.1)
+    e = rep.candidate("inverter_der")
+    assert e.parameters["T"] == pytest.approx(ec.truth["T"], rel=0.15)
+    assert e.parameters["Kq"] == pytest.approx(ec.truth["Kq"], rel=0.1)

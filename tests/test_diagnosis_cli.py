@@ -56,8 +56,11 @@ def test_cli_with_user_model_and_bad_file(skewed):
     proc = run_cli("diagnose", str(path), "--json", "--model", str(model))
     assert proc.returncode == 0, proc.stderr
     res = json.loads(proc.stdout)
-    assert res["mode"] == "user" and res["verdict"] in ("explained", "unexplained")
+    # The skew is the only departure from the true model: named, as against an identified one.
+    assert res["mode"] == "user" and res["verdict"] == "explained" and res["cause"] == "measurement_skew"
+    assert res["parameter_mismatch"]["significant"] is False
     bad = d / "bad.txt"
     bad.write_text("x")
     proc = run_cli("diagnose", str(bad), "--json")
-    assert proc.returncode == 1 and "error" in json.loads(proc.stdout)
+    err = json.loads(proc.stdout)
+    assert proc.returncode == 1 and err["reason"] == "input" and "unsupported file type '.txt'" in err["error"]

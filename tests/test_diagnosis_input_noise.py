@@ -13,7 +13,7 @@ from aslm_core.diagnosis.effects import apply_effect
 from aslm_core.diagnosis.locate import band_excess, noise_floor, periodogram
 from aslm_core.synthetic import make_case, make_cases
 
-dg = importlib.import_module("aslm_core.diagnosis.diagnose")
+dg = importlib.import_module("aslm_core.diagnosis.pipeline")
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +44,7 @@ def test_clean_cases_with_input_noise_are_consistent(noisy_cases):
     for c in noisy_cases:
         rep = diagnose(c.window)
         assert rep.verdict == "consistent", (c.level, rep.message, rep.missing_physics[:2])
-        assert not rep.located["channels"]
+        assert not rep.located.channels
 
 
 def test_clean_case_with_input_noise_against_its_true_model_is_consistent():

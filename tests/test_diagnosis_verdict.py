@@ -20,7 +20,7 @@ def test_clean_cases_are_consistent(cases):
     for c in cases:
         rep = diagnose(c.window)
         assert rep.verdict == "consistent", (c.window.bus, rep.message, rep.missing_physics[:1])
-        assert rep.cause is None and not any(e["significant"] for e in rep.missing_physics)
+        assert rep.cause is None and not any(e.significant for e in rep.missing_physics)
 
 
 @pytest.mark.parametrize("effect", ["load_cycling", "hysteresis"])
@@ -30,9 +30,9 @@ def test_effect_outside_the_library_is_unexplained_with_its_location(cases, effe
     rep = diagnose(ec.window)
     assert rep.verdict == "unexplained", rep.missing_physics[:2]
     assert rep.cause is None
-    assert rep.located["channels"], "an unexplained mismatch must say where it is"
-    ch = rep.located["channels"][0]
-    assert rep.located["bands"][ch] and rep.located["time_segments"][ch]
+    assert rep.located.channels, "an unexplained mismatch must say where it is"
+    ch = rep.located.channels[0]
+    assert rep.located.bands[ch] and rep.located.time_segments[ch]
 
 
 def test_report_dict_is_json_with_the_contract_fields(cases):
@@ -49,12 +49,10 @@ def test_report_dict_is_json_with_the_contract_fields(cases):
 def test_several_windows_accumulate_evidence(cases):
     """A weak frequency dependence in three windows: combined evidence beats any one window's."""
     ecs = [apply_effect(c, "frequency_dependence", 0.6, seed=9) for c in cases[:3]]
-    single = [next(e for e in diagnose(ec.window).missing_physics if e["name"] == "frequency_dependence")["score_z"]
-              for ec in ecs]
+    single = [diagnose(ec.window).candidate("frequency_dependence").score_z for ec in ecs]
     rep = diagnose([ec.window for ec in ecs])
-    e = next(e for e in rep.missing_physics if e["name"] == "frequency_dependence")
-    assert e["score_z"] > max(single)
-    assert rep.held_out["windows"] == 3
+    assert rep.candidate("frequency_dependence").score_z > max(single)
+    assert rep.held_out.windows == 3
 
 
 def test_service_entry_point_with_a_previous_identification(cases):

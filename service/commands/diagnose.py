@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from aslm_core import WindowError, warmup
-from aslm_core.diagnosis import DiagnosisConfig, diagnose
+from aslm_core.diagnosis import DiagnosisConfig, DiagnosisReport, diagnose
 from service.files import read_window
 
 
@@ -51,22 +51,22 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _human(path: str, report, report_path: str | None) -> str:
+def _human(path: str, report: DiagnosisReport, report_path: str | None) -> str:
     fb, fa = report.fit_before, report.fit_after
     lines = [f"{path}: {report.verdict}" + (f" — {report.cause}" if report.cause else ""), f"  {report.message}",
-             f"  held-out FD before: P {fb['fd_p']:.4f}  Q {fb['fd_q']:.4f}   after: P {fa['fd_p']:.4f}  Q {fa['fd_q']:.4f}"]
+             f"  held-out FD before: P {fb.fd_p:.4f}  Q {fb.fd_q:.4f}   after: P {fa.fd_p:.4f}  Q {fa.fd_q:.4f}"]
     loc = report.located
-    if loc.get("channels"):
-        for ch in loc["channels"]:
-            bands = ", ".join(f"{b[0]:g}–{b[1]:g} Hz" for b in loc["bands"].get(ch, []))
-            segs = ", ".join(f"{s[-2]:.1f}–{s[-1]:.1f} s" for s in loc["time_segments"].get(ch, []))
+    if loc.channels:
+        for ch in loc.channels:
+            bands = ", ".join(f"{b[0]:g}–{b[1]:g} Hz" for b in loc.bands.get(ch, []))
+            segs = ", ".join(f"{s[-2]:.1f}–{s[-1]:.1f} s" for s in loc.time_segments.get(ch, []))
             lines.append(f"  {ch}: residual above noise in {bands}; segments {segs or '-'}")
     for e in report.missing_physics:
-        if not e.get("tested", True):
+        if not e.tested:
             continue
-        pars = ", ".join(f"{k}={v:.4g}±{e['stderr'].get(k, float('nan')):.2g}" for k, v in e["parameters"].items())
-        lines.append(f"  {'*' if e['significant'] else ' '} {e['name']:<24} z={e['score_z']:7.2f}  "
-                     f"ΔVar P {100 * e['improvement']['p']:6.1f} %  Q {100 * e['improvement']['q']:6.1f} %  {pars}")
+        pars = ", ".join(f"{k}={v:.4g}±{e.stderr.get(k, float('nan')):.2g}" for k, v in e.parameters.items())
+        lines.append(f"  {'*' if e.significant else ' '} {e.name:<24} z={e.score_z:7.2f}  "
+                     f"ΔVar P {100 * e.improvement.p:6.1f} %  Q {100 * e.improvement.q:6.1f} %  {pars}")
     if report_path:
         lines.append(f"  report: {report_path}")
     return "\n".join(lines)

@@ -61,3 +61,7 @@ class ExponentialStatic(Candidate):
             if abs(y0) > 1e-9:
                 out[name] = float((slope + c) / y0)
         return out
+
+
+#: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).
+CANDIDATE = ExponentialStatic()

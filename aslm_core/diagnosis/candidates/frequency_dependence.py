@@ -35,3 +35,7 @@ class FrequencyDependence(Candidate):
     def extra_columns(self, seg: Segment, d: np.ndarray, z: np.ndarray):
         col = seg.dfreq[:, None]
         return col, col
+
+
+#: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).
+CANDIDATE = FrequencyDependence()

@@ -70,3 +70,7 @@ class InverterDER(Candidate):
             if ssr < best:
                 best, best_t = ssr, T
         return [np.array([best_t])]
+
+
+#: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).
+CANDIDATE = InverterDER()

@@ -76,3 +76,7 @@ class MeasurementSkew(Candidate):
         stacked = np.column_stack([base.mp, base.mq, base.xp, base.xq])
         s = shift(seg.t, stacked, tau)
         return Prediction(s[:, 0], s[:, 1], s[:, 2:2 + kp], s[:, 2 + kp:])
+
+
+#: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).
+CANDIDATE = MeasurementSkew()

@@ -89,3 +89,7 @@ class MotorStatorDynamics(Candidate):
     def describe(self, params: dict[str, float], seg: Segment, ctx: Context) -> dict[str, float]:
         c = params.get("inv_Xp", 0.0)
         return {"Xp": 1.0 / c} if c > 0 else {}
+
+
+#: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).
+CANDIDATE = MotorStatorDynamics()

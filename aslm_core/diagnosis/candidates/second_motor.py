@@ -67,3 +67,7 @@ class SecondMotor(Candidate):
         if m1 is None or m2 is None:
             return None
         return m1[0] + m2[0], m1[1] + m2[1]
+
+
+#: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).
+CANDIDATE = SecondMotor()

@@ -88,3 +88,7 @@ class SpeedDependentTorque(Candidate):
         if not np.isfinite(p[-1]):
             return None
         return p, q
+
+
+#: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).
+CANDIDATE = SpeedDependentTorque()

@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -43,6 +43,18 @@ from aslm_core.diagnosis.locate import locate, periodogram
 from aslm_core.diagnosis.noise import BAND_HZ, NoiseModel, dct_band
 from aslm_core.diagnosis.noise import estimate as estimate_noise
 from aslm_core.diagnosis.playback import model_dict
+from aslm_core.diagnosis.report import (
+    CandidateEntry,
+    Diagnosed,
+    DiagnosisReport,
+    HeldOutFit,
+    HeldOutInfo,
+    Location,
+    Motor,
+    NoiseSummary,
+    ParameterMismatch,
+    PerChannel,
+)
 from aslm_core.diagnosis.segment import Segment, make_segment
 from aslm_core.identify import identify
 from aslm_core.params import DYNAMIC_NAMES
@@ -88,58 +100,12 @@ class DiagnosisConfig:
 
 
 @dataclass
-class DiagnosisReport:
-    """Outcome of a diagnosis (JSON via :meth:`to_dict`, DESIGN §4).
-
-    Attributes
-    ----------
-    verdict : {"explained", "consistent", "unexplained"}
-    cause : str or None
-        The named cause when ``explained``; None otherwise.
-    located : dict
-        Channels, bands [Hz] and time segments [s] with residual above the noise floor; the floor,
-        per-band spectrum ratios and coherences.
-    missing_physics : list of dict
-        Ranked candidates: name, parameters (with ``stderr``), improvement (held-out residual-variance
-        reduction per channel), improvement_band (the same in the ambient band), excess_reduction (share of the held-out variance above the noise floor
-        removed, per channel), penalised gain [nats], score_z, dm_z, significant.
-    fit_before, fit_after : dict
-        Held-out FD (eq. 9) and residual RMS [pu] of P and Q, before (plain) and after (the named cause;
-        equal to before when nothing is named).
-    """
-
-    verdict: str
-    cause: str | None
-    located: dict
-    missing_physics: list[dict]
-    fit_before: dict
-    fit_after: dict
-    model: dict
-    noise: dict
-    held_out: dict
-    message: str
-    elapsed_s: float = 0.0
-    mode: str = "identified"
-    parameter_mismatch: dict | None = None
-    series: list = field(default_factory=list, repr=False)
-
-    def to_dict(self) -> dict:
-        """Plain JSON-serialisable dict (the time series for plots are left out)."""
-        return {
-            "verdict": self.verdict, "cause": self.cause, "located": self.located,
-            "missing_physics": self.missing_physics, "fit_before": self.fit_before, "fit_after": self.fit_after,
-            "model": self.model, "noise": self.noise, "held_out": self.held_out, "message": self.message,
-            "mode": self.mode, "parameter_mismatch": self.parameter_mismatch, "elapsed_s": self.elapsed_s,
-        }
-
-
-@dataclass
 class _WindowAnalysis:
     seg: Segment
     ctx: Context
     sig: tuple[float, float]
     plain: engine.Fit
-    located: dict
+    located: Location
     fits: dict
     comps: dict
     reidentified: engine.Fit | None = None
@@ -193,7 +159,7 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
     floors = {ch: loc_noise.location_floor(ch, win) for ch in ("P", "Q")}
     rp, rq = (a[win] for a in loc_fit.residuals(seg))
     drivers = {"V": seg.V[win], "dVdt": seg.dvdt[win], "df": seg.dfreq[win]}
-    located = locate(rp, rq, seg.t[win], seg.fs, drivers, floors)
+    located = Location.from_locate(locate(rp, rq, seg.t[win], seg.fs, drivers, floors))
     g0 = (test_noise.probes_p, test_noise.probes_q) if test_noise.has_inputs else None
     pcov = engine.prediction_cov(_PLAIN, seg, ctx, plain, noise) if config.prediction_variance else None
     fits, comps = {}, {}
@@ -231,11 +197,11 @@ def _probes(seg: Segment, noise: NoiseModel, cand: Candidate, ctx: Context, fit:
     return noise.propagate(seg, lambda s: engine.output(cand, s, ctx, fit), (fit.model_p, fit.model_q))
 
 
-def _held_out_fit(seg: Segment, fit: engine.Fit) -> dict:
+def _held_out_fit(seg: Segment, fit: engine.Fit) -> HeldOutFit:
     te = seg.test
     rp, rq = (a[te] for a in fit.residuals(seg))
-    return {"fd_p": engine.fd(seg.P[te], fit.model_p[te]), "fd_q": engine.fd(seg.Q[te], fit.model_q[te]),
-            "rms_p": float(np.sqrt(np.mean(rp * rp))), "rms_q": float(np.sqrt(np.mean(rq * rq)))}
+    return HeldOutFit(fd_p=engine.fd(seg.P[te], fit.model_p[te]), fd_q=engine.fd(seg.Q[te], fit.model_q[te]),
+                      rms_p=float(np.sqrt(np.mean(rp * rp))), rms_q=float(np.sqrt(np.mean(rq * rq))))
 
 
 def _mean_or_none(xs: list) -> float | None:
@@ -243,8 +209,8 @@ def _mean_or_none(xs: list) -> float | None:
     return float(np.mean(xs)) if xs else None
 
 
-def _mean_dicts(ds: list[dict]) -> dict:
-    return {k: float(np.mean([d[k] for d in ds])) for k in ds[0]}
+def _mean_fit(fits: list[HeldOutFit]) -> HeldOutFit:
+    return HeldOutFit(**{k: float(np.mean([getattr(f, k) for f in fits])) for k in ("fd_p", "fd_q", "rms_p", "rms_q")})
 
 
 def _combine_params(analyses: list[_WindowAnalysis], name: str) -> tuple[dict, dict]:
@@ -265,17 +231,51 @@ def _combine_params(analyses: list[_WindowAnalysis], name: str) -> tuple[dict, d
     return val, se
 
 
-def _locations(analyses: list[_WindowAnalysis]) -> dict:
+def _locations(analyses: list[_WindowAnalysis]) -> Location:
     if len(analyses) == 1:
         return analyses[0].located
-    out = {"channels": sorted({c for a in analyses for c in a.located["channels"]}), "windows": []}
-    for a in analyses:
-        out["windows"].append(a.located)
-    out["bands"] = {c: sorted({tuple(b) for a in analyses for b in a.located["bands"].get(c, [])}) for c in out["channels"]}
-    out["bands"] = {c: [list(b) for b in v] for c, v in out["bands"].items()}
-    out["time_segments"] = {c: [[i, *s] for i, a in enumerate(analyses) for s in a.located["time_segments"].get(c, [])]
-                            for c in out["channels"]}
-    return out
+    locs = [a.located for a in analyses]
+    channels = sorted({c for loc in locs for c in loc.channels})
+    bands = {c: [list(b) for b in sorted({tuple(b) for loc in locs for b in loc.bands.get(c, [])})] for c in channels}
+    segments = {c: [[i, *s] for i, loc in enumerate(locs) for s in loc.time_segments.get(c, [])] for c in channels}
+    return Location(channels=channels, bands=bands, time_segments=segments, windows=locs)
+
+
+def _dynamic(d: np.ndarray) -> dict[str, float]:
+    return dict(zip(DYNAMIC_NAMES, map(float, d), strict=True))
+
+
+def _entry(analyses: list[_WindowAnalysis], name: str, zcrit: float) -> CandidateEntry:
+    """One candidate's entry: its statistics combined over the windows (or why it was not tested)."""
+    cand = LIBRARY[name]
+    reason = cand.not_applicable(analyses[0].ctx)
+    if reason:
+        return CandidateEntry(
+            name=name, parameters={}, stderr={}, derived={}, units={}, improvement=PerChannel(0.0, 0.0),
+            improvement_band=PerChannel(None, None), excess_reduction=PerChannel(None, None), penalised_gain=-math.inf,
+            score_z=0.0, dm_z=0.0, magnitude_z=None, n_params=cand.n_params, significant=False,
+            signature=cand.signature, tested=False, note=reason)
+    m = len(analyses)
+    comps = [a.comps[name] for a in analyses]
+    z = float(sum(c.score_z for c in comps) / math.sqrt(m))
+    dmz = float(sum(c.dm_z for c in comps) / math.sqrt(m))
+    pg = float(sum(c.penalised_gain for c in comps))
+    params, se = _combine_params(analyses, name)
+    a0 = analyses[0]
+    derived = cand.describe(a0.fits[name].params, a0.seg, a0.ctx)
+    mag_z = max((abs(params[k]) / se[k] if se.get(k, math.inf) > 0 else math.inf for k in cand.magnitude
+                 if k in params and math.isfinite(se.get(k, math.inf))), default=0.0)
+    return CandidateEntry(
+        name=name, parameters=params, stderr=se, derived=derived,
+        units={**dict(zip(cand.nl_names, cand.nl_units, strict=True)), **cand.lin_units},
+        improvement=PerChannel(p=float(np.mean([c.reduction_p for c in comps])),
+                               q=float(np.mean([c.reduction_q for c in comps]))),
+        improvement_band=PerChannel(*(_mean_or_none([getattr(c, f"band_reduction_{ch}") for c in comps])
+                                      for ch in ("p", "q"))),
+        excess_reduction=PerChannel(*(_mean_or_none([getattr(c, f"excess_{ch}") for c in comps]) for ch in ("p", "q"))),
+        penalised_gain=pg, score_z=z, dm_z=dmz, magnitude_z=float(min(mag_z, 1e6)), n_params=cand.n_params,
+        significant=bool(math.isfinite(z) and z > zcrit and pg > 0 and mag_z >= cand.magnitude_z_min),
+        signature=cand.signature, tested=True)
 
 
 def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
@@ -308,88 +308,58 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
     names = list(config.candidates)
     tested = [n for n in names if not LIBRARY[n].not_applicable(analyses[0].ctx)]
     zcrit = engine.dm_critical(config.alpha, max(len(tested), 1))
-    entries = []
-    for name in names:
-        cand = LIBRARY[name]
-        reason = cand.not_applicable(analyses[0].ctx)
-        if reason:
-            entries.append({"name": name, "parameters": {}, "stderr": {}, "derived": {}, "units": {},
-                            "improvement": {"p": 0.0, "q": 0.0}, "improvement_band": {"p": None, "q": None},
-                            "penalised_gain": -math.inf, "score_z": 0.0,
-                            "dm_z": 0.0, "n_params": cand.n_params, "significant": False,
-                            "signature": cand.signature, "tested": False, "note": reason})
-            continue
-        comps = [a.comps[name] for a in analyses]
-        z = float(sum(c.score_z for c in comps) / math.sqrt(m))
-        dmz = float(sum(c.dm_z for c in comps) / math.sqrt(m))
-        pg = float(sum(c.penalised_gain for c in comps))
-        params, se = _combine_params(analyses, name)
-        derived = {}
-        for a in analyses[:1]:
-            derived = cand.describe(a.fits[name].params, a.seg, a.ctx)
-        mag_z = max((abs(params[k]) / se[k] if se.get(k, math.inf) > 0 else math.inf for k in cand.magnitude
-                     if k in params and math.isfinite(se.get(k, math.inf))), default=0.0)
-        sig_ = bool(math.isfinite(z) and z > zcrit and pg > 0 and mag_z >= cand.magnitude_z_min)
-        entries.append({
-            "name": name, "parameters": params, "stderr": se, "derived": derived,
-            "units": {**dict(zip(cand.nl_names, cand.nl_units, strict=True)), **cand.lin_units},
-            "improvement": {"p": float(np.mean([c.reduction_p for c in comps])),
-                            "q": float(np.mean([c.reduction_q for c in comps]))},
-            "improvement_band": {ch: _mean_or_none([getattr(c, f"band_reduction_{ch}") for c in comps])
-                                 for ch in ("p", "q")},
-            "excess_reduction": {ch: _mean_or_none([getattr(c, f"excess_{ch}") for c in comps]) for ch in ("p", "q")},
-            "penalised_gain": pg, "score_z": z, "dm_z": dmz, "magnitude_z": float(min(mag_z, 1e6)), "n_params": cand.n_params, "significant": sig_,
-            "signature": cand.signature, "tested": True,
-        })
-    entries.sort(key=lambda e: -e["penalised_gain"] if math.isfinite(e["penalised_gain"]) else math.inf)
+    entries = [_entry(analyses, name, zcrit) for name in names]
+    entries.sort(key=lambda e: -e.penalised_gain if e.penalised_gain is not None and math.isfinite(e.penalised_gain)
+                 else math.inf)
     for e in entries:  # JSON has no infinity
-        if not math.isfinite(e["penalised_gain"]):
-            e["penalised_gain"] = None
-    before = _mean_dicts([_held_out_fit(a.seg, a.plain) for a in analyses])
+        if e.penalised_gain is not None and not math.isfinite(e.penalised_gain):
+            e.penalised_gain = None
+    before = _mean_fit([_held_out_fit(a.seg, a.plain) for a in analyses])
     located = _locations(analyses)
-    mismatch = bool(located["channels"])
-    best = next((e for e in entries if e["significant"]), None)
+    mismatch = bool(located.channels)
+    best = next((e for e in entries if e.significant), None)
     verdict, cause, after, message = "consistent", None, before, "residual consistent with the noise floor"
     if best is not None:
-        frac = _explained_fraction(analyses, best["name"])
-        best["explained_fraction"] = frac
-        left = _remaining(analyses, best["name"])
-        best["remaining_excess_channels"] = left
+        frac = _explained_fraction(analyses, best.name)
+        best.explained_fraction = frac
+        left = _remaining(analyses, best.name)
+        best.remaining_excess_channels = left
         if frac >= config.explained_fraction or not left:
-            verdict, cause = "explained", best["name"]
-            after = _mean_dicts([_held_out_fit(a.seg, a.fits[cause]) for a in analyses])
+            verdict, cause = "explained", best.name
+            after = _mean_fit([_held_out_fit(a.seg, a.fits[cause]) for a in analyses])
             message = f"{cause} explains {100 * frac:.0f} % of the held-out excess residual variance"
         else:
             verdict = "unexplained"
-            message = (f"a real mismatch (in {', '.join(located['channels']) or 'the held-out fit'}); the best "
+            message = (f"a real mismatch (in {', '.join(located.channels) or 'the held-out fit'}); the best "
                        f"candidate removes only {100 * frac:.0f} % of it, so no cause is named")
     elif mismatch:
         verdict = "unexplained"
         message = "residual above the noise floor in " + ", ".join(
-            f"{c} ({', '.join(f'{b[0]:g}–{b[1]:g} Hz' for b in located['bands'][c])})" for c in located["channels"]
+            f"{c} ({', '.join(f'{b[0]:g}–{b[1]:g} Hz' for b in located.bands[c])})" for c in located.channels
         ) + "; no candidate explains it"
     a0 = analyses[0]
-    plain_model = {"dynamic": dict(zip(DYNAMIC_NAMES, map(float, a0.plain.d), strict=True)), "mode": a0.ctx.mode}
+    plain_model = Diagnosed(dynamic=_dynamic(a0.plain.d), mode=a0.ctx.mode)
     mismatch_info = None
     if a0.refit_comp is not None:
         rc = a0.refit_comp
-        mismatch_info = {
-            "significant": bool(rc.score_z > zcrit and rc.penalised_gain > 0), "score_z": rc.score_z,
-            "improvement": {"p": rc.reduction_p, "q": rc.reduction_q},
-            "reidentified": {"dynamic": dict(zip(DYNAMIC_NAMES, map(float, a0.reidentified.d), strict=True))},
-        }
+        mismatch_info = ParameterMismatch(
+            significant=bool(rc.score_z > zcrit and rc.penalised_gain > 0), score_z=rc.score_z,
+            improvement=PerChannel(p=rc.reduction_p, q=rc.reduction_q),
+            reidentified=Motor(dynamic=_dynamic(a0.reidentified.d)),
+        )
     series = [_series(a, cause) for a in analyses]
     return DiagnosisReport(
         verdict=verdict, cause=cause, located=located, missing_physics=entries, fit_before=before,
         fit_after=after, model=plain_model,
-        noise={"sigma_p": float(np.mean([a.sig[0] for a in analyses])), "sigma_q": float(np.mean([a.sig[1] for a in analyses])),
-               "sigma_v": float(np.mean([a.noise.sigma_v for a in analyses])),
-               "sigma_theta": float(np.mean([a.noise.sigma_theta for a in analyses])),
-               "input_share_p": float(np.mean([a.floors["P"]["input_share"] for a in analyses])),
-               "input_share_q": float(np.mean([a.floors["Q"]["input_share"] for a in analyses]))},
-        held_out={"windows": m, "t_start": [float(a.seg.t[a.seg.ks]) for a in analyses],
-                  "t_end": [float(a.seg.t[a.seg.ke - 1]) for a in analyses],
-                  "n": int(sum(a.seg.ke - a.seg.ks for a in analyses)), "dm_critical": zcrit},
+        noise=NoiseSummary(
+            sigma_p=float(np.mean([a.sig[0] for a in analyses])), sigma_q=float(np.mean([a.sig[1] for a in analyses])),
+            sigma_v=float(np.mean([a.noise.sigma_v for a in analyses])),
+            sigma_theta=float(np.mean([a.noise.sigma_theta for a in analyses])),
+            input_share_p=float(np.mean([a.floors["P"]["input_share"] for a in analyses])),
+            input_share_q=float(np.mean([a.floors["Q"]["input_share"] for a in analyses]))),
+        held_out=HeldOutInfo(windows=m, t_start=[float(a.seg.t[a.seg.ks]) for a in analyses],
+                             t_end=[float(a.seg.t[a.seg.ke - 1]) for a in analyses],
+                             n=int(sum(a.seg.ke - a.seg.ks for a in analyses)), dm_critical=zcrit),
         message=message, elapsed_s=time.perf_counter() - t0, mode=a0.ctx.mode,
         parameter_mismatch=mismatch_info, series=series,
     )
