@@ -24,7 +24,6 @@ from aslm_sim.network import (
     forcing_filter,
     motor_and_static,
     simulate,
-    simulate_serial,
     steady_state,
     step_grid,
 )
@@ -160,10 +159,9 @@ def _make_chunk(children: list, c0: int, sos: np.ndarray, gain: float, m: int, k
     par = np.array(rows).reshape(n, NPAR)
     faults = -np.ones((n, 2), dtype=np.int64)
     # Threads only pay off for a batch (and the parallel kernel costs its own compilation).
-    kernel = simulate if n >= _PARALLEL_MIN_CASES else simulate_serial
-    out_v, out_s, out_x, _, _ = kernel(
+    out_v, out_s, out_x, _, _ = simulate(
         par, np.array(x0s).reshape(n, NX), np.array(vl0s, dtype=complex), forcing,
-        h, k, m, n_skip, n_samp, faults,
+        h, k, m, n_skip, n_samp, faults, parallel=n >= _PARALLEL_MIN_CASES,
     )
     del forcing
     t = np.arange(n_samp) / fs
@@ -211,7 +209,15 @@ def _make_chunk(children: list, c0: int, sos: np.ndarray, gain: float, m: int, k
 
 
 def make_case(seed: int, **kw) -> SyntheticCase:
-    """One case: ``make_cases(1, seed=seed, **kw)[0]``."""
+    """One case: ``make_cases(1, seed=seed, **kw)[0]``.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the case (see :func:`make_cases`).
+    kw : dict
+        Any other keyword of :func:`make_cases` (level, snr_db, duration_s, fs, f0, input_noise).
+    """
     return make_cases(1, seed=seed, **kw)[0]
 
 

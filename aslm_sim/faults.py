@@ -15,7 +15,7 @@ from aslm_sim.network import (
     bus_frequency,
     draw_network,
     motor_and_static,
-    simulate_serial,
+    simulate,
     solve_at,
     steady_state,
     step_grid,
@@ -109,9 +109,9 @@ def large_disturbance(
     on = int(round(fault_start_s / h))
     off = on + max(1, int(round(fault_duration_s / h)))
     forcing = np.zeros((1, 2, n_samp * m + 1))
-    out_v, out_s, out_x, _, _ = simulate_serial(
+    out_v, out_s, out_x, _, _ = simulate(
         p[None, :], x0[None, :], np.array([vl0]), forcing, h, k, m, 0, n_samp,
-        np.array([[on, off]], dtype=np.int64),
+        np.array([[on, off]], dtype=np.int64), parallel=False,
     )
     vl = out_v[0]
     th = np.unwrap(np.angle(vl))
@@ -127,7 +127,15 @@ def large_disturbance(
 
 
 def disturbance_inputs(truth: LoadTruth, **kw) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(t [s], V [pu], θ [rad]) of :func:`large_disturbance` — the inputs for a model playback."""
+    """(t [s], V [pu], θ [rad]) of :func:`large_disturbance` — the inputs for a model playback.
+
+    Parameters
+    ----------
+    truth : LoadTruth
+        The load at bus L.
+    kw : dict
+        Any other keyword of :func:`large_disturbance`.
+    """
     w = large_disturbance(truth, **kw)
     return w.t, w.V, w.theta
 

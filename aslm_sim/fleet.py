@@ -16,7 +16,7 @@ from aslm_sim.network import (
     WARMUP_S,
     draw_network,
     forcing_filter,
-    simulate_serial,
+    simulate,
     steady_state,
     step_grid,
 )
@@ -137,9 +137,9 @@ class SyntheticFleet:
         new = y * self._gain * self._amp[:, :, None]
         forcing = np.concatenate([self._f_last[:, :, None], new], axis=-1)
         self._f_last = new[:, :, -1].copy()
-        out_v, out_s, _, self._x, self._vl = simulate_serial(
+        out_v, out_s, _, self._x, self._vl = simulate(
             self._par, self._x, self._vl, forcing, self._h, self._ksub, m, 0, n,
-            -np.ones((self.n_buses, 2), dtype=np.int64),
+            -np.ones((self.n_buses, 2), dtype=np.int64), parallel=False,
         )
         th = np.angle(out_v)
         # Unwrap continuously across calls.

@@ -60,7 +60,6 @@ __all__ = [
     "forcing_filter",
     "motor_and_static",
     "simulate",
-    "simulate_serial",
     "solve_at",
     "static_load",
     "steady_state",
@@ -348,25 +347,61 @@ def _integrate_case(c, par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def simulate(par: np.ndarray, x0: np.ndarray, vl0: np.ndarray, forcing: np.ndarray, h: float, k_sub: int,
-             m_per_sample: int, n_skip: int, n_rec: int, fault_steps: np.ndarray) -> tuple:  # pragma: no cover
-    """Integrate all cases with RK4 and record the PMU channels.
+def _run_parallel(par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_int, fault_steps,
+                  out_v, out_s, out_x, x_end, vl_end):  # pragma: no cover - numba
+    """The cases of :func:`simulate` in parallel threads (numba prange)."""
+    for c in nb.prange(par.shape[0]):
+        _integrate_case(c, par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_int, fault_steps,
+                        out_v, out_s, out_x, x_end, vl_end)
 
-    Cases run in parallel threads (numba prange).
+
+@nb.njit(cache=True, error_model="numpy")
+def _run_serial(par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_int, fault_steps,
+                out_v, out_s, out_x, x_end, vl_end):  # pragma: no cover - numba
+    """The cases of :func:`simulate` one after the other in the calling thread."""
+    for c in range(par.shape[0]):
+        _integrate_case(c, par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_int, fault_steps,
+                        out_v, out_s, out_x, x_end, vl_end)
+
+
+def simulate(par: np.ndarray, x0: np.ndarray, vl0: np.ndarray, forcing: np.ndarray, h: float, k_sub: int,
+             m_per_sample: int, n_skip: int, n_rec: int, fault_steps: np.ndarray, *,
+             parallel: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Integrate all cases with RK4 and record the PMU channels.
 
     Parameters
     ----------
-    par : (nc, NPAR) case parameters;  x0 : (nc, NX) initial states;  vl0 : (nc,) complex V_L guess.
-    forcing : (nc, 2, n_int + 1) ΔG, ΔB of bus N on the forcing grid (linear in between) [pu].
-    h : fine step [s];  k_sub : fine steps per forcing interval;  m_per_sample : forcing intervals
-    per sample;  n_skip : samples of warm-up not recorded;  n_rec : samples recorded.
-    fault_steps : (nc, 2) int, fine-step index where the fault at H starts and ends (-1: none).
+    par : ndarray
+        (nc, NPAR) parameter rows (:data:`PARAMETER_FIELDS`).
+    x0 : ndarray
+        (nc, NX) initial states (:data:`STATE_FIELDS`).
+    vl0 : ndarray
+        (nc,) complex V_L guess at the start [pu].
+    forcing : ndarray
+        (nc, 2, n_int + 1) ΔG, ΔB of bus N on the forcing grid (linear in between) [pu], with
+        n_int = (n_skip + n_rec)·m_per_sample.
+    h : float
+        Fine step [s].
+    k_sub : int
+        Fine steps per forcing interval.
+    m_per_sample : int
+        Forcing intervals per sample.
+    n_skip : int
+        Samples of warm-up not recorded.
+    n_rec : int
+        Samples recorded.
+    fault_steps : ndarray
+        (nc, 2) int, fine-step index where the fault at H starts and ends (-1: none).
+    parallel : bool
+        Cases in parallel threads; False: in the calling thread (the fleet: no thread hand-off per
+        frame, one core at most).  The results are the same.
 
     Returns
     -------
-    vl : (nc, n_rec) complex V_L;  sl : (nc, n_rec) complex P + jQ from the feeder current;
-    xs : (nc, NX, n_rec) states at the samples;  x_end : (nc, NX);  vl_end : (nc,) complex —
-    the state one sample period after the last record (to continue a stream).
+    tuple
+        vl, (nc, n_rec) complex V_L [pu]; sl, (nc, n_rec) complex P + jQ from the feeder current [pu];
+        xs, (nc, NX, n_rec) states at the samples; x_end, (nc, NX), and vl_end, (nc,) complex: the state
+        one sample period after the last record (to continue a stream).
     """
     nc = par.shape[0]
     n_int = (n_skip + n_rec) * m_per_sample
@@ -375,26 +410,8 @@ def simulate(par: np.ndarray, x0: np.ndarray, vl0: np.ndarray, forcing: np.ndarr
     out_x = np.empty((nc, NX, n_rec))
     x_end = np.empty((nc, NX))
     vl_end = np.empty(nc, dtype=np.complex128)
-    for c in nb.prange(nc):
-        _integrate_case(c, par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_int, fault_steps,
-                        out_v, out_s, out_x, x_end, vl_end)
-    return out_v, out_s, out_x, x_end, vl_end
-
-
-@nb.njit(cache=True, error_model="numpy")
-def simulate_serial(par: np.ndarray, x0: np.ndarray, vl0: np.ndarray, forcing: np.ndarray, h: float, k_sub: int,
-                    m_per_sample: int, n_skip: int, n_rec: int, fault_steps: np.ndarray) -> tuple:  # pragma: no cover
-    """:func:`simulate` in the calling thread (the fleet: no thread hand-off per frame, one core at most)."""
-    nc = par.shape[0]
-    n_int = (n_skip + n_rec) * m_per_sample
-    out_v = np.empty((nc, n_rec), dtype=np.complex128)
-    out_s = np.empty((nc, n_rec), dtype=np.complex128)
-    out_x = np.empty((nc, NX, n_rec))
-    x_end = np.empty((nc, NX))
-    vl_end = np.empty(nc, dtype=np.complex128)
-    for c in range(nc):
-        _integrate_case(c, par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_int, fault_steps,
-                        out_v, out_s, out_x, x_end, vl_end)
+    run = _run_parallel if parallel else _run_serial
+    run(par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_int, fault_steps, out_v, out_s, out_x, x_end, vl_end)
     return out_v, out_s, out_x, x_end, vl_end
 
 

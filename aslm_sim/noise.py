@@ -67,7 +67,15 @@ def channel_snr_db(clean: np.ndarray, noisy: np.ndarray, *, detrend: bool = Fals
 
 
 def noise_sigma(y_amb_rms: float, snr: float) -> float:
-    """Noise std giving an expected SNR of snr [dB] for an ambient part of rms y_amb_rms (same unit)."""
+    """Noise std giving an expected SNR of snr for an ambient part of rms y_amb_rms (eq. 10).
+
+    Parameters
+    ----------
+    y_amb_rms : float
+        Rms of the channel's ambient part, in its own unit.
+    snr : float
+        Target SNR [dB].
+    """
     return float(y_amb_rms * 10.0 ** (-snr / 20.0))
 
 
