@@ -27,12 +27,8 @@ def fine_inputs(t: np.ndarray, V: np.ndarray, theta: np.ndarray,
 
     Parameters
     ----------
-    t : ndarray
-        Uniform sample times [s].
-    V : ndarray
-        Voltage magnitude [pu].
-    theta : ndarray
-        Unwrapped voltage angle [rad].
+    t, V, theta : ndarray
+        Uniform sample times [s], voltage magnitude [pu] and unwrapped angle [rad].
     h : float
         Longest fine step [s]; the step used divides the sample step.
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 import importlib
 import inspect
 
+from doc_helpers import undocumented
+
 import aslm_core.diagnosis as diag
 from aslm_core.diagnosis.candidates import LIBRARY
 from aslm_sim.effects import LIBRARY_EFFECTS
@@ -12,12 +14,6 @@ from aslm_sim.effects import LIBRARY_EFFECTS
 engine = importlib.import_module("aslm_core.diagnosis.engine")
 locate = importlib.import_module("aslm_core.diagnosis.locate")
 playback = importlib.import_module("aslm_core.diagnosis.playback")
-
-
-def _undocumented(func) -> list[str]:
-    doc = inspect.getdoc(func) or ""
-    params = [p for p in inspect.signature(func).parameters if p not in ("self", "cls")]
-    return [p for p in params if f"{p} :" not in doc and f"{p}, " not in doc]
 
 
 def test_exported_names():
@@ -28,7 +24,7 @@ def test_exported_names():
 def test_every_argument_of_public_functions_is_documented():
     funcs = [diag.diagnose, diag.diagnose_dict, playback.playback, playback.model_power, locate.noise_floor,
              locate.band_excess, locate.coherence, locate.time_segments, locate.locate, engine.fit_candidate]
-    missing = {f.__name__: _undocumented(f) for f in funcs if _undocumented(f)}
+    missing = {f.__name__: undocumented(f) for f in funcs if undocumented(f)}
     assert not missing, f"undocumented arguments: {missing}"
 
 

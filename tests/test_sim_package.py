@@ -9,16 +9,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+from doc_helpers import undocumented
+
 import aslm_sim
 
 ROOT = Path(__file__).resolve().parents[1]
 MODULES = ("truth", "network", "noise", "cases", "faults", "fleet", "motors", "effects.apply")
-
-
-def _undocumented(func) -> list[str]:
-    doc = inspect.getdoc(func) or ""
-    params = [p for p in inspect.signature(func).parameters if p not in ("self", "cls")]
-    return [p for p in params if f"{p} :" not in doc and f"{p}, " not in doc]
 
 
 def test_exported_names_resolve_lazily_to_their_modules():
@@ -57,6 +53,6 @@ def test_every_argument_of_public_functions_is_documented():
         for name in mod.__all__:
             obj = getattr(mod, name)
             func = getattr(obj, "py_func", obj)  # numba kernels: their Python function
-            if inspect.isfunction(func) and _undocumented(func):
-                missing[f"{mod_name}.{name}"] = _undocumented(func)
+            if inspect.isfunction(func) and undocumented(func):
+                missing[f"{mod_name}.{name}"] = undocumented(func)
     assert not missing, f"undocumented arguments: {missing}"
