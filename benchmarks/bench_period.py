@@ -39,7 +39,7 @@ def fill(store: BufferStore, n_buses: int, boundary: float, seconds: float = 12.
 
     ``skip_s``: seconds of the fleet's stream skipped first (a later stretch of the same buses).
     """
-    from aslm_core.synthetic import SyntheticFleet
+    from aslm_sim.fleet import SyntheticFleet
 
     n, skip = int(seconds * FS), int(skip_s * FS)
     fleet = SyntheticFleet(min(distinct, n_buses), fs=FS, level=2, seed=seed, t0=boundary - (n + skip - 1) / FS)

@@ -95,7 +95,7 @@ def main() -> None:
     port = 17599
     settings = load_settings(period_s=86400, window_s=10, late_s=1, storage_url=str(Path(tmp.name) / "r.sqlite"),
                              http_port=0, zenoh_listen=[f"tcp/127.0.0.1:{port}"], workers=2, instance="bench")
-    import aslm_core.synthetic  # noqa: F401 - the fleet's numba, imported before start: frozen with the startup objects (the service itself never imports numba here)
+    import aslm_sim.fleet  # noqa: F401 - the fleet's numba, imported before start: frozen with the startup objects (the service itself never imports numba here)
 
     svc = Service(settings).start()
     try:

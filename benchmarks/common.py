@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-import aslm_core.synthetic as syn
+from aslm_sim.cases import make_cases
+from aslm_sim.network import MAX_FORCING_STEP_S
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "reproduction.md"
@@ -45,7 +46,7 @@ def cases(n: int, *, level: int | None, seed: int, input_noise: bool = False) ->
     chunk = 250
     for k, start in enumerate(range(0, n, chunk)):
         m = min(chunk, n - start)
-        out.extend(syn.make_cases(m, level=level, seed=seed * 1000 + k, input_noise=input_noise))
+        out.extend(make_cases(m, level=level, seed=seed * 1000 + k, input_noise=input_noise))
     return out
 
 
@@ -91,7 +92,7 @@ def machine() -> dict:
     return {
         "cpus": os.cpu_count(), "cpu": cpu, "load_avg_at_start": [round(x, 2) for x in load],
         "python": sys.version.split()[0], "numpy": np.__version__, "scipy": scipy.__version__,
-        "numba": numba.__version__, "forcing_step_s": syn.MAX_FORCING_STEP_S,
+        "numba": numba.__version__, "forcing_step_s": MAX_FORCING_STEP_S,
         "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
     }
 

@@ -6,7 +6,7 @@
     .venv/bin/python benchmarks/diagnosis.py --timing 30     # CPU time per diagnosis, one process
 
 Each library effect (and two effects outside the library) is applied to synthetic ZIP + IM cases
-(``input_noise=False``: noise on P and Q at the level's SNR, paper eq. 10) by :mod:`aslm_core.diagnosis.effects`
+(``input_noise=False``: noise on P and Q at the level's SNR, paper eq. 10) by :mod:`aslm_sim.effects`
 and concealed (plain-fit FD ≥ 0.9 on P and Q).  ``exponential_static`` is diagnosed against a user model
 (the true ZIP + IM with the old exponents) because it is not identifiable against a re-identified ZIP;
 clean cases are diagnosed both ways.  ``--input-noise`` makes the cases with ``input_noise=True`` (V, θ and f
@@ -35,21 +35,15 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from aslm_core.diagnosis.effects import LIBRARY_EFFECTS, OUTSIDE_EFFECTS  # noqa: E402
+from aslm_sim.effects import EFFECTS, LIBRARY_EFFECTS, OUTSIDE_EFFECTS  # noqa: E402
 
 RESULTS = ROOT / "docs" / "results" / "diagnosis.json"
 LEVELS = (1, 2, 3)
-# Where each effect acts (for the "variance reduced on the channels it acts on" check).
-CHANNELS = {"frequency_dependence": "PQ", "second_motor": "PQ", "speed_dependent_torque": "P",
-            "motor_stator_dynamics": "PQ", "measurement_skew": "PQ", "inverter_der": "Q", "exponential_static": "PQ"}
-MAIN_PARAM = {"frequency_dependence": ("Kpf", None), "second_motor": ("Tm2", None), "speed_dependent_torque": ("k", None),
-              "motor_stator_dynamics": ("inv_Xp", None), "measurement_skew": ("tau", None), "inverter_der": ("T", None),
-              "exponential_static": (None, "np")}
 
 
 @lru_cache(maxsize=64)
 def _base(level: int, i: int, input_noise: bool = False):
-    from aslm_core.synthetic import make_case
+    from aslm_sim.cases import make_case
 
     return make_case(10_000 * level + i, level=level, input_noise=input_noise)
 
@@ -57,12 +51,12 @@ def _base(level: int, i: int, input_noise: bool = False):
 def run_one(job: tuple) -> dict:
     """One diagnosis: (effect, level, case index[, input_noise]) → record."""
     from aslm_core.diagnosis import diagnose
-    from aslm_core.diagnosis.effects import apply_effect
+    from aslm_sim.effects import apply_effect
 
     effect, level, i, *rest = job
     input_noise = bool(rest[0]) if rest else False
     base = _base(level, i, input_noise)
-    user = effect in ("exponential_static", "none_user")
+    user = effect == "none_user" or (effect in EFFECTS and EFFECTS[effect].user_model)
     seed = zlib.crc32(f"{effect}/{level}/{i}".encode())  # deterministic (str hash() is salted per process)
     # With input noise the effect is concealed on the same case without it (same clean record, same P/Q
     # noise): noisy V/θ lower the plain fit's FD by themselves, which would shrink every effect.
@@ -128,7 +122,7 @@ def summarise(recs: list[dict]) -> dict:
         ok = [r for r in recs if r["effect"] == e and r["cause"] == e]
         if not ok:
             continue
-        chans = CHANNELS[e]
+        chans = EFFECTS[e].channels  # "variance reduced on the channels it acts on"
         red_ok = [all(r["improvement"][c.lower()] >= 0.5 for c in chans) for r in ok]
         band = [[r["improvement_band"][c.lower()] for c in chans] for r in ok]
         band_ok = [all(x is not None and x >= 0.5 for x in b) for b in band]
@@ -150,8 +144,7 @@ def summarise(recs: list[dict]) -> dict:
             "share_fd_raised_on_acting_channels": float(np.mean(
                 [all(r["fit_after"][f"fd_{c.lower()}"] > r["fit_before"][f"fd_{c.lower()}"] for c in chans) for r in ok])),
         }
-        key, dkey = MAIN_PARAM[e]
-        name = key or dkey
+        name = EFFECTS[e].main_parameter
         errs = [abs(r["parameters"].get(name, np.nan) / r["truth"][name] - 1.0) for r in ok if name in r["truth"]]
         if errs:
             imp[e][f"median_rel_error_{name}"] = float(np.nanmedian(errs))
@@ -175,9 +168,7 @@ def summarise(recs: list[dict]) -> dict:
 def markdown(s: dict) -> str:
     s = {**s, "accuracy": {int(k): v for k, v in s["accuracy"].items()}}  # JSON turns the level keys into str
     cols = [*LIBRARY_EFFECTS, "consistent", "unexplained"]
-    short = {"frequency_dependence": "freq", "second_motor": "2nd mot", "speed_dependent_torque": "T(s)",
-             "motor_stator_dynamics": "stator", "measurement_skew": "skew", "inverter_der": "DER",
-             "exponential_static": "exp", "consistent": "consistent", "unexplained": "unexplained"}
+    short = {**{n: e.label for n, e in EFFECTS.items()}, "consistent": "consistent", "unexplained": "unexplained"}
     lines = ["| true \\ verdict | " + " | ".join(short[c] for c in cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for eff in (*LIBRARY_EFFECTS, *OUTSIDE_EFFECTS, "none", "none_user"):
         row = s["confusion"].get(eff)

@@ -1,7 +1,7 @@
 """Table II analogue: fitting degree (eq. 9) of identified vs true load under large disturbances.
 
 For each level, the load identified from its ambient window (paper protocol, RK4 default) is played back
-on the V/θ of two fault events of the TRUE load (``synthetic.large_disturbance``: event A, 20 % sag for
+on the V/θ of two fault events of the TRUE load (``aslm_sim.faults.large_disturbance``: event A, 20 % sag for
 100 ms; event B, 30 % sag for 150 ms; the network around the load differs between them), with
 ``motor.simulate`` + ``static.static_power``, and compared with the event's P and Q by FD (eq. 9, mean of P
 and Q).  Reference rows: the true D with the static part regressed from the same ambient window (OS(D_real),
@@ -19,6 +19,7 @@ import numpy as np
 
 from aslm_core import IdentifyConfig, WindowError, identify_many, motor, static
 from aslm_core.preprocess import prepare
+from aslm_sim.faults import large_disturbance
 from benchmarks import common
 
 SEED = 31
@@ -78,7 +79,7 @@ def main(argv=None) -> dict:
             for e, kw in EVENTS.items():
                 key = (i, e)
                 if key not in events_cache:  # same clean records at every level: same truths, same events
-                    events_cache[key] = common.syn.large_disturbance(c.truth, seed=SEED * 100 + i, **kw)
+                    events_cache[key] = large_disturbance(c.truth, seed=SEED * 100 + i, **kw)
                 ev = events_cache[key]
                 rows["identified"][e].append(-math.inf if isinstance(r, WindowError)
                                              else playback_fd(ev, r.d, r.static))

@@ -64,7 +64,7 @@ class FramePublisher:
 
 
 class FleetReplayer:
-    """Streams a :class:`aslm_core.synthetic.SyntheticFleet` in real time, ``batch_s`` per message.
+    """Streams a :class:`aslm_sim.fleet.SyntheticFleet` in real time, ``batch_s`` per message.
 
     Parameters
     ----------

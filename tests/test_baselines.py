@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from aslm_core import IdentifyConfig, identify, motor
-from aslm_core.synthetic import make_cases
+from aslm_sim.cases import make_cases
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks import baselines  # noqa: E402

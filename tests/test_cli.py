@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from aslm_core.synthetic import make_case
+from aslm_sim.cases import make_case
 from service.files import write_window
 
 

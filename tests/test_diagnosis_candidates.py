@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from aslm_core.diagnosis import DiagnosisConfig, diagnose
-from aslm_core.diagnosis.effects import apply_effect
-from aslm_core.synthetic import make_case
+from aslm_sim.cases import make_case
+from aslm_sim.effects import apply_effect
 
 
 def _case(seed: int, level: int = 3):

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from aslm_core.diagnosis.effects import apply_effect
-from aslm_core.synthetic import make_case
+from aslm_sim.cases import make_case
+from aslm_sim.effects import apply_effect
 from service.files import write_window
 
 ROOT = Path(__file__).resolve().parents[1]

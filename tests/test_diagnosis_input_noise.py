@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from aslm_core.diagnosis import diagnose
-from aslm_core.diagnosis.effects import apply_effect
 from aslm_core.diagnosis.locate import band_excess, noise_floor, periodogram
-from aslm_core.synthetic import make_case, make_cases
+from aslm_sim.cases import make_case, make_cases
+from aslm_sim.effects import apply_effect
 
 dg = importlib.import_module("aslm_core.diagnosis.pipeline")
 

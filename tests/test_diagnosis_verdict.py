@@ -7,8 +7,8 @@ import json
 import pytest
 
 from aslm_core.diagnosis import diagnose, diagnose_dict
-from aslm_core.diagnosis.effects import apply_effect
-from aslm_core.synthetic import make_cases
+from aslm_sim.cases import make_cases
+from aslm_sim.effects import OUTSIDE_EFFECTS, apply_effect
 
 
 @pytest.fixture(scope="module")
@@ -23,7 +23,7 @@ def test_clean_cases_are_consistent(cases):
         assert rep.cause is None and not any(e.significant for e in rep.missing_physics)
 
 
-@pytest.mark.parametrize("effect", ["load_cycling", "hysteresis"])
+@pytest.mark.parametrize("effect", OUTSIDE_EFFECTS)
 def test_effect_outside_the_library_is_unexplained_with_its_location(cases, effect):
     ec = apply_effect(cases[0], effect, seed=5)
     assert min(ec.fd_plain.values()) >= 0.9

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from aslm_core import IdentificationResult, IdentifyConfig, Window, WindowError, identify, identify_many
-from aslm_core.synthetic import make_cases
+from aslm_sim.cases import make_cases
 
 
 @pytest.fixture(scope="module")

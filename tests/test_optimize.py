@@ -10,7 +10,7 @@ from aslm_core import IdentifyConfig
 from aslm_core.identify import EQUILIBRIUM_MARGIN, Problem, levenberg_marquardt
 from aslm_core.optimize import qp_step
 from aslm_core.preprocess import prepare
-from aslm_core.synthetic import make_cases
+from aslm_sim.cases import make_cases
 from benchmarks.lm_stops import kkt_residual
 
 LOWER = np.array([10.0, 3.0, 0.5, 0.0])

@@ -7,8 +7,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -28,7 +26,6 @@ def test_serve_refuses_invalid_settings_with_clear_message():
 
 
 def test_demo_runs_one_period_and_exits():
-    pytest.importorskip("aslm_core.synthetic")
     r = aslm("demo", "--periods", "1", "--period", "12", "--buses", "4", "--port", "0", "--duration", "200",
              timeout=260)
     assert r.returncode == 0, r.stderr

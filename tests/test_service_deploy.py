@@ -84,4 +84,8 @@ def test_dockerfile_copies_existing_paths():
             for src in line.split()[1:-1]:
                 assert list(ROOT.glob(src.rstrip("*"))) or src.endswith("*"), src
     assert 'ENTRYPOINT ["aslm"]' in text
-    assert "aslm" in tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "aslm" in project["project"]["scripts"]
+    # The image installs every package the project lists (the replayer needs aslm_sim): each is copied in.
+    for pkg in project["tool"]["setuptools"]["packages"]["find"]["include"]:
+        assert f"COPY {pkg.rstrip('*')} " in text, pkg

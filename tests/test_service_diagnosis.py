@@ -9,7 +9,7 @@ import time
 import httpx
 from service_helpers import client_session, free_port, settings_for, wait_for
 
-from aslm_core.synthetic import SyntheticFleet
+from aslm_sim.fleet import SyntheticFleet
 from service.app import Service
 from service.replay import FleetReplayer, FramePublisher
 from service.storage import Storage

@@ -7,13 +7,11 @@ import json
 import time
 
 import httpx
-import pytest
 from service_helpers import client_session, free_port, periods, settings_for, wait_for
 
+from aslm_sim.fleet import SyntheticFleet
 from service.app import Service
 from service.replay import FleetReplayer, FramePublisher
-
-synthetic = pytest.importorskip("aslm_core.synthetic")
 
 N_BUSES = 20
 # Noise-free fleet: the identifier recovers D within ~3 % offline (see docs/service.md), so anything the
@@ -33,7 +31,7 @@ def test_fleet_to_parameters_over_rest_and_zenoh(tmp_path):
             "aslm/params/**", lambda s: got.__setitem__(
                 (str(s.key_expr).rsplit("/", 1)[1], json.loads(s.payload.to_bytes())["period"]),
                 json.loads(s.payload.to_bytes())))
-        fleet = synthetic.SyntheticFleet(N_BUSES, level=None, seed=1, t0=time.time())
+        fleet = SyntheticFleet(N_BUSES, level=None, seed=1, t0=time.time())
         pub = FramePublisher(sess, "aslm")
         rep = FleetReplayer(pub, fleet, batch_s=0.2).start()
         try:

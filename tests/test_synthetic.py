@@ -9,19 +9,24 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicSpline
 
-from aslm_core import synthetic as syn
 from aslm_core.params import dynamic_bounds, equilibrium_margin
+from aslm_sim import network
+from aslm_sim.cases import SyntheticCase, make_case, make_cases
+from aslm_sim.faults import large_disturbance
+from aslm_sim.fleet import SyntheticFleet
+from aslm_sim.noise import NOISE_LEVELS, SNR_SPREAD_DB
+from aslm_sim.truth import random_truth
 
 
 @pytest.fixture(scope="module")
-def clean_cases() -> list[syn.SyntheticCase]:
-    return syn.make_cases(3, seed=11)
+def clean_cases() -> list[SyntheticCase]:
+    return make_cases(3, seed=11)
 
 
 def test_truth_in_box_feasible_and_consistent():
     rng = np.random.default_rng(123)
     for _ in range(200):
-        tr = syn.random_truth(rng)
+        tr = random_truth(rng)
         p_tot, q_tot = tr.power(1.0)
         lo, hi = dynamic_bounds(p_tot)
         assert np.all(tr.d >= lo) and np.all(tr.d <= hi), tr
@@ -48,21 +53,21 @@ def test_truth_in_box_feasible_and_consistent():
 def test_initial_state_is_a_steady_state():
     rng = np.random.default_rng(5)
     for _ in range(10):
-        tr = syn.random_truth(rng)
-        net = syn._draw_network(rng, tr, 50.0)
-        p, x0, vl0 = syn._steady_state(tr, net)
-        v, vh, il, dx = syn._solve_at(p, x0, 0.0, 0.0, False, vl0)
+        tr = random_truth(rng)
+        net = network.draw_network(rng, tr, 50.0)
+        p, x0, vl0 = network.steady_state(tr, net)
+        v, vh, il, dx = network.solve_at(p, x0, 0.0, 0.0, False, vl0)
         assert abs(v - vl0) < 1e-12  # the network solution is the power-flow one
         assert abs(abs(v) - net["V_L"]) < 1e-12
         assert np.max(np.abs(dx)) < 1e-9, dx
         # The load draws its steady-state power through the feeder.
         s_load = v * np.conj(il)
-        p_ss, q_ss = syn._static_load(tr, np.array([abs(v)]))[0].real, syn._static_load(tr, np.array([abs(v)]))[0].imag
+        p_ss, q_ss = network.static_load(tr, np.array([abs(v)]))[0].real, network.static_load(tr, np.array([abs(v)]))[0].imag
         assert s_load.real == pytest.approx(p_ss, rel=1e-10)
         assert s_load.imag == pytest.approx(q_ss, rel=1e-9, abs=1e-10)
         # ...and the discretised system stays put without forcing.
-        m, k, h = syn._grid(100.0, syn.MAX_STEP_S, syn.MAX_FORCING_STEP_S)
-        out_v, out_s, _, _, _ = syn._simulate(
+        m, k, h = network.step_grid(100.0, network.MAX_STEP_S, network.MAX_FORCING_STEP_S)
+        out_v, out_s, _, _, _ = network.simulate(
             p[None], x0[None], np.array([vl0]), np.zeros((1, 2, 200 * m + 1)), h, k, m, 0, 200,
             -np.ones((1, 2), dtype=np.int64),
         )
@@ -84,10 +89,10 @@ def test_ambient_record_moves(clean_cases):
 
 @pytest.mark.parametrize("level", [1, 2, 3])
 def test_snr_per_level(level):
-    cases = syn.make_cases(4, level=level, seed=3)
+    cases = make_cases(4, level=level, seed=3)
     for c in cases:
         assert c.level == level
-        assert abs(c.snr_db - syn.NOISE_LEVELS[level]) <= 2.5
+        assert abs(c.snr_db - NOISE_LEVELS[level]) <= 2.5
         target = c.clean.meta["snr_target_db"]
         for ch in ("P", "Q", "V", "theta"):
             assert abs(c.states["snr"][ch] - target) < 1.0
@@ -97,21 +102,21 @@ def test_snr_per_level(level):
         assert 10 * np.log10(np.sum(y * y) / np.sum(e * e)) == pytest.approx(c.states["snr"]["P"])
         assert not np.allclose(c.window.V, c.clean.V)
     # Same seed, other level: same clean record (noise streams are separate).
-    other = syn.make_cases(1, level=1 if level != 1 else 3, seed=3)[0]
+    other = make_cases(1, level=1 if level != 1 else 3, seed=3)[0]
     np.testing.assert_array_equal(other.clean.P, cases[0].clean.P)
 
 
 def test_input_noise_switch_and_determinism():
-    a = syn.make_case(7, snr_db=20.0, input_noise=False)
-    b = syn.make_case(7, snr_db=20.0, input_noise=False)
+    a = make_case(7, snr_db=20.0, input_noise=False)
+    b = make_case(7, snr_db=20.0, input_noise=False)
     np.testing.assert_array_equal(a.window.P, b.window.P)
     np.testing.assert_array_equal(a.window.V, a.clean.V)
     np.testing.assert_array_equal(a.window.theta, a.clean.theta)
     assert not np.array_equal(a.window.P, a.clean.P)
-    c = syn.make_case(8, snr_db=20.0)
+    c = make_case(8, snr_db=20.0)
     assert c.truth != a.truth
     with pytest.raises(ValueError):
-        syn.make_cases(1, level=1, snr_db=20.0)
+        make_cases(1, level=1, snr_db=20.0)
 
 
 def test_recorded_power_equals_zip_plus_motor(clean_cases):
@@ -168,8 +173,8 @@ def test_transformed_model_reproduces_original_motor_power(clean_cases):
 
 
 def test_fleet_continuous_and_deterministic():
-    f1 = syn.SyntheticFleet(4, fs=50.0, level=2, seed=9, t0=1000.0)
-    f2 = syn.SyntheticFleet(4, fs=50.0, level=2, seed=9, t0=1000.0)
+    f1 = SyntheticFleet(4, fs=50.0, level=2, seed=9, t0=1000.0)
+    f2 = SyntheticFleet(4, fs=50.0, level=2, seed=9, t0=1000.0)
     a1, a2 = f1.advance(30), f1.advance(70)
     b = f2.advance(100)
     assert f1.bus_names == ["bus0001", "bus0002", "bus0003", "bus0004"]
@@ -184,15 +189,15 @@ def test_fleet_continuous_and_deterministic():
     jump = np.abs(a2["V"][:, 0] - a1["V"][:, -1])
     typical = np.max(np.abs(np.diff(b["V"], axis=1)), axis=1)
     assert np.all(jump <= typical)
-    other = syn.SyntheticFleet(4, fs=50.0, level=2, seed=10).advance(100)
+    other = SyntheticFleet(4, fs=50.0, level=2, seed=10).advance(100)
     assert not np.allclose(other["P"], b["P"])
 
 
 def test_fleet_noise_level():
-    clean = syn.SyntheticFleet(3, fs=25.0, level=None, seed=1)
-    noisy = syn.SyntheticFleet(3, fs=25.0, level=1, seed=1)
+    clean = SyntheticFleet(3, fs=25.0, level=None, seed=1)
+    noisy = SyntheticFleet(3, fs=25.0, level=1, seed=1)
     assert np.all(np.isnan(clean.snr_db))
-    assert np.all(np.abs(noisy.snr_db - syn.NOISE_LEVELS[1]) <= syn.SNR_SPREAD_DB)
+    assert np.all(np.abs(noisy.snr_db - NOISE_LEVELS[1]) <= SNR_SPREAD_DB)
     c, n = clean.advance(250), noisy.advance(250)  # 10 s
     np.testing.assert_array_equal(c["t"], n["t"])
     for key in ("P", "Q"):
@@ -204,8 +209,8 @@ def test_fleet_noise_level():
 
 
 def test_large_disturbance_sag_and_recovery():
-    tr = syn.random_truth(np.random.default_rng(42))
-    w = syn.large_disturbance(tr, seed=1, sag_depth=0.2)
+    tr = random_truth(np.random.default_rng(42))
+    w = large_disturbance(tr, seed=1, sag_depth=0.2)
     v0 = w.V[0]
     assert w.n == 500
     assert w.V.min() < 0.9 and w.V.min() == pytest.approx(0.8 * v0, abs=0.03)

@@ -98,7 +98,7 @@ def run(args: argparse.Namespace) -> int:
     setup_logging(args.log_level)
     import zenoh
 
-    from aslm_core.synthetic import SyntheticFleet
+    from aslm_sim.fleet import SyntheticFleet
     from service.app import Service
     from service.replay import FleetReplayer, FramePublisher
     from service.settings import SettingsError, load_settings

@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
                 threading.Timer(args.duration, stop.set).start()
             replay_files(pub, paths, batch_s=args.batch, loop=args.loop, stop=stop)
         else:
-            from aslm_core.synthetic import SyntheticFleet
+            from aslm_sim.fleet import SyntheticFleet
 
             fleet = SyntheticFleet(args.buses, fs=args.rate, f0=args.f0, level=args.level, seed=args.seed,
                                    t0=time.time())
