@@ -1,4 +1,4 @@
-"""The service: Zenoh ingest, buffers, scheduler, worker pool, storage, publication and REST, wired."""
+"""The service: sources, buffers, scheduler, worker pool, sinks and REST, wired."""
 
 from __future__ import annotations
 
@@ -9,19 +9,24 @@ import threading
 import time
 
 import uvicorn
-import zenoh
 
-from service.api import create_app
+from service import registry
+from service.api import RunStatus, create_app
 from service.buffers import BufferStore
+from service.clock import SYSTEM_CLOCK, Clock
+from service.context import Context
+from service.latest import LatestResults
 from service.metrics import ServiceMetrics
-from service.models import BusResult, PeriodSummary
+from service.models import PeriodSummary
 from service.pool import make_executor
-from service.publish import ResultPublisher
 from service.scheduler import QualityRules, Scheduler
 from service.settings import ServiceSettings, check_period
+from service.sinks import SINKS
+from service.sinks.base import SinkChain
+from service.sources import SOURCES
+from service.sources.base import Inlet, Source
 from service.storage import Storage
 from service.worker import TaskOutcome
-from service.zenoh_config import from_settings
 
 log = logging.getLogger(__name__)
 
@@ -65,16 +70,20 @@ class Service:
     settings : ServiceSettings
     rest : bool
         Serve the REST API (uvicorn in a thread); off for embedded uses that need no HTTP.
+    clock : Clock
+        Time of the scheduler and the ingest (default the system clock).
 
     Notes
     -----
-    Start order: storage (history, persisted period, warm starts) → workers (spawned before the Zenoh
-    session opens) → Zenoh session, publisher, ingest → scheduler → REST.  Stop is the reverse.
+    Start order: storage (history, persisted period, warm starts) → workers (spawned before any Zenoh
+    session opens) → sinks → sources (frames flow once their outputs exist) → scheduler → REST.  Stop is
+    the reverse.
     """
 
-    def __init__(self, settings: ServiceSettings, *, rest: bool = True) -> None:
+    def __init__(self, settings: ServiceSettings, *, rest: bool = True, clock: Clock = SYSTEM_CLOCK) -> None:
         self.settings = settings
         self.rest = rest
+        self.clock = clock
         self.storage = Storage(settings.storage_path)
         persisted = self.storage.get_config()
         self.period_s = settings.period_s
@@ -89,18 +98,15 @@ class Service:
         self.store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s)
         self.metrics = ServiceMetrics(self.store)
         self.metrics.period_s.set(self.period_s)
-        self.latest: dict[str, BusResult] = self.storage.latest_all()
-        # JSON of each bus's latest result, serialised once: REST "latest" and Zenoh share it.
-        self.latest_json: dict[str, str] = {b: r.model_dump_json() for b, r in self.latest.items()}
-        self.latest_diagnosis_json: dict[str, str] = self.storage.latest_diagnoses()
+        self.latest = LatestResults.from_storage(self.storage)
         self.warm_starts: dict[str, list[float]] = {
             bus: [r.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
             for bus, r in self.storage.latest_all(ok_only=True).items() if r.parameters is not None
         }
+        self.context = Context(settings, self.storage, self.latest, self.metrics, clock)
         self.executor = None
-        self.session: zenoh.Session | None = None
-        self.ingest = None
-        self.publisher: ResultPublisher | None = None
+        self.sinks: SinkChain | None = None
+        self.sources: list[Source] = []
         self.scheduler: Scheduler | None = None
         self._server: uvicorn.Server | None = None
         self._server_thread: threading.Thread | None = None
@@ -116,18 +122,22 @@ class Service:
         self.executor = make_executor(s.executor, s.workers, s.identify_fn, s.task_timeout_s)
         if hasattr(self.executor, "wait_ready") and not self.executor.wait_ready(wait_workers):
             log.warning("workers not ready after %g s; continuing", wait_workers)
-        from service.ingest import Ingest
-
-        self.session = zenoh.open(from_settings(s))
-        self.publisher = ResultPublisher(self.session, s.prefix, s.instance, lambda: self.latest.copy())
-        self.ingest = Ingest(self.session, s.prefix, self.store, max_future_s=s.max_future_s, f0=s.f0,
-                             keys=s.pmu_keys)
+        # The service's own state (latest results, metrics) goes after the persisting sinks and before
+        # the publishing ones: a result is in REST "latest" once stored and before it is on Zenoh.
+        named = [registry.load(SINKS, name)(self.context) for name in s.sinks]
+        self.sinks = SinkChain([self.latest, self.metrics, *named],
+                               on_error=lambda where: self.metrics.request_errors.labels(where).inc())
+        inlet = Inlet(self.store, max_future_s=s.max_future_s, f0=s.f0, clock=self.clock)
+        for name in s.sources:
+            source = registry.load(SOURCES, name)(self.context)
+            source.start(inlet)
+            self.sources.append(source)
         rules = QualityRules(s.window_s, s.frame_rate, s.min_coverage, s.max_gap_s, s.min_v_std)
         self.scheduler = Scheduler(
             self.store, self.executor, rules, late_s=s.late_s, f0=s.f0, period_s=lambda: self.period_s,
-            on_results=self._on_results, on_period=self._on_period, warm_starts=self.warm_starts,
+            on_results=self.sinks.write_results, on_period=self._on_period, warm_starts=self.warm_starts,
             options={"n_starts": s.n_starts, "lowpass_hz": s.lowpass_hz, "objective": s.objective}, n_starts_warm=s.n_starts_warm,
-            diagnose_every=s.diagnose_every, on_diagnosis=self._on_diagnosis,
+            diagnose_every=s.diagnose_every, on_diagnosis=self._on_diagnosis, clock=self.clock,
         )
         self.scheduler.start()
         if self.rest:
@@ -150,7 +160,7 @@ class Service:
         self.http_port = self._server.servers[0].sockets[0].getsockname()[1]
 
     def stop(self) -> None:
-        """Stop REST, scheduler, ingest, publication, workers, Zenoh and storage (idempotent)."""
+        """Stop REST, scheduler, sources, sinks, workers, Zenoh and storage (idempotent)."""
         if self._stopped:
             return
         self._stopped = True
@@ -159,14 +169,16 @@ class Service:
             self._server_thread.join(10)
         if self.scheduler is not None:
             self.scheduler.stop()
-        if self.ingest is not None:
-            self.ingest.close()
-        if self.publisher is not None:
-            self.publisher.close()
+        for source in reversed(self.sources):
+            try:
+                source.close()
+            except Exception:  # noqa: BLE001 - the rest must still stop
+                log.exception("closing source %s failed", source.name)
+        if self.sinks is not None:
+            self.sinks.close()
         if self.executor is not None:
             self.executor.close()
-        if self.session is not None:
-            self.session.close()
+        self.context.close()
         self.storage.close()
         if getattr(self, "_gc_managed", False):
             _gc_service_stopped()
@@ -181,6 +193,13 @@ class Service:
     def url(self) -> str:
         """Base URL of the REST API."""
         return f"http://{self.settings.http_host}:{self.http_port}"
+
+    def status(self) -> RunStatus:
+        """Scheduling and worker state for ``GET /health``."""
+        sched = self.scheduler
+        return RunStatus(next_period=sched.next_period if sched else None,
+                         running_period=sched.running_period if sched else None,
+                         workers_replaced=getattr(self.executor, "replaced", 0))
 
     # --- run-time configuration --------------------------------------------------------------------
     def set_period(self, period_s: float) -> None:
@@ -199,39 +218,16 @@ class Service:
             self.scheduler.replan()
 
     # --- results --------------------------------------------------------------------------------------
-    def _on_results(self, batch: list[BusResult]) -> None:
-        # Persist first (history survives a crash), then publish; a failing publication is logged only.
-        payloads = [res.model_dump_json() for res in batch]  # serialised once: SQLite, REST, Zenoh
-        self.storage.save_results(batch, payloads)
-        for res, js in zip(batch, payloads, strict=True):
-            self.latest[res.bus] = res
-            self.latest_json[res.bus] = js
-        self.metrics.results(batch)
-        for res, js in zip(batch, payloads, strict=True):
-            try:
-                self.publisher.publish(res, js)
-            except Exception:  # noqa: BLE001 - one bus's publication never stops the others
-                self.metrics.request_errors.labels("publish").inc()
-                log.exception("publishing %s failed", res.bus)
-
     def _on_diagnosis(self, bus: str, period: float, outcome: TaskOutcome) -> None:
-        # Persist, keep as latest, publish on {prefix}/diagnosis/{bus}; a failed diagnosis is recorded too.
+        # A failed diagnosis is recorded too; the sinks persist it, keep it as latest, count it by verdict
+        # and publish it on {prefix}/diagnosis/{bus}, in that order.
         report = outcome.value if outcome.ok else {"verdict": "failed", "reason": outcome.reason,
                                                    "message": outcome.message}
         js = json.dumps({"bus": bus, "period": period, **report})
-        self.storage.save_diagnosis(bus, period, js)
-        self.latest_diagnosis_json[bus] = js
-        self.metrics.diagnoses.labels(report.get("verdict", "failed")).inc()
-        try:
-            self.publisher.publish_diagnosis(bus, js)
-        except Exception:  # noqa: BLE001 - publication trouble is logged, never fatal
-            self.metrics.request_errors.labels("publish").inc()
-            log.exception("publishing the diagnosis of %s failed", bus)
+        self.sinks.write_diagnosis(bus, period, js)
 
     def _on_period(self, summary: PeriodSummary) -> None:
-        self.storage.save_period(summary)
-        self.metrics.period(summary)
-        self.storage.purge(summary.period - 86400.0 * self.settings.retention_days)
+        self.sinks.write_period(summary)
         self._periods_done += 1
         self._gc_complete_due |= self._periods_done % _FULL_GC_EVERY == 0
         timer = threading.Timer(min(0.25 * summary.period_s, 30.0), self._collect_garbage)
