@@ -2,19 +2,16 @@
 
 from __future__ import annotations
 
-import gc
 import json
 import logging
-import threading
-import time
-
-import uvicorn
 
 from service import registry
 from service.api import RunStatus, create_app
 from service.buffers import BufferStore
 from service.clock import SYSTEM_CLOCK, Clock
 from service.context import Context
+from service.gc_policy import BetweenPeriodsGC
+from service.http_server import HttpServer
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
 from service.models import PeriodSummary
@@ -29,37 +26,6 @@ from service.storage import Storage
 from service.worker import TaskOutcome
 
 log = logging.getLogger(__name__)
-
-# Automatic full (generation 2) collections are switched off while a service runs: one holds the GIL
-# for as long as it scans every live object (measured 40–200 ms with 1,000 buses, more with 10,000),
-# which stalled REST answers during periods.  Startup objects are frozen (never scanned again), and
-# a collection runs between periods instead (min(T/4, 30 s) after one ends: the workers are idle
-# then); it freezes what survives, so it scans only what the last period left (~10 ms at 1,000
-# buses, ~70 ms at 10,000 with free cores).  Frozen objects are still freed when their last
-# reference goes; only cycles among them wait for the complete collection every _FULL_GC_EVERY
-# periods, which unfreezes everything first.
-_GEN2_THRESHOLD_OFF = 1_000_000_000
-_FULL_GC_EVERY = 24
-_gc_lock = threading.Lock()
-_gc_state = {"services": 0, "threshold": (700, 10, 10)}  # services running in this process, thresholds before
-
-
-def _gc_service_started() -> None:
-    with _gc_lock:
-        if _gc_state["services"] == 0:
-            _gc_state["threshold"] = gc.get_threshold()
-            gc.collect()
-            gc.freeze()  # modules, schemas, routes, sessions: never scanned again
-            gc.set_threshold(*_gc_state["threshold"][:2], _GEN2_THRESHOLD_OFF)
-        _gc_state["services"] += 1
-
-
-def _gc_service_stopped() -> None:
-    with _gc_lock:
-        _gc_state["services"] -= 1
-        if _gc_state["services"] == 0:
-            gc.set_threshold(*_gc_state["threshold"])
-            gc.unfreeze()
 
 
 class Service:
@@ -108,12 +74,11 @@ class Service:
         self.sinks: SinkChain | None = None
         self.sources: list[Source] = []
         self.scheduler: Scheduler | None = None
-        self._server: uvicorn.Server | None = None
-        self._server_thread: threading.Thread | None = None
+        self._server: HttpServer | None = None
         self.http_port: int | None = None
         self._stopped = False
-        self._periods_done = 0
-        self._gc_complete_due = False
+        self.gc = BetweenPeriodsGC(busy=lambda: self._stopped or (
+            self.scheduler is not None and self.scheduler.running_period is not None))
 
     # --- lifecycle ------------------------------------------------------------------------------------
     def start(self, wait_workers: float = 120.0) -> Service:
@@ -141,23 +106,11 @@ class Service:
         )
         self.scheduler.start()
         if self.rest:
-            self._start_rest()
-        _gc_service_started()
-        self._gc_managed = True
+            self._server = HttpServer(create_app(self), s.http_host, s.http_port)
+            self._server.start()
+            self.http_port = self._server.port
+        self.gc.start()
         return self
-
-    def _start_rest(self) -> None:
-        config = uvicorn.Config(create_app(self), host=self.settings.http_host, port=self.settings.http_port,
-                                log_level="warning", access_log=False)
-        self._server = uvicorn.Server(config)
-        self._server_thread = threading.Thread(target=self._server.run, name="aslm-rest", daemon=True)
-        self._server_thread.start()
-        end = time.monotonic() + 20
-        while not self._server.started:
-            if not self._server_thread.is_alive() or time.monotonic() > end:
-                raise RuntimeError(f"REST server did not start on {self.settings.http_host}:{self.settings.http_port}")
-            time.sleep(0.02)
-        self.http_port = self._server.servers[0].sockets[0].getsockname()[1]
 
     def stop(self) -> None:
         """Stop REST, scheduler, sources, sinks, workers, Zenoh and storage (idempotent)."""
@@ -165,8 +118,7 @@ class Service:
             return
         self._stopped = True
         if self._server is not None:
-            self._server.should_exit = True
-            self._server_thread.join(10)
+            self._server.stop()
         if self.scheduler is not None:
             self.scheduler.stop()
         for source in reversed(self.sources):
@@ -180,8 +132,7 @@ class Service:
             self.executor.close()
         self.context.close()
         self.storage.close()
-        if getattr(self, "_gc_managed", False):
-            _gc_service_stopped()
+        self.gc.stop()
 
     def __enter__(self) -> Service:
         return self.start()
@@ -228,25 +179,4 @@ class Service:
 
     def _on_period(self, summary: PeriodSummary) -> None:
         self.sinks.write_period(summary)
-        self._periods_done += 1
-        self._gc_complete_due |= self._periods_done % _FULL_GC_EVERY == 0
-        timer = threading.Timer(min(0.25 * summary.period_s, 30.0), self._collect_garbage)
-        timer.daemon = True
-        timer.start()
-
-    def _collect_garbage(self) -> None:
-        """The collection automatic GC no longer does (see _GEN2_THRESHOLD_OFF), between periods.
-
-        Skipped if a period is running by then (periods run back to back): the next one's end retries.
-        """
-        if self._stopped or (self.scheduler is not None and self.scheduler.running_period is not None):
-            return
-        complete, self._gc_complete_due = self._gc_complete_due, False
-        t0 = time.perf_counter()
-        with _gc_lock:
-            if complete:
-                gc.unfreeze()
-            found = gc.collect()
-            gc.freeze()
-        log.debug("%s garbage collection between periods: %d objects freed in %.1f ms",
-                  "complete" if complete else "young", found, 1e3 * (time.perf_counter() - t0))
+        self.gc.period_done(summary.period_s)

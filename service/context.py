@@ -55,6 +55,11 @@ class Context:
                 self._session = zenoh.open(from_settings(self.settings))
             return self._session
 
+    @property
+    def zenoh_opened(self) -> bool:
+        """Whether a source or sink has asked for the Zenoh session."""
+        return self._session is not None
+
     def close(self) -> None:
         """Close the Zenoh session if one was opened (after the sources and sinks that use it)."""
         with self._lock:

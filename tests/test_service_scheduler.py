@@ -245,3 +245,31 @@ def test_the_real_identifier_runs_inline_and_is_warm_started(bench, eq_window):
     for res in (first, second):
         d = np.array([res.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")])
         assert np.all(np.abs(d / D_TRUE - 1) < 0.05), d
+
+
+def test_the_service_runs_without_zenoh_on_a_manual_clock(tmp_path):
+    from service_helpers import settings_for
+
+    from service.app import Service
+
+    clock = ManualClock(T0 + 1.0)
+    settings = settings_for(tmp_path, 7447, sources=[], sinks=["storage"], period_s=10.0, window_s=WINDOW_S,
+                            late_s=LATE_S, identify_fn=FAKE, diagnose_every=0, workers=1)
+    svc = Service(settings, rest=False, clock=clock).start()
+    try:
+        clock.settle(30)
+        inlet = Inlet(svc.store, max_future_s=settings.max_future_s, f0=settings.f0, clock=clock)
+        feeder = MemorySource()
+        feeder.start(inlet)
+        clock.advance_to(T0 + 10)
+        t = T0 + 10 - np.arange(150)[::-1] / FS
+        rng = np.random.default_rng(0)
+        feeder.push_window("b1", t, 1 + 0.01 * rng.standard_normal(t.size), np.zeros(t.size), np.full(t.size, 0.8),
+                           np.full(t.size, 0.3))
+        clock.advance_to(T0 + 10 + LATE_S)
+        clock.settle(30)
+        assert [(p.period, p.n_ok) for p in svc.storage.periods()] == [(T0 + 10, 1)]
+        assert svc.latest.results["b1"].completed_at == T0 + 10 + LATE_S
+        assert not svc.context.zenoh_opened  # neither a source nor a sink asked for Zenoh
+    finally:
+        svc.stop()
