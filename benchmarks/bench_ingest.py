@@ -22,7 +22,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from service.buffers import BufferStore  # noqa: E402
 from service.frames import BINARY_ENCODING, FrameBatch, encode_binary  # noqa: E402
-from service.ingest import Ingest, handle_message  # noqa: E402
+from service.sources.base import Inlet  # noqa: E402
+from service.sources.zenoh import ZenohSource  # noqa: E402
 from service.zenoh_config import zenoh_config  # noqa: E402
 
 FS = 50.0
@@ -68,11 +69,11 @@ def in_process(n_pmus: int, batch: int, rounds: int) -> None:
     store = BufferStore(10.0, FS, 2.0)
     msgs = payloads(n_pmus, batch, time.time() - 86400)
     tviews = [np.frombuffer(m, dtype="<f8", count=batch, offset=16) for m in msgs]
-    now = time.time()
+    inlet = Inlet(store, max_future_s=5.0, f0=50.0)
     start = time.perf_counter()
     for _ in range(rounds):
         for i, (msg, tv) in enumerate(zip(msgs, tviews, strict=True)):
-            handle_message(store, f"pmu{i:05d}", bytes(msg), BINARY_ENCODING, now=now, max_future_s=5.0, f0=50.0)
+            inlet.message(f"pmu{i:05d}", bytes(msg), BINARY_ENCODING)
             tv += batch / FS
     dt = time.perf_counter() - start
     tot = store.totals()
@@ -94,7 +95,8 @@ def main() -> None:
 
     store = BufferStore(10.0, FS, 2.0)
     session = zenoh.open(zenoh_config("peer", listen=[f"tcp/127.0.0.1:{args.port}"], connect=[]))
-    ingest = Ingest(session, "aslm", store, max_future_s=5.0, f0=50.0)
+    ingest = ZenohSource(session, "aslm")
+    ingest.start(Inlet(store, max_future_s=5.0, f0=50.0))
     ctx = mp.get_context("spawn")
     ready, result = ctx.Event(), ctx.Queue()
     t0 = time.time() - 86400  # data a day old: virtual time may run ahead without being "future"

@@ -82,11 +82,14 @@ def main() -> None:
 
     import zenoh
 
+    from service.latest import LatestResults
     from service.models import PeriodSummary
     from service.pool import LocalPool
-    from service.publish import ResultPublisher
     from service.scheduler import QualityRules, Scheduler
     from service.settings import ServiceSettings
+    from service.sinks.base import SinkChain
+    from service.sinks.storage import StorageSink
+    from service.sinks.zenoh import ZenohSink
     from service.storage import Storage
     from service.zenoh_config import zenoh_config
 
@@ -101,16 +104,11 @@ def main() -> None:
     session = zenoh.open(zenoh_config("peer", listen=["tcp/127.0.0.1:0"], connect=[]))
     tmp = tempfile.TemporaryDirectory()
     storage = Storage(Path(tmp.name) / "bench.sqlite")
-    latest: dict = {}
-    publisher = ResultPublisher(session, "bench", "bench", lambda: latest.copy())
+    latest = LatestResults()
+    publisher = ZenohSink(session, "bench", "bench", latest.snapshot)
+    # as in the service: serialise once, persist, keep as latest, publish
+    sinks = SinkChain([StorageSink(storage, 1e12), latest, publisher], on_error=lambda where: None)
     warm: dict = {}
-
-    def on_results(batch):  # as service.app.Service._on_results: serialise once, persist, publish
-        payloads = [r.model_dump_json() for r in batch]
-        storage.save_results(batch, payloads)
-        for r, js in zip(batch, payloads, strict=True):
-            latest[r.bus] = r
-            publisher.publish(r, js)
 
     summaries: list[PeriodSummary] = []
     period_s = 60.0
@@ -121,13 +119,13 @@ def main() -> None:
         fill(store, args.buses, boundary, skip_s=p * period_s)
         t_fill = time.perf_counter() - t0
         sched = Scheduler(store, pool, QualityRules(10.0, FS, 0.9, 0.2, 1e-5), late_s=1.0, f0=50.0,
-                          period_s=lambda: period_s, on_results=on_results, on_period=summaries.append,
+                          period_s=lambda: period_s, on_results=sinks.write_results, on_period=summaries.append,
                           warm_starts=warm, options=options, n_starts_warm=starts_warm)
         load0, pids = os.getloadavg()[0], pool.pids()
         w0, m0 = cpu_s(pids), time.process_time()
         s = sched.run_period(boundary, period_s)
         w1, m1 = cpu_s(pids), time.process_time()
-        ident = [r.parameters.elapsed_s for r in latest.values() if r.parameters is not None]
+        ident = [r.parameters.elapsed_s for r in latest.results.values() if r.parameters is not None]
         print(f"period {p + 1}: {args.buses} buses, {args.workers} workers, warm-started: {p > 0}: "
               f"ok {s.n_ok}, failed {s.n_failed}, skipped {s.n_skipped}; latency {s.latency_s:.2f} s "
               f"(identify per window: median {1e3 * np.median(ident):.1f} ms, mean {1e3 * np.mean(ident):.1f} ms, "

@@ -4,15 +4,71 @@ from __future__ import annotations
 
 import hmac
 import time
-from typing import TYPE_CHECKING, Annotated
+from dataclasses import dataclass
+from typing import Annotated, Protocol
 
 from fastapi import Depends, FastAPI, Header, HTTPException, Query, Response
 from pydantic import BaseModel, Field
 
+from service.buffers import BufferStore
+from service.latest import LatestResults
+from service.metrics import ServiceMetrics
 from service.models import BusResult, LatestDiagnosis, PeriodSummary
+from service.settings import ServiceSettings
+from service.storage import Storage
 
-if TYPE_CHECKING:
-    from service.app import Service
+
+@dataclass(frozen=True)
+class RunStatus:
+    """Scheduling and worker state of a running service.
+
+    Attributes
+    ----------
+    next_period : float or None
+        Next boundary being waited for, UTC [s].
+    running_period : float or None
+        Boundary of the period being computed, if any [s].
+    workers_replaced : int
+        Worker processes replaced after a crash or timeout.
+    """
+
+    next_period: float | None
+    running_period: float | None
+    workers_replaced: int
+
+
+class ServiceView(Protocol):
+    """What the REST handlers read and change of a running service (:class:`service.app.Service` is one).
+
+    Attributes
+    ----------
+    settings : ServiceSettings
+        Settings in force (instance name, operator token, ``diagnose_every``).
+    store : BufferStore
+        Ingest accounting by bus.
+    storage : Storage
+        Read side: history, periods, latest successful result.
+    latest : LatestResults
+        Latest result and diagnosis of each bus, pre-serialised.
+    metrics : ServiceMetrics
+    period_s : float
+        Period T in force [s].
+    """
+
+    settings: ServiceSettings
+    store: BufferStore
+    storage: Storage
+    latest: LatestResults
+    metrics: ServiceMetrics
+    period_s: float
+
+    def status(self) -> RunStatus:
+        """Scheduling and worker state."""
+        ...
+
+    def set_period(self, period_s: float) -> None:
+        """Change T [s] from the next period on and persist it; ValueError if it is too short."""
+        ...
 
 
 class Health(BaseModel):
@@ -56,8 +112,8 @@ class ConfigUpdate(BaseModel):
     period_s: float | None = Field(None, gt=0, description="New period T [s] (>= window_s + late_s)")
 
 
-def create_app(service: Service) -> FastAPI:
-    """FastAPI application bound to one :class:`service.app.Service`."""
+def create_app(service: ServiceView) -> FastAPI:
+    """FastAPI application bound to one running service (a :class:`ServiceView`)."""
     app = FastAPI(title="ASLM service", version="0.1.0",
                   description="Ambient-signal load model identification from PMU streams.")
     started = time.time()
@@ -79,19 +135,18 @@ def create_app(service: Service) -> FastAPI:
     def health() -> Health:
         tot = service.store.totals()
         periods = service.storage.periods(limit=1)
-        sched = service.scheduler
+        run = service.status()
         return Health(
             status="ok", instance=service.settings.instance, uptime_s=time.time() - started,
-            period_s=service.period_s, next_period=sched.next_period if sched else None,
-            running_period=sched.running_period if sched else None,
+            period_s=service.period_s, next_period=run.next_period, running_period=run.running_period,
             last_period=periods[0] if periods else None, buses=tot.buses,
             frames_received=tot.frames_received, frames_dropped=sum(tot.frames_rejected.values()),
-            workers_replaced=getattr(service.executor, "replaced", 0),
+            workers_replaced=run.workers_replaced,
         )
 
     @app.get("/buses", response_model=list[BusInfo])
     def buses() -> list[BusInfo]:
-        latest = service.latest.copy()
+        latest = service.latest.snapshot()
         names = sorted(set(service.store.buses()) | set(latest))
         out = []
         for bus in names:
@@ -109,8 +164,8 @@ def create_app(service: Service) -> FastAPI:
                      ) -> Response:
         # Async and pre-serialised: answered on the event loop without a thread hop or re-validation,
         # so it stays fast while a period is being computed.
-        js = service.latest_json.get(bus)
-        res = service.latest.get(bus)
+        js = service.latest.results_json.get(bus)
+        res = service.latest.results.get(bus)
         if ok and (res is None or res.status != "ok"):
             older = service.storage.latest(bus, ok_only=True)
             js = older.model_dump_json() if older is not None else None
@@ -131,7 +186,7 @@ def create_app(service: Service) -> FastAPI:
 
         Served pre-serialised like ``parameters/latest``; the response model documents the payload.
         """
-        js = service.latest_diagnosis_json.get(bus)
+        js = service.latest.diagnoses_json.get(bus)
         if js is None:
             every = service.settings.diagnose_every
             when = f"every {every} periods" if every else "never (diagnose_every = 0)"

@@ -6,6 +6,8 @@ free of metric calls.
 
 from __future__ import annotations
 
+import json
+
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
 
@@ -40,7 +42,14 @@ class _FrameCollector:
 
 
 class ServiceMetrics:
-    """All metrics; :meth:`render` gives the Prometheus text exposition."""
+    """All metrics; :meth:`render` gives the Prometheus text exposition.
+
+    Also a sink of the service's own state (``write_*``): results, diagnoses and periods are counted
+    after the persisting sinks and before the publishing ones, as they were before sinks existed.
+    """
+
+    name = "metrics"
+    persists = False
 
     def __init__(self, store: BufferStore) -> None:
         self.registry = CollectorRegistry()
@@ -76,6 +85,22 @@ class ServiceMetrics:
         """Record a completed period."""
         self.latency_s.observe(summary.latency_s)
         self.last_period.set(summary.period)
+
+    # --- sink ----------------------------------------------------------------------------------------
+    def write_results(self, batch: list[BusResult], payloads: list[str]) -> None:  # noqa: ARG002 - Sink signature
+        """Count a batch of results (:meth:`results`)."""
+        self.results(batch)
+
+    def write_diagnosis(self, bus: str, period: float, payload: str) -> None:  # noqa: ARG002 - Sink signature
+        """Count one diagnosis report (JSON) by its verdict (``failed`` when it has none)."""
+        self.diagnoses.labels(json.loads(payload).get("verdict", "failed")).inc()
+
+    def write_period(self, summary: PeriodSummary) -> None:
+        """Record a completed period (:meth:`period`)."""
+        self.period(summary)
+
+    def close(self) -> None:
+        """Nothing to release (the registry lives as long as the service object)."""
 
     def render(self) -> bytes:
         """Prometheus text format."""

@@ -20,6 +20,7 @@ from concurrent.futures import Future
 from dataclasses import dataclass
 
 from service.buffers import BufferStore, Cut
+from service.clock import SYSTEM_CLOCK, Clock
 from service.models import BusResult, Identified, PeriodSummary
 from service.pool import Executor
 from service.worker import TaskOutcome, WindowTask
@@ -103,14 +104,18 @@ class Scheduler:
         the period's identifications and reported asynchronously through ``on_diagnosis``.
     on_diagnosis : callable
         Called with (bus, period, :class:`TaskOutcome`) of each finished diagnosis.
+    clock : Clock
+        Boundaries, waits, ``completed_at`` and latencies (default the system clock).
     """
 
     def __init__(self, store: BufferStore, executor: Executor, rules: QualityRules, *, late_s: float,
                  f0: float, period_s: Callable[[], float], on_results: Callable[[list[BusResult]], None],
                  on_period: Callable[[PeriodSummary], None], warm_starts: dict[str, list[float]],
                  options: dict | None = None, n_starts_warm: int | None = None, diagnose_every: int = 0,
-                 on_diagnosis: Callable[[str, float, TaskOutcome], None] | None = None) -> None:
+                 on_diagnosis: Callable[[str, float, TaskOutcome], None] | None = None,
+                 clock: Clock = SYSTEM_CLOCK) -> None:
         self.store = store
+        self.clock = clock
         self.executor = executor
         self.rules = rules
         self.late_s = late_s
@@ -150,11 +155,11 @@ class Scheduler:
         last = -math.inf
         while not self._stop.is_set():
             period_s = self.period_s()
-            boundary = next_boundary(max(time.time() - self.late_s, last), period_s)
+            boundary = next_boundary(max(self.clock.now() - self.late_s, last), period_s)
             self.next_period = boundary
             self._replan.clear()
-            delay = boundary + self.late_s - time.time()
-            if delay > 0 and self._replan.wait(delay):
+            delay = boundary + self.late_s - self.clock.now()
+            if delay > 0 and self.clock.wait(self._replan, delay):
                 continue  # period changed or stopping: plan again
             if self._stop.is_set():
                 break
@@ -167,7 +172,7 @@ class Scheduler:
     def run_period(self, boundary: float, period_s: float) -> PeriodSummary:
         """Cut, check, identify and report every known bus for the period ending at ``boundary``."""
         self.running_period = boundary
-        started = time.time()
+        started = self.clock.now()
         done: list[BusResult] = []
         pending: dict[Future, tuple[str, Cut, bool]] = {}
         # Finished futures are pushed here by their done-callbacks: O(1) per result, where calling
@@ -235,7 +240,7 @@ class Scheduler:
             if batch and (not pending or len(batch) >= 64 or time.monotonic() - last_emit > 0.25):
                 self._emit(batch, done)
                 batch, last_emit = [], time.monotonic()
-        finished_at = time.time()
+        finished_at = self.clock.now()
         summary = PeriodSummary(
             period=boundary, period_s=period_s,
             n_ok=sum(r.status == "ok" for r in done), n_failed=sum(r.status == "failed" for r in done),
@@ -286,6 +291,6 @@ class Scheduler:
         return BusResult(
             bus=bus, period=boundary, period_s=period_s, status=status, reason=reason,
             window_start=float(cut.t[0]) if has else None, window_end=float(cut.t[-1]) if has else None,
-            n_frames=len(cut) if cut is not None else 0, warm_start=warm, completed_at=time.time(),
+            n_frames=len(cut) if cut is not None else 0, warm_start=warm, completed_at=self.clock.now(),
             parameters=params,
         )

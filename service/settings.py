@@ -22,6 +22,10 @@ from pydantic_settings import (
     TomlConfigSettingsSource,
 )
 
+from service import registry
+from service.sinks import SINKS
+from service.sources import SOURCES
+
 _DASK_ADDRESS = re.compile(r"^(tcp|tls|ucx|inproc)://[^\s]+$")
 _KEY_CHUNK = re.compile(r"^[A-Za-z0-9_\-.]+(/[A-Za-z0-9_\-.]+)*$")
 
@@ -78,6 +82,17 @@ class ServiceSettings(BaseSettings):
     identify_fn: str = Field(
         "service.worker:identify_window",
         description="module:function run in the workers (a seam for tests and alternative identifiers)",
+    )
+    # --- inputs and outputs ----------------------------------------------------------------------
+    sources: list[str] = Field(
+        default_factory=lambda: ["zenoh"],
+        description="Sources of PMU frames started by the service (service/sources/): 'zenoh' subscribes to "
+                    "{prefix}/pmu/{pmu_keys}",
+    )
+    sinks: list[str] = Field(
+        default_factory=lambda: ["storage", "zenoh"],
+        description="Sinks of results, diagnoses and periods (service/sinks/): 'storage' (SQLite history, "
+                    "always written first), 'zenoh' ({prefix}/params/{bus}, the latest queryable, liveliness)",
     )
     # --- storage -------------------------------------------------------------------------------
     storage_url: str = Field("aslm.sqlite", description="SQLite file path or sqlite:///path URL")
@@ -189,6 +204,16 @@ class ServiceSettings(BaseSettings):
         if ":" not in v:
             raise ValueError(f"identify_fn must be 'module:function' (got {v!r})")
         return v
+
+    @field_validator("sources")
+    @classmethod
+    def _sources(cls, v: list[str]) -> list[str]:
+        return registry.check(SOURCES, v, "sources")
+
+    @field_validator("sinks")
+    @classmethod
+    def _sinks(cls, v: list[str]) -> list[str]:
+        return registry.check(SINKS, v, "sinks")
 
     @field_validator("zenoh_config_file")
     @classmethod

@@ -14,6 +14,7 @@ def test_defaults():
         "aslm", 900.0, 10.0, 50.0, 2, "local")
     assert (s.n_starts, s.n_starts_warm) == (3, 1)
     assert s.objective == "paper"
+    assert (s.sources, s.sinks) == (["zenoh"], ["storage", "zenoh"])
 
 
 def test_precedence_toml_env_cli(tmp_path, monkeypatch):
@@ -44,6 +45,9 @@ def test_precedence_toml_env_cli(tmp_path, monkeypatch):
     ({"http_port": 70000}, "http_port"),
     ({"storage_url": "postgres://x"}, None),
     ({"no_such_field": 1}, "no_such_field"),
+    ({"sources": ["c37118"]}, "unknown sources ['c37118']; known: ['zenoh']"),
+    ({"sinks": ["storage", "kafka"]}, "unknown sinks ['kafka']; known: ['storage', 'zenoh']"),
+    ({"sinks": ["zenoh", "zenoh"]}, "sinks repeated"),
 ])
 def test_invalid_values_refused_with_clear_message(overrides, needle):
     if needle is None:  # checked when the path is used

@@ -167,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
                 with_results += 1
                 print(format_period(summary, results, truth), flush=True)
                 print(f"  results received over Zenoh so far: {received['n']}", flush=True)
-            fresh = {b: js for b, js in svc.latest_diagnosis_json.items() if diagnosed.get(b) != js}
+            fresh = {b: js for b, js in svc.latest.diagnoses_json.items() if diagnosed.get(b) != js}
             if fresh:
                 diagnosed.update(fresh)
                 print(format_diagnoses(fresh), flush=True)

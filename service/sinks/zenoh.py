@@ -1,4 +1,5 @@
-"""Results onto Zenoh: ``{prefix}/params/{bus}`` puts, a "latest" queryable, a liveliness token."""
+"""Zenoh sink: ``{prefix}/params/{bus}`` and ``{prefix}/diagnosis/{bus}`` puts, a "latest" queryable, a
+liveliness token."""
 
 from __future__ import annotations
 
@@ -7,12 +8,13 @@ from collections.abc import Callable
 
 import zenoh
 
-from service.models import BusResult
+from service.context import Context
+from service.models import BusResult, PeriodSummary
 
 log = logging.getLogger(__name__)
 
 
-class ResultPublisher:
+class ZenohSink:
     """Publication side of one service instance.
 
     Parameters
@@ -23,13 +25,19 @@ class ResultPublisher:
         Name in the liveliness token ``{prefix}/service/{instance}``.
     latest : callable
         Returns bus → latest :class:`BusResult` (answers queries on ``{prefix}/params/**``).
+    on_error : callable, optional
+        Called once per failed put (the put of one bus never stops the others').
     """
 
+    name = "zenoh"
+    persists = False
+
     def __init__(self, session: zenoh.Session, prefix: str, instance: str,
-                 latest: Callable[[], dict[str, BusResult]]) -> None:
+                 latest: Callable[[], dict[str, BusResult]], on_error: Callable[[], None] | None = None) -> None:
         self.session = session
         self.prefix = prefix
         self._latest = latest
+        self._on_error = on_error or (lambda: None)
         self.published = 0
         self.queryable = session.declare_queryable(f"{prefix}/params/**", self._on_query)
         self.token = session.liveliness().declare_token(f"{prefix}/service/{instance}")
@@ -53,9 +61,25 @@ class ResultPublisher:
                   payload if payload is not None else result.model_dump_json())
         self.published += 1
 
-    def publish_diagnosis(self, bus: str, payload: str) -> None:
+    def write_results(self, batch: list[BusResult], payloads: list[str]) -> None:
+        """Publish each result; a failed put is logged and counted, and the others still go out."""
+        for res, js in zip(batch, payloads, strict=True):
+            try:
+                self.publish(res, js)
+            except Exception:  # noqa: BLE001 - one bus's publication never stops the others
+                self._on_error()
+                log.exception("publishing %s failed", res.bus)
+
+    def write_diagnosis(self, bus: str, period: float, payload: str) -> None:  # noqa: ARG002 - Sink signature
         """Put one diagnosis report (JSON) on ``{prefix}/diagnosis/{bus}`` (never dropped)."""
-        self._put(f"{self.prefix}/diagnosis/{bus}", payload)
+        try:
+            self._put(f"{self.prefix}/diagnosis/{bus}", payload)
+        except Exception:  # noqa: BLE001 - publication trouble is logged, never fatal
+            self._on_error()
+            log.exception("publishing the diagnosis of %s failed", bus)
+
+    def write_period(self, summary: PeriodSummary) -> None:
+        """Nothing is published per period."""
 
     def _on_query(self, query: zenoh.Query) -> None:
         try:
@@ -74,3 +98,12 @@ class ResultPublisher:
                 obj.undeclare()
             except Exception:  # noqa: BLE001 - session may already be closed
                 pass
+
+
+def build(ctx: Context) -> ZenohSink:
+    """The Zenoh sink of the settings' ``prefix`` and ``instance`` on the instance's session.
+
+    Its failed puts count as ``aslm_internal_errors{where="publish"}``.
+    """
+    return ZenohSink(ctx.zenoh_session(), ctx.settings.prefix, ctx.settings.instance, ctx.latest.snapshot,
+                     on_error=ctx.metrics.request_errors.labels("publish").inc)

@@ -1,0 +1,68 @@
+"""What the factories of sources and sinks are built from: the settings and the service's shared parts.
+
+The Zenoh session is opened on first use, so a service whose sources and sinks need no Zenoh opens none
+(and one that needs it opens one session, shared by the Zenoh source and the Zenoh sink).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from service.clock import SYSTEM_CLOCK, Clock
+from service.latest import LatestResults
+from service.metrics import ServiceMetrics
+from service.settings import ServiceSettings
+from service.storage import Storage
+
+if TYPE_CHECKING:  # zenoh is imported only when a session is opened
+    import zenoh
+
+
+@dataclass
+class Context:
+    """Settings and shared parts of one service instance.
+
+    Attributes
+    ----------
+    settings : ServiceSettings
+    storage : Storage
+        The SQLite store (history, periods, configuration); also REST's read side.
+    latest : LatestResults
+        The latest result and diagnosis of each bus (answers the Zenoh "latest" queryable).
+    metrics : ServiceMetrics
+        ``request_errors`` counts what sources and sinks catch.
+    clock : Clock
+    """
+
+    settings: ServiceSettings
+    storage: Storage
+    latest: LatestResults
+    metrics: ServiceMetrics
+    clock: Clock = SYSTEM_CLOCK
+    _session: zenoh.Session | None = field(default=None, init=False, repr=False)
+    _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
+
+    def zenoh_session(self) -> zenoh.Session:
+        """The instance's Zenoh session, opened from the settings on first call."""
+        with self._lock:
+            if self._session is None:
+                import zenoh
+
+                from service.zenoh_config import from_settings
+
+                self._session = zenoh.open(from_settings(self.settings))
+            return self._session
+
+    @property
+    def zenoh_opened(self) -> bool:
+        """Whether a source or sink has asked for the Zenoh session."""
+        return self._session is not None
+
+    def close(self) -> None:
+        """Close the Zenoh session if one was opened (after the sources and sinks that use it)."""
+        with self._lock:
+            if self._session is not None:
+                self._session.close()
+                self._session = None

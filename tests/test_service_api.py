@@ -1,0 +1,121 @@
+"""REST handlers on a ServiceView that is not a Service: no Zenoh, no workers, no HTTP server.
+
+Results reach the view through the same sink chain as in the service (storage, latest, metrics), so
+these tests also check that REST answers with what the sinks wrote.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import pytest
+from service_helpers import settings_for
+
+from service.api import RunStatus, create_app
+from service.buffers import BufferStore
+from service.latest import LatestResults
+from service.metrics import ServiceMetrics
+from service.models import BusResult, PeriodSummary
+from service.settings import ServiceSettings, check_period
+from service.sinks.base import SinkChain
+from service.sinks.storage import StorageSink
+from service.sources.base import Inlet
+from service.storage import Storage
+from service.testing import MemorySource
+
+with warnings.catch_warnings():  # Starlette warns at import that its TestClient will change HTTP client
+    warnings.simplefilter("ignore")
+    from fastapi.testclient import TestClient
+
+
+@dataclass
+class View:
+    """The smallest ServiceView: the parts REST reads, a period it can change."""
+
+    settings: ServiceSettings
+    store: BufferStore
+    storage: Storage
+    latest: LatestResults
+    metrics: ServiceMetrics
+    period_s: float
+
+    def status(self) -> RunStatus:
+        return RunStatus(next_period=1020.0, running_period=None, workers_replaced=2)
+
+    def set_period(self, period_s: float) -> None:
+        check_period(period_s, self.settings)
+        self.period_s = period_s
+
+
+def _result(bus: str, period: float, status: str = "ok") -> BusResult:
+    params = None if status != "ok" else {
+        "dynamic": {"a": 40.0, "b": 10.0, "H2": 1.0, "Tm": 0.3}, "static": {"Pz": 0.0}, "objective": 0.1,
+        "fit": {"fd_p": 0.9, "fd_q": 0.8}, "elapsed_s": 0.002}
+    return BusResult(bus=bus, period=period, period_s=10.0, status=status, reason=None if status == "ok" else "gap",
+                     completed_at=period + 0.5, parameters=params)
+
+
+@pytest.fixture
+def rest(tmp_path):
+    settings = settings_for(tmp_path, 7447, period_s=10.0, window_s=2.0, late_s=0.5)
+    store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s)
+    storage = Storage(settings.storage_path)
+    view = View(settings, store, storage, LatestResults(), ServiceMetrics(store), settings.period_s)
+    chain = SinkChain([StorageSink(storage, 1e9), view.latest, view.metrics], on_error=pytest.fail)
+    with TestClient(create_app(view)) as client:
+        yield view, chain, client
+    storage.close()
+
+
+def test_latest_history_and_periods_are_what_the_sinks_wrote(rest):
+    view, chain, client = rest
+    assert client.get("/buses/b1/parameters/latest").status_code == 404
+    chain.write_results([_result("b1", 1000.0), _result("b2", 1000.0)])
+    chain.write_results([_result("b1", 1010.0, "skipped")])
+    chain.write_period(PeriodSummary(period=1010.0, period_s=10.0, n_ok=0, n_failed=0, n_skipped=1,
+                                     latency_s=0.25, completed_at=1010.75))
+    latest = client.get("/buses/b1/parameters/latest")
+    assert latest.text == view.latest.results_json["b1"] and latest.json()["status"] == "skipped"
+    assert client.get("/buses/b1/parameters/latest", params={"ok": True}).json()["period"] == 1000.0
+    history = client.get("/buses/b1/parameters", params={"since": 1000.0, "limit": 10}).json()
+    assert [(r["period"], r["status"]) for r in history] == [(1010.0, "skipped"), (1000.0, "ok")]
+    assert [p["period"] for p in client.get("/periods").json()] == [1010.0]
+    metrics = client.get("/metrics").text
+    assert 'aslm_windows_total{status="ok"} 2.0' in metrics and "aslm_last_period_timestamp_seconds 1010.0" in metrics
+
+
+def test_buses_and_health_read_the_ingest_and_the_run_status(rest):
+    view, chain, client = rest
+    source = MemorySource()
+    source.start(Inlet(view.store, max_future_s=5.0, f0=50.0))
+    source.push_message("b3", b"{}", "application/json")
+    chain.write_results([_result("b1", 1000.0)])
+    buses = {b["bus"]: b for b in client.get("/buses").json()}
+    assert sorted(buses) == ["b1", "b3"]
+    assert buses["b1"]["last_status"] == "ok" and buses["b1"]["frames_buffered"] == 0
+    assert buses["b3"]["last_status"] is None and sum(buses["b3"]["messages_dropped"].values()) == 1
+    health = client.get("/health").json()
+    assert (health["next_period"], health["running_period"], health["workers_replaced"]) == (1020.0, None, 2)
+    assert (health["buses"], health["period_s"], health["instance"]) == (1, 10.0, "test-7447")
+
+
+def test_diagnosis_latest_is_the_payload_the_sinks_kept(rest):
+    view, chain, client = rest
+    missing = client.get("/buses/b1/diagnosis/latest")
+    assert missing.status_code == 404 and "every 4 periods" in missing.json()["detail"]
+    payload = '{"bus": "b1", "period": 1000.0, "verdict": "consistent"}'
+    chain.write_diagnosis("b1", 1000.0, payload)
+    assert client.get("/buses/b1/diagnosis/latest").text == payload
+    assert view.storage.latest_diagnoses() == {"b1": payload}
+    assert 'aslm_diagnoses_total{verdict="consistent"} 1.0' in client.get("/metrics").text
+
+
+def test_put_config_changes_the_period_through_the_view(rest):
+    view, _, client = rest
+    assert client.put("/config", json={"period_s": 20.0}).status_code == 401
+    bad = client.put("/config", json={"period_s": 1.0}, headers={"Authorization": "Bearer op-secret"})
+    assert bad.status_code == 422 and "window_s + late_s" in bad.json()["detail"]
+    ok = client.put("/config", json={"period_s": 20.0}, headers={"X-Operator-Token": "op-secret"})
+    assert ok.status_code == 200 and ok.json()["period_s"] == 20.0 and view.period_s == 20.0
+    assert client.get("/config").json()["settings"]["operator_token"] == "***"
