@@ -6,6 +6,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: Every channel a window can hold, in the one order used end to end (ring-buffer rows, the binary
+#: frame layout): time [s], voltage magnitude [pu], angle [rad], active and reactive power [pu],
+#: bus frequency [Hz].
+CHANNELS: tuple[str, ...] = ("t", "V", "theta", "P", "Q", "f")
+#: The channels every window has (the bus frequency is optional).
+REQUIRED: tuple[str, ...] = CHANNELS[:5]
+#: The sampled signals that are conditioned together before identification (time and f aside).
+SIGNALS: tuple[str, ...] = CHANNELS[1:5]
+
+_F64 = np.dtype(np.float64)
+
 
 @dataclass(frozen=True)
 class Window:
@@ -40,10 +51,16 @@ class Window:
     meta: dict = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
-        for name in ("t", "V", "theta", "P", "Q"):
-            object.__setattr__(self, name, np.asarray(getattr(self, name), dtype=np.float64))
-        if self.f is not None:
-            object.__setattr__(self, "f", np.asarray(self.f, dtype=np.float64))
+        # Float64 arrays (what buffers cut) are kept as they are without a call to np.asarray: a window
+        # is built per bus per period on the service's scheduling thread.  Writing __dict__ is how a
+        # frozen dataclass converts its own fields.
+        d = self.__dict__
+        for name in CHANNELS:
+            x = d[name]
+            if x.__class__ is not np.ndarray or x.dtype is not _F64:
+                if x is None and name == "f":
+                    continue
+                d[name] = np.asarray(x, dtype=np.float64)
 
     @property
     def n(self) -> int:

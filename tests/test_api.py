@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import importlib
 import inspect
+import subprocess
+import sys
 
 import aslm_core
 from aslm_core import motor, static
@@ -15,8 +18,26 @@ PUBLIC = {
 
 def test_exported_names_are_exactly_the_intended_ones():
     assert set(aslm_core.__all__) == PUBLIC
+    assert PUBLIC <= set(dir(aslm_core))
     for name in PUBLIC:
-        assert hasattr(aslm_core, name)
+        value = getattr(aslm_core, name)
+        # The lazy re-export is the object its module defines (not, e.g., a submodule of that name).
+        assert value is getattr(importlib.import_module(value.__module__), name)
+    assert aslm_core.identify.__module__ == "aslm_core.identify" and callable(aslm_core.identify)
+
+
+def test_declarations_import_without_numba_or_scipy():
+    code = ("import sys, aslm_core, aslm_core.params, aslm_core.window, aslm_core.errors\n"
+            "print(sorted(m for m in ('numba', 'scipy') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_importing_the_identify_submodule_keeps_the_function():
+    code = ("import aslm_core.identify, aslm_core.diagnosis, aslm_core\n"
+            "import types; print(isinstance(aslm_core.identify, types.FunctionType))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)
+    assert out.stdout.strip() == "True"
 
 
 def _documented(func) -> list[str]:
