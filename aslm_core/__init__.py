@@ -12,13 +12,7 @@ from __future__ import annotations
 import importlib
 import sys
 import types
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:  # what the lazy names resolve to, for type checkers and IDEs
-    from aslm_core.errors import NoEquilibriumError, WindowError
-    from aslm_core.identify import identify, identify_many, warmup
-    from aslm_core.result import IdentificationResult, IdentifyConfig
-    from aslm_core.window import Window
+from typing import Any
 
 #: Public name → module that defines it.
 _EXPORTS: dict[str, str] = {

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
 
+from aslm_core.params import DYNAMIC_NAMES
 from service.buffers import BufferStore, Cut
 from service.models import BusResult, Identified, PeriodSummary
 from service.pool import Executor
@@ -223,7 +224,7 @@ class Scheduler:
                 try:
                     if outcome.ok:
                         res = self._record(bus, boundary, period_s, "ok", None, cut, warm, outcome)
-                        self.warm_starts[bus] = [res.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
+                        self.warm_starts[bus] = [res.parameters.dynamic[k] for k in DYNAMIC_NAMES]
                         identified[bus] = (cut, outcome.value)
                     else:
                         res = self._record(bus, boundary, period_s, "failed", outcome.reason, cut, warm, outcome)
