@@ -82,8 +82,8 @@ def main() -> None:
 
     import zenoh
 
+    from service.executors.local import LocalPool
     from service.models import PeriodSummary
-    from service.pool import LocalPool
     from service.publish import ResultPublisher
     from service.scheduler import QualityRules, Scheduler
     from service.settings import ServiceSettings

@@ -13,9 +13,9 @@ import zenoh
 
 from service.api import create_app
 from service.buffers import BufferStore
+from service.executors import make_executor
 from service.metrics import ServiceMetrics
 from service.models import BusResult, PeriodSummary
-from service.pool import make_executor
 from service.publish import ResultPublisher
 from service.scheduler import QualityRules, Scheduler
 from service.settings import ServiceSettings, check_period
