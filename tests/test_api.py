@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import importlib
 import inspect
-import subprocess
-import sys
+
+from fresh_interpreter import run_python
 
 import aslm_core
 from aslm_core import motor, static
@@ -29,15 +29,13 @@ def test_exported_names_are_exactly_the_intended_ones():
 def test_declarations_import_without_numba_or_scipy():
     code = ("import sys, aslm_core, aslm_core.params, aslm_core.window, aslm_core.errors\n"
             "print(sorted(m for m in ('numba', 'scipy') if m in sys.modules))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
-    assert out.stdout.strip() == "[]"
+    assert run_python(code) == "[]"
 
 
 def test_importing_the_identify_submodule_keeps_the_function():
     code = ("import aslm_core.identify, aslm_core.diagnosis, aslm_core\n"
             "import types; print(isinstance(aslm_core.identify, types.FunctionType))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)
-    assert out.stdout.strip() == "True"
+    assert run_python(code) == "True"
 
 
 def _documented(func) -> list[str]:

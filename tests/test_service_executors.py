@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
+import importlib
 import pickle
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from fresh_interpreter import run_python
 
 from aslm_core.window import Window
 from service.executors import EXECUTORS, executor_module, make_executor
@@ -30,8 +30,6 @@ def test_settings_map_to_their_executor_module(setting, module):
 
 
 def test_every_registered_module_has_a_factory():
-    import importlib
-
     for module in EXECUTORS:
         assert callable(importlib.import_module(module).create), module
 
@@ -48,16 +46,13 @@ def test_make_executor_builds_the_local_pool_and_refuses_unknown_settings():
 
 def test_worker_boot_imports_without_numpy():
     # A spawned worker imports these before boot.main sets its thread limits: numpy must not load first.
-    code = "import sys, service.executors.boot; print('numpy' in sys.modules)"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
-    assert out.stdout.strip() == "False"
+    assert run_python("import sys, service.executors.boot; print('numpy' in sys.modules)") == "False"
 
 
 def test_the_worker_side_never_imports_the_pool():
     code = ("import sys, service.executors.child\n"
             "print(sorted(m for m in ('service.executors.local', 'service.executors.boot') if m in sys.modules))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
-    assert out.stdout.strip() == "[]"
+    assert run_python(code) == "[]"
 
 
 def test_a_pickled_task_is_its_arrays_and_little_else():
