@@ -201,8 +201,7 @@ class BusBuffer:
             j = self.start + int(np.searchsorted(held, t_to, side="right"))
             block = self.data[:, i:j].copy()
             has_f = self.has_f
-        f = block[5] if has_f and np.isfinite(block[5]).all() else None
-        return Window(t=block[0], V=block[1], theta=block[2], P=block[3], Q=block[4], f=f, f0=f0, bus=bus)
+        return Window.from_rows(block, with_f=has_f and bool(np.isfinite(block[5]).all()), f0=f0, bus=bus)
 
 
 @dataclass

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import importlib
 import inspect
+from dataclasses import fields
 
+import numpy as np
 from fresh_interpreter import run_python
 
 import aslm_core
 from aslm_core import motor, static
+from aslm_core.window import CHANNELS, Window
 
 PUBLIC = {
     "IdentificationResult", "IdentifyConfig", "NoEquilibriumError", "Window", "WindowError",
@@ -49,3 +52,16 @@ def test_every_argument_of_public_functions_is_documented():
              motor.omega0_of, static.regressors, static.coefficients, static.static_power]
     missing = {f.__name__: _documented(f) for f in funcs if _documented(f)}
     assert not missing, f"undocumented arguments: {missing}"
+
+
+def test_window_from_rows_equals_the_constructed_window():
+    rows = np.random.default_rng(0).random((len(CHANNELS), 20))
+    for with_f in (True, False):
+        fast = Window.from_rows(rows, with_f=with_f, f0=60.0, bus="b1")
+        slow = Window(*rows[:5], f=rows[5] if with_f else None, f0=60.0, bus="b1")
+        assert set(vars(fast)) == {f.name for f in fields(Window)}  # a field added later is not missed
+        for name in CHANNELS:
+            a, b = getattr(fast, name), getattr(slow, name)
+            assert (a is None and b is None) if not with_f and name == "f" else np.array_equal(a, b)
+        assert (fast.f0, fast.bus, fast.meta) == (slow.f0, slow.bus, slow.meta)
+    assert Window.from_rows(rows.astype(np.float32), with_f=True).t.dtype == np.float64
