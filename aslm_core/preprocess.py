@@ -9,9 +9,9 @@ import numpy as np
 from scipy import signal
 
 from aslm_core.errors import WindowError
-from aslm_core.window import Window
+from aslm_core.window import SIGNALS, Window
 
-CHANNELS = ("V", "theta", "P", "Q")
+CHANNELS = SIGNALS  # V, θ, P, Q: put on one grid and filtered together
 
 
 @dataclass

@@ -82,9 +82,9 @@ def main() -> None:
 
     import zenoh
 
+    from service.executors.local import LocalPool
     from service.latest import LatestResults
     from service.models import PeriodSummary
-    from service.pool import LocalPool
     from service.scheduler import QualityRules, Scheduler
     from service.settings import ServiceSettings
     from service.sinks.base import SinkChain

@@ -5,17 +5,18 @@ from __future__ import annotations
 import json
 import logging
 
+from aslm_core.params import DYNAMIC_NAMES
 from service import registry
 from service.api import RunStatus, create_app
 from service.buffers import BufferStore
 from service.clock import SYSTEM_CLOCK, Clock
 from service.context import Context
+from service.executors import make_executor
 from service.gc_policy import BetweenPeriodsGC
 from service.http_server import HttpServer
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
 from service.models import PeriodSummary
-from service.pool import make_executor
 from service.scheduler import QualityRules, Scheduler
 from service.settings import ServiceSettings, check_period
 from service.sinks import SINKS
@@ -66,7 +67,7 @@ class Service:
         self.metrics.period_s.set(self.period_s)
         self.latest = LatestResults.from_storage(self.storage)
         self.warm_starts: dict[str, list[float]] = {
-            bus: [r.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
+            bus: [r.parameters.dynamic[k] for k in DYNAMIC_NAMES]
             for bus, r in self.storage.latest_all(ok_only=True).items() if r.parameters is not None
         }
         self.context = Context(settings, self.storage, self.latest, self.metrics, clock)

@@ -18,26 +18,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aslm_core.window import CHANNELS, Window
 from service.frames import FrameBatch
 
-ROWS = ("t", "V", "theta", "P", "Q", "f")
+ROWS = CHANNELS  # one row per channel, f last (NaN for frames without it)
 _NROWS = len(ROWS)
 _EMPTY = np.empty((_NROWS, 0))
-
-
-@dataclass
-class Cut:
-    """Frames of one bus between two PMU times (copies, safe to hand to another process)."""
-
-    t: np.ndarray
-    V: np.ndarray
-    theta: np.ndarray
-    P: np.ndarray
-    Q: np.ndarray
-    f: np.ndarray | None
-
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
 
 
 class BusBuffer:
@@ -203,16 +189,19 @@ class BusBuffer:
         if self.size > self.capacity:
             self.start = self.end - self.capacity
 
-    def cut(self, t_from: float, t_to: float) -> Cut:
-        """Copy of the frames with ``t_from < t <= t_to`` [s]."""
+    def cut(self, t_from: float, t_to: float, *, f0: float = 50.0, bus: str = "") -> Window:
+        """Copy of the frames with ``t_from < t <= t_to`` [s], as a window of nominal frequency ``f0`` [Hz].
+
+        The channels are rows of one fresh array (safe to hand to another process); f is None unless
+        every frame of the cut has it.
+        """
         with self.lock:
             held = self.data[0, self.start:self.end]
             i = self.start + int(np.searchsorted(held, t_from, side="right"))
             j = self.start + int(np.searchsorted(held, t_to, side="right"))
             block = self.data[:, i:j].copy()
             has_f = self.has_f
-        f = block[5] if has_f and np.isfinite(block[5]).all() else None
-        return Cut(t=block[0], V=block[1], theta=block[2], P=block[3], Q=block[4], f=f)
+        return Window.from_rows(block, with_f=has_f and bool(np.isfinite(block[5]).all()), f0=f0, bus=bus)
 
 
 @dataclass

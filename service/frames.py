@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from aslm_core.window import REQUIRED
+
 JSON_ENCODINGS = frozenset({"application/json", "text/json"})
 BINARY_ENCODING = "application/x-aslm-pmu"
 
@@ -44,7 +46,7 @@ PQ_MAX = 100.0
 F_TOL = 10.0
 STAT_DATA_ERROR = 0xC000  # C37.118 STAT bits 15-14: data error
 
-COLUMNS = ("t", "V", "theta", "P", "Q")
+COLUMNS = REQUIRED  # the columns every batch has, in the binary layout's order (f and stat optional)
 
 
 class FrameError(ValueError):
@@ -90,7 +92,7 @@ class FrameBatch:
         Why: whole-batch checks and copies then cost one numpy call instead of one per column.
         """
         if self.cols is None:
-            rows = [self.t, self.V, self.theta, self.P, self.Q] + ([self.f] if self.f is not None else [])
+            rows = [getattr(self, c) for c in COLUMNS] + ([self.f] if self.f is not None else [])
             self.cols = np.stack(rows).astype(np.float64, copy=False)
         return self.cols
 
@@ -325,8 +327,7 @@ def validate(batch: FrameBatch, *, now: float, max_future_s: float, f0: float = 
             rejected[reason] = k
             remaining &= ~hit
     good = FrameBatch(
-        t=batch.t[remaining], V=batch.V[remaining], theta=batch.theta[remaining], P=batch.P[remaining],
-        Q=batch.Q[remaining], f=None if batch.f is None else batch.f[remaining],
+        **{c: getattr(batch, c)[remaining] for c in COLUMNS}, f=None if batch.f is None else batch.f[remaining],
         stat=None if batch.stat is None else batch.stat[remaining],
     )
     return Validated(good, rejected)

@@ -6,7 +6,14 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from aslm_core.params import DYNAMIC_PARAMS, EXPONENTIAL_PARAMS, ZIP_PARAMS, ParamSpec
+
 Status = Literal["ok", "failed", "skipped"]
+
+
+def _listed(params: tuple[ParamSpec, ...]) -> str:
+    """``{a [1/s], b [1/s], ...}``: names and units as :mod:`aslm_core.params` declares them."""
+    return "{" + ", ".join(f"{p.name} [{p.unit}]" for p in params) + "}"
 
 
 class Identified(BaseModel):
@@ -14,8 +21,9 @@ class Identified(BaseModel):
 
     model_config = ConfigDict(extra="allow")
 
-    dynamic: dict[str, float] = Field(description="D = {a [1/s], b [1/s], H2 [s], Tm [pu]}")
-    static: dict[str, float] = Field(description="ZIP {Pz, Pi, Pp, Qz, Qi, Qp} [pu] or exponential {P0, np, Q0, nq}")
+    dynamic: dict[str, float] = Field(description=f"D = {_listed(DYNAMIC_PARAMS)}")
+    static: dict[str, float] = Field(
+        description=f"ZIP {_listed(ZIP_PARAMS)} or exponential {_listed(EXPONENTIAL_PARAMS)}")
     objective: float | None = Field(description="Objective value at the optimum")
     fit: dict[str, float | None] = Field(description="Fit degree of P and Q (paper eq. 9): {fd_p, fd_q}")
     stderr: dict[str, float | None] = Field(default_factory=dict, description="Standard errors of D (null: not available)")

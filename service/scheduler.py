@@ -19,11 +19,12 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
 
-from service.buffers import BufferStore, Cut
+from aslm_core.params import DYNAMIC_NAMES
+from aslm_core.window import Window
+from service.buffers import BufferStore
 from service.clock import SYSTEM_CLOCK, Clock
+from service.executors.base import Executor, TaskOutcome, WindowTask
 from service.models import BusResult, Identified, PeriodSummary
-from service.pool import Executor
-from service.worker import TaskOutcome, WindowTask
 
 log = logging.getLogger(__name__)
 
@@ -53,9 +54,9 @@ class QualityRules:
     min_v_std: float
 
 
-def check_window(cut: Cut, rules: QualityRules) -> str | None:
+def check_window(cut: Window, rules: QualityRules) -> str | None:
     """Reason a window is unusable (``no_data``, ``coverage``, ``gap``, ``no_excitation``), or None."""
-    n = len(cut)
+    n = cut.n
     if n < 2:
         return "no_data"
     if n < rules.min_coverage * rules.window_s * rules.frame_rate:
@@ -174,15 +175,15 @@ class Scheduler:
         self.running_period = boundary
         started = self.clock.now()
         done: list[BusResult] = []
-        pending: dict[Future, tuple[str, Cut, bool]] = {}
+        pending: dict[Future, tuple[str, Window, bool]] = {}
         # Finished futures are pushed here by their done-callbacks: O(1) per result, where calling
         # concurrent.futures.wait() on all pending futures after each completion is O(n²) per period.
         completed: queue.SimpleQueue[Future] = queue.SimpleQueue()
         skipped: list[BusResult] = []
-        identified: dict[str, tuple[Cut, dict]] = {}
-        group: list[tuple[WindowTask, Cut, bool]] = []
+        identified: dict[str, tuple[Window, dict]] = {}
+        group: list[tuple[WindowTask, Window, bool]] = []
 
-        def submit(group: list[tuple[WindowTask, Cut, bool]]) -> None:
+        def submit(group: list[tuple[WindowTask, Window, bool]]) -> None:
             futs = self.executor.submit_many([task for task, _, _ in group])
             for fut, (task, cut, warm) in zip(futs, group, strict=True):
                 pending[fut] = (task.bus, cut, warm)
@@ -194,14 +195,14 @@ class Scheduler:
                 continue
             newest = buf.newest
             end = min(boundary, newest)  # a PMU running slightly behind still gives its latest window
-            cut = buf.cut(end - self.rules.window_s, end) if newest > boundary - self.rules.window_s else None
+            cut = (buf.cut(end - self.rules.window_s, end, f0=self.f0, bus=bus)
+                   if newest > boundary - self.rules.window_s else None)
             reason = "no_data" if cut is None else check_window(cut, self.rules)
             if reason is not None:
                 skipped.append(self._record(bus, boundary, period_s, "skipped", reason, cut, False))
                 continue
             warm = self.warm_starts.get(bus)
-            task = WindowTask(bus=bus, t=cut.t, V=cut.V, theta=cut.theta, P=cut.P, Q=cut.Q, f=cut.f, f0=self.f0,
-                              warm_start=list(warm) if warm is not None else None,
+            task = WindowTask(cut, warm_start=list(warm) if warm is not None else None,
                               options=self.options if warm is None else self.warm_options)
             group.append((task, cut, warm is not None))
             if len(group) >= 64:  # submitted in groups: the workers start while the rest is cut
@@ -228,7 +229,7 @@ class Scheduler:
                 try:
                     if outcome.ok:
                         res = self._record(bus, boundary, period_s, "ok", None, cut, warm, outcome)
-                        self.warm_starts[bus] = [res.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")]
+                        self.warm_starts[bus] = [res.parameters.dynamic[k] for k in DYNAMIC_NAMES]
                         identified[bus] = (cut, outcome.value)
                     else:
                         res = self._record(bus, boundary, period_s, "failed", outcome.reason, cut, warm, outcome)
@@ -256,11 +257,10 @@ class Scheduler:
                  summary.n_skipped, summary.latency_s)
         return summary
 
-    def _submit_diagnoses(self, boundary: float, identified: dict[str, tuple[Cut, dict]]) -> None:
+    def _submit_diagnoses(self, boundary: float, identified: dict[str, tuple[Window, dict]]) -> None:
         """Queue the discrepancy diagnosis of each bus identified this period (results come back async)."""
         for bus, (cut, value) in identified.items():
-            task = WindowTask(bus=bus, t=cut.t, V=cut.V, theta=cut.theta, P=cut.P, Q=cut.Q, f=cut.f, f0=self.f0,
-                              fn="service.worker:diagnose_window", previous=value)
+            task = WindowTask(cut, fn="service.worker:diagnose_window", previous=value)
             fut = self.executor.submit(task)
             fut.add_done_callback(lambda f, bus=bus: self._diagnosed(bus, boundary, f))
 
@@ -278,7 +278,7 @@ class Scheduler:
         done.extend(batch)
 
     def _record(self, bus: str, boundary: float, period_s: float, status: str, reason: str | None,
-                cut: Cut | None, warm: bool, outcome: TaskOutcome | None = None) -> BusResult:
+                cut: Window | None, warm: bool, outcome: TaskOutcome | None = None) -> BusResult:
         params = None
         if outcome is not None and outcome.ok:
             # run_task has replaced non-finite floats by None (a non-finite D then fails validation).
@@ -287,10 +287,10 @@ class Scheduler:
                 raise ValueError(f"non-finite D {params.dynamic}")
         if outcome is not None and not outcome.ok and outcome.message:
             log.warning("bus %s: %s: %s", bus, outcome.reason, outcome.message)
-        has = cut is not None and len(cut) > 0
+        has = cut is not None and cut.n > 0
         return BusResult(
             bus=bus, period=boundary, period_s=period_s, status=status, reason=reason,
             window_start=float(cut.t[0]) if has else None, window_end=float(cut.t[-1]) if has else None,
-            n_frames=len(cut) if cut is not None else 0, warm_start=warm, completed_at=self.clock.now(),
+            n_frames=cut.n if cut is not None else 0, warm_start=warm, completed_at=self.clock.now(),
             parameters=params,
         )

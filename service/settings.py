@@ -23,10 +23,10 @@ from pydantic_settings import (
 )
 
 from service import registry
+from service.executors import executor_module
 from service.sinks import SINKS
 from service.sources import SOURCES
 
-_DASK_ADDRESS = re.compile(r"^(tcp|tls|ucx|inproc)://[^\s]+$")
 _KEY_CHUNK = re.compile(r"^[A-Za-z0-9_\-.]+(/[A-Za-z0-9_\-.]+)*$")
 
 CONFIG_ENV = "ASLM_CONFIG"
@@ -173,7 +173,7 @@ class ServiceSettings(BaseSettings):
     @field_validator("executor")
     @classmethod
     def _executor(cls, v: str) -> str:
-        if v != "local" and not _DASK_ADDRESS.match(v):
+        if executor_module(v) is None:
             raise ValueError(f"executor must be 'local' or a Dask scheduler address like tcp://host:8786 (got {v!r})")
         return v
 

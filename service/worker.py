@@ -10,69 +10,10 @@ import importlib
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
-
-@dataclass
-class WindowTask:
-    """One bus's window to identify (pickled to the worker).
-
-    Attributes
-    ----------
-    bus : str
-    t, V, theta, P, Q : ndarray
-        Frames [s], [pu], [rad], [pu], [pu].
-    f : ndarray or None
-        Bus frequency [Hz].
-    f0 : float
-        Nominal frequency [Hz].
-    warm_start : list of float or None
-        Previous period's D = [a, b, H2, Tm] of the bus.
-    options : dict
-        Keyword arguments of :class:`aslm_core.IdentifyConfig` (e.g. ``n_starts``).
-    fn : str or None
-        ``module:function`` to run instead of the pool's (e.g. the diagnosis).
-    previous : dict or None
-        The bus's identification of this window (``IdentificationResult.to_dict()``), for the diagnosis.
-    """
-
-    bus: str
-    t: np.ndarray
-    V: np.ndarray
-    theta: np.ndarray
-    P: np.ndarray
-    Q: np.ndarray
-    f: np.ndarray | None = None
-    f0: float = 50.0
-    warm_start: list[float] | None = None
-    options: dict[str, Any] = field(default_factory=dict)
-    fn: str | None = None
-    previous: dict | None = None
-
-
-@dataclass
-class TaskOutcome:
-    """Result of one task: ``value`` (the identification dict) or a failure ``reason``.
-
-    Reasons: ``window:<WindowError.reason>``, ``error:<ExceptionType>``, ``timeout``,
-    ``worker_crashed``, ``shutdown``.
-    """
-
-    ok: bool
-    value: dict | None = None
-    reason: str | None = None
-    message: str = ""
-    elapsed_s: float = 0.0
-
-
-def task_window(task: WindowTask):
-    """The task's samples as an :class:`aslm_core.Window`."""
-    from aslm_core import Window
-
-    return Window(t=task.t, V=task.V, theta=task.theta, P=task.P, Q=task.Q, f=task.f, f0=task.f0, bus=task.bus)
+from service.executors.base import TaskOutcome, WindowTask
 
 
 def identify_window(task: WindowTask) -> dict:
@@ -85,9 +26,8 @@ def identify_window(task: WindowTask) -> dict:
     """
     from aslm_core import IdentifyConfig, identify
 
-    window = task_window(task)
     warm = np.asarray(task.warm_start, dtype=float) if task.warm_start is not None else None
-    return result_dict(identify(window, warm_start=warm, config=IdentifyConfig(**task.options)))
+    return result_dict(identify(task.window, warm_start=warm, config=IdentifyConfig(**task.options)))
 
 
 def result_dict(result) -> dict:
@@ -133,7 +73,7 @@ def diagnose_window(task: WindowTask) -> dict:
     """
     from aslm_core.diagnosis import diagnose_dict
 
-    window = task_window(task)
+    window = task.window
     return diagnose_dict(window, previous=task.previous)
 
 

@@ -64,7 +64,7 @@ def fake_identify(task) -> dict:
     d[0] += 1.0  # successive periods differ: shows the warm start was used
     return {
         "dynamic": dict(zip(("a", "b", "H2", "Tm"), d, strict=True)),
-        "static": {"Pz": 0.0, "Pi": 0.0, "Pp": float(np.mean(task.P)), "Qz": 0.0, "Qi": 0.0, "Qp": 0.0},
+        "static": {"Pz": 0.0, "Pi": 0.0, "Pp": float(np.mean(task.window.P)), "Qz": 0.0, "Qi": 0.0, "Qp": 0.0},
         "objective": 0.0, "fit": {"fd_p": 1.0, "fd_q": 1.0}, "elapsed_s": 0.001,
         "warm_start_given": task.warm_start is not None, "n_starts": task.options.get("n_starts"),
     }

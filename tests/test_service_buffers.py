@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from aslm_core.window import Window
 from service.buffers import BufferStore, BusBuffer
 from service.frames import FrameBatch
 
@@ -25,7 +26,8 @@ def test_in_order_batches_append_and_cut():
     for k in range(10):
         assert buf.insert(batch(frames_at(50 * k, 50 * (k + 1)))) == {}
     assert buf.buffered == 500 and buf.size == 500
-    cut = buf.cut(T0 + 2.0, T0 + 4.0)
+    cut = buf.cut(T0 + 2.0, T0 + 4.0, f0=60.0, bus="b7")
+    assert isinstance(cut, Window) and (cut.bus, cut.f0, cut.n) == ("b7", 60.0, 100)
     np.testing.assert_allclose(cut.t, frames_at(101, 201))
     np.testing.assert_allclose(cut.theta, cut.t - T0)  # columns stay aligned with t
     assert cut.f is None
@@ -117,3 +119,13 @@ def test_validation_and_message_rejects_are_accounted_per_bus():
     assert c.buffered == 8 and c.rejected == {"non_finite": 2, "length_mismatch": 7}
     assert c.messages == 3 and c.messages_rejected == {"length_mismatch": 1, "malformed_json": 1}
     assert store.totals().frames_received == 17
+
+
+def test_cut_has_f_only_where_every_frame_has_it():
+    buf = BusBuffer(capacity=1000, tol=0.25 / FS, late_s=2.0)
+    with_f = batch(frames_at(0, 50))
+    with_f.f = 50.0 + 0 * with_f.t
+    buf.insert(with_f)
+    buf.insert(batch(frames_at(50, 100)))
+    np.testing.assert_array_equal(buf.cut(T0 - 1.0, T0 + 0.5).f, np.full(26, 50.0))
+    assert buf.cut(T0 - 1.0, T0 + 1.5).f is None

@@ -5,15 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from service.pool import DaskPool, make_executor
-from service.worker import WindowTask
+from aslm_core.window import Window
+from service.executors import make_executor
+from service.executors.base import WindowTask
+from service.executors.dask import DaskPool
 
 distributed = pytest.importorskip("distributed")
 
 
 def task(bus: str, n: int = 100) -> WindowTask:
     t = np.arange(n) / 50.0
-    return WindowTask(bus=bus, t=t, V=1 + 0 * t, theta=0 * t, P=0.5 + 0 * t, Q=0.1 + 0 * t)
+    return WindowTask(Window(t, V=1 + 0 * t, theta=0 * t, P=0.5 + 0 * t, Q=0.1 + 0 * t, bus=bus))
 
 
 def test_dask_executor_runs_tasks_and_reports_failures():

@@ -9,13 +9,14 @@ import time
 import numpy as np
 import pytest
 
-from service.pool import LocalPool
-from service.worker import WindowTask
+from aslm_core.window import Window
+from service.executors.base import WindowTask
+from service.executors.local import LocalPool
 
 
 def task(bus: str) -> WindowTask:
     t = np.arange(100) / 50.0
-    return WindowTask(bus=bus, t=t, V=1 + 0 * t, theta=0 * t, P=0.5 + 0 * t, Q=0.1 + 0 * t)
+    return WindowTask(Window(t, V=1 + 0 * t, theta=0 * t, P=0.5 + 0 * t, Q=0.1 + 0 * t, bus=bus))
 
 
 @pytest.fixture
@@ -110,7 +111,7 @@ def test_exceptions_become_reasons():
     pool = LocalPool(1, "service.worker:identify_window", timeout_s=60)
     try:
         t = np.arange(3) / 50.0  # far too short for the identifier
-        bad = WindowTask(bus="x", t=t, V=1 + 0 * t, theta=0 * t, P=0 * t, Q=0 * t)
+        bad = WindowTask(Window(t, V=1 + 0 * t, theta=0 * t, P=0 * t, Q=0 * t, bus="x"))
         out = pool.submit(bad).result(timeout=120)
         assert not out.ok and out.reason.startswith(("window:", "error:"))
         assert out.message

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from aslm_core import IdentifyConfig, identify
-from service.worker import WindowTask, result_dict, run_task, task_window
+from aslm_core import IdentifyConfig, Window, identify
+from service.executors.base import WindowTask
+from service.worker import result_dict, run_task
 
 
 def _task() -> WindowTask:
@@ -13,18 +14,18 @@ def _task() -> WindowTask:
     t = np.arange(500) / 50.0
     V = 1.0 + 0.003 * np.sin(2 * np.pi * 0.7 * t) + 1e-3 * rng.standard_normal(t.size)
     theta = 0.005 * np.sin(2 * np.pi * 0.4 * t)
-    return WindowTask(bus="b", t=t, V=V, theta=theta, P=0.8 * V * V, Q=0.3 * V, options={"n_starts": 1})
+    return WindowTask(Window(t, V, theta, P=0.8 * V * V, Q=0.3 * V, bus="b"), options={"n_starts": 1})
 
 
 def test_result_dict_is_to_dict():
     task = _task()
-    res = identify(task_window(task), config=IdentifyConfig(n_starts=1))
+    res = identify(task.window, config=IdentifyConfig(n_starts=1))
     assert result_dict(res) == res.to_dict()
 
 
 def test_run_task_returns_the_identification_or_a_reason():
     out = run_task("service.worker:identify_window", _task())
     assert out.ok and set(out.value) >= {"dynamic", "static", "objective", "fit", "elapsed_s"}
-    short = WindowTask(bus="s", t=np.arange(3) / 50.0, V=np.ones(3), theta=np.zeros(3), P=np.ones(3), Q=np.ones(3))
+    short = WindowTask(Window(np.arange(3) / 50.0, np.ones(3), np.zeros(3), np.ones(3), np.ones(3), bus="s"))
     out = run_task("service.worker:identify_window", short)
     assert not out.ok and out.reason.startswith(("window:", "error:"))

@@ -16,6 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from aslm_core.params import DYNAMIC_NAMES, DYNAMIC_PARAMS
 from service.commands._common import setup_logging, stop_event_on_signals
 
 log = logging.getLogger("aslm.demo")
@@ -62,8 +63,8 @@ def format_period(summary, results: dict, truth: dict) -> str:
     head = (f"period {time.strftime('%H:%M:%S', time.gmtime(summary.period))} UTC  "
             f"T={summary.period_s:g}s  ok={summary.n_ok} failed={summary.n_failed} skipped={summary.n_skipped}  "
             f"latency={summary.latency_s:.2f}s")
-    lines = [head, f"  {'bus':8s} {'status':8s}" + "".join(f"{k:>22s}" for k in ("a [1/s]", "b [1/s]", "H2 [s]",
-                                                                                   "Tm [pu]")) + "   FD(P)"]
+    lines = [head, f"  {'bus':8s} {'status':8s}" + "".join(f"{f'{p.name} [{p.unit}]':>22s}" for p in DYNAMIC_PARAMS)
+             + "   FD(P)"]
     for bus in sorted(results):
         r = results[bus]
         tr = truth.get(bus, {}).get("dynamic", {})
@@ -71,7 +72,7 @@ def format_period(summary, results: dict, truth: dict) -> str:
             lines.append(f"  {bus:8s} {r.status:8s} {r.reason or ''}")
             continue
         cells = []
-        for k in ("a", "b", "H2", "Tm"):
+        for k in DYNAMIC_NAMES:
             est, true = r.parameters.dynamic.get(k), tr.get(k)
             err = f"{100 * (est - true) / true:+4.0f}%" if true else ""
             cells.append(f"{est:7.3f} /{true:7.3f} {err:>5s}" if true is not None else f"{est:7.3f}")

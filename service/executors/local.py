@@ -1,4 +1,4 @@
-"""Executors of identification tasks: a local pool of spawned processes, or a Dask cluster.
+"""The local executor: a pool of spawned worker processes on this machine.
 
 Why not ``concurrent.futures.ProcessPoolExecutor``: one worker dying breaks that pool for every
 pending task, and a hung task cannot be stopped.  Here each worker has its own pipe, a dispatcher
@@ -13,80 +13,16 @@ import itertools
 import logging
 import multiprocessing as mp
 import queue
-import signal
 import threading
 import time
 from concurrent.futures import Future
 from multiprocessing.connection import Connection, wait
-from multiprocessing.reduction import ForkingPickler
-from typing import Protocol
 
-from service import _worker_boot
-from service.worker import TaskOutcome, WindowTask, resolve, run_task
+from service.executors import boot
+from service.executors.base import TaskOutcome, WindowTask
+from service.executors.child import READY
 
 log = logging.getLogger(__name__)
-
-
-class Executor(Protocol):
-    """What the scheduler needs: submit a task, get a future of its :class:`TaskOutcome`."""
-
-    def submit(self, task: WindowTask) -> Future: ...
-
-    def submit_many(self, tasks: list[WindowTask]) -> list[Future]: ...
-
-    def close(self) -> None: ...
-
-
-def worker_loop(conn: Connection, fn_path: str) -> None:
-    """Body of a worker process (started by :func:`service._worker_boot.main`).
-
-    Messages in are lists of ``(task_id, task)`` (or None: stop); each task's outcome goes back as
-    ``(task_id, outcome)`` as soon as it is done, in order.  A reader thread takes messages off the
-    pipe while a task runs, so the parent can queue the next tasks without waiting for this one and
-    its sends never wait for the computation.
-    """
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    try:
-        fn = resolve(fn_path)  # import numerics once, before the first task
-        if callable(getattr(fn, "warmup", None)):
-            fn.warmup()  # e.g. JIT compilation, before the worker reports ready
-    except Exception as exc:  # noqa: BLE001 - reported per task below
-        log.error("worker cannot import or warm up %s: %s", fn_path, exc)
-    inbox: queue.SimpleQueue = queue.SimpleQueue()
-    stop = threading.Event()
-
-    def read() -> None:
-        while True:
-            try:
-                msg = conn.recv()
-            except (EOFError, OSError):  # the parent has gone
-                msg = None
-            if msg is None:
-                stop.set()
-                inbox.put(None)
-                return
-            inbox.put(msg)
-
-    threading.Thread(target=read, name="aslm-worker-recv", daemon=True).start()
-    conn.send(("ready", None))
-    while True:
-        msg = inbox.get()
-        if msg is None:
-            return
-        for task_id, task in msg:
-            if stop.is_set():
-                return
-            outcome = run_task(fn_path, task)
-            try:
-                data = ForkingPickler.dumps((task_id, outcome))
-            except Exception as exc:  # noqa: BLE001 - a result that cannot be pickled fails its task only
-                data = ForkingPickler.dumps((task_id, TaskOutcome(
-                    ok=False, reason=f"error:{type(exc).__name__}", message=f"result not transferable: {exc}"[:500],
-                    elapsed_s=outcome.elapsed_s)))
-            try:
-                conn.send_bytes(data)
-            except (OSError, ValueError):
-                return  # the parent has gone
 
 
 _STOP = object()  # sender: send None (the worker's stop message), then end
@@ -237,7 +173,7 @@ class LocalPool:
 
     def _spawn(self) -> _Worker:
         parent, child = self._ctx.Pipe()
-        proc = self._ctx.Process(target=_worker_boot.main, args=(child, self.fn_path), name="aslm-worker",
+        proc = self._ctx.Process(target=boot.main, args=(child, self.fn_path), name="aslm-worker",
                                  daemon=True)
         proc.start()
         child.close()
@@ -304,7 +240,7 @@ class LocalPool:
             except (EOFError, OSError):
                 self._replace(w, "worker_crashed", f"worker {w.process.pid} died during the task")
                 return
-            if tag == "ready":
+            if tag == READY:
                 w.ready = True
             elif w.inflight and w.inflight[0][0] == tag:
                 _, _, fut = w.inflight.popleft()
@@ -344,65 +280,6 @@ class LocalPool:
                 time.sleep(0.1)
 
 
-class DaskPool:
-    """Tasks on a Dask distributed cluster (``pip install aslm[dask]``).
-
-    Parameters
-    ----------
-    address : str
-        Scheduler address, e.g. ``tcp://scheduler:8786``.
-    fn_path : str
-        ``module:function``; it must be importable on the Dask workers.
-    timeout_s : float
-        Per-task limit [s]; the Dask future is cancelled when it passes.
-    """
-
-    def __init__(self, address: str, fn_path: str, timeout_s: float) -> None:
-        try:
-            from distributed import Client
-        except ImportError as exc:  # optional extra
-            raise RuntimeError("executor is a Dask address but dask[distributed] is not installed: "
-                               "pip install 'aslm[dask]'") from exc
-        self.client = Client(address, timeout=30)
-        self.fn_path = fn_path
-        self.timeout_s = timeout_s
-
-    def submit(self, task: WindowTask) -> Future:
-        out: Future = Future()
-        dfut = self.client.submit(run_task, self.fn_path, task, pure=False)
-
-        def expire() -> None:
-            if not out.done():
-                dfut.cancel()
-                out.set_result(TaskOutcome(ok=False, reason="timeout", message=f"no result within {self.timeout_s:g} s"))
-
-        timer = threading.Timer(self.timeout_s, expire)
-        timer.daemon = True
-        timer.start()
-
-        def done(f) -> None:
-            timer.cancel()
-            if out.done():
-                return
-            try:
-                out.set_result(f.result())
-            except Exception as exc:  # noqa: BLE001 - KilledWorker, CancelledError, ...
-                reason = "worker_crashed" if type(exc).__name__ == "KilledWorker" else f"error:{type(exc).__name__}"
-                out.set_result(TaskOutcome(ok=False, reason=reason, message=str(exc)[:500]))
-
-        dfut.add_done_callback(done)
-        return out
-
-    def submit_many(self, tasks: list[WindowTask]) -> list[Future]:
-        """:meth:`submit` of each task."""
-        return [self.submit(task) for task in tasks]
-
-    def close(self) -> None:
-        self.client.close()
-
-
-def make_executor(executor: str, workers: int, fn_path: str, timeout_s: float) -> Executor:
-    """``local`` → :class:`LocalPool`; a ``tcp://`` address → :class:`DaskPool`."""
-    if executor == "local":
-        return LocalPool(workers, fn_path, timeout_s)
-    return DaskPool(executor, fn_path, timeout_s)
+def create(address: str, workers: int, fn_path: str, timeout_s: float) -> LocalPool:
+    """The ``local`` executor: a :class:`LocalPool` of ``workers`` processes (``address`` is ``local``)."""
+    return LocalPool(workers, fn_path, timeout_s)

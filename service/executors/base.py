@@ -1,0 +1,69 @@
+"""What the scheduler and every executor share: the task, its outcome and the executor protocol."""
+
+from __future__ import annotations
+
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from aslm_core.window import Window
+
+
+@dataclass
+class WindowTask:
+    """One bus's window to identify (pickled to the worker).
+
+    Attributes
+    ----------
+    window : aslm_core.Window
+        The bus's samples (t [s], V [pu], θ [rad], P, Q [pu], optional f [Hz]), nominal frequency f0
+        [Hz] and bus name.  Its ``meta`` stays empty: it would be pickled with every task.
+    warm_start : list of float or None
+        Previous period's D = [a, b, H2, Tm] of the bus.
+    options : dict
+        Keyword arguments of :class:`aslm_core.IdentifyConfig` (e.g. ``n_starts``).
+    fn : str or None
+        ``module:function`` to run instead of the executor's (e.g. the diagnosis).
+    previous : dict or None
+        The bus's identification of this window (``IdentificationResult.to_dict()``), for the diagnosis.
+    """
+
+    window: Window
+    warm_start: list[float] | None = None
+    options: dict[str, Any] = field(default_factory=dict)
+    fn: str | None = None
+    previous: dict | None = None
+
+    @property
+    def bus(self) -> str:
+        """The window's bus."""
+        return self.window.bus
+
+
+@dataclass
+class TaskOutcome:
+    """Result of one task: ``value`` (the identification dict) or a failure ``reason``.
+
+    Reasons: ``window:<WindowError.reason>``, ``error:<ExceptionType>``, ``timeout``,
+    ``worker_crashed``, ``shutdown``.
+    """
+
+    ok: bool
+    value: dict | None = None
+    reason: str | None = None
+    message: str = ""
+    elapsed_s: float = 0.0
+
+
+class Executor(Protocol):
+    """What the scheduler needs: submit a task, get a future of its :class:`TaskOutcome`.
+
+    The futures never raise: every failure (the task's own, a crash, a timeout, shutdown) resolves
+    as a :class:`TaskOutcome` with ``ok=False`` and a reason.
+    """
+
+    def submit(self, task: WindowTask) -> Future: ...
+
+    def submit_many(self, tasks: list[WindowTask]) -> list[Future]: ...
+
+    def close(self) -> None: ...
