@@ -8,15 +8,22 @@ from functools import lru_cache
 import numpy as np
 from scipy import signal
 
+from aslm_core import noise
 from aslm_core.errors import WindowError
 from aslm_core.window import Window
 
 CHANNELS = ("V", "theta", "P", "Q")
+#: Smoothers of the inputs V and θ (see :func:`prepare`).
+INPUT_SMOOTHERS = ("none", "wiener", "zero_phase")
 
 
 @dataclass
 class Prepared:
-    """A window on a uniform grid, gaps repaired, θ unwrapped, optionally low-passed."""
+    """A window on a uniform grid, gaps repaired, θ unwrapped, optionally smoothed or low-passed.
+
+    ``noise``: the white-noise std of the measured channels (:func:`aslm_core.noise.channel_floors`,
+    before any filtering), when asked for.
+    """
 
     t: np.ndarray
     V: np.ndarray
@@ -25,6 +32,7 @@ class Prepared:
     Q: np.ndarray
     dt: float
     flags: list[str] = field(default_factory=list)
+    noise: dict[str, float] = field(default_factory=dict)
 
 
 def _fill_short_gaps(x: np.ndarray, max_run: int, name: str) -> int:
@@ -50,8 +58,15 @@ def _lowpass(cutoff_hz: float, fs: float) -> tuple[np.ndarray, np.ndarray, np.nd
     return b, a, signal.lfilter_zi(b, a)
 
 
+@lru_cache(maxsize=32)
+def _zero_phase(cutoff_hz: float, fs: float) -> np.ndarray:
+    """4th-order Butterworth low-pass as second-order sections (run forwards and backwards: zero phase)."""
+    return signal.butter(4, cutoff_hz, fs=fs, output="sos")
+
+
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,
-            lowpass_hz: float | None = None) -> Prepared:
+            lowpass_hz: float | None = None, floors: bool = False, input_smoother: str = "none",
+            input_cutoff_hz: float = 3.0) -> Prepared:
     """Check a window and bring it onto a clean uniform grid.
 
     Parameters
@@ -66,6 +81,15 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     lowpass_hz : float or None
         Cut-off [Hz] of a causal 2nd-order Butterworth low-pass applied identically to V, θ, P, Q
         (causal so the end of the window, the most recent data, is not distorted).
+    floors : bool
+        Estimate the white-noise floor of every channel (``Prepared.noise``); implied by ``wiener``.
+    input_smoother : {"none", "wiener", "zero_phase"}
+        Applied to V and θ only, before the low-pass: ``wiener`` replaces them by their conditional
+        mean given the window, with the noise std from their floors (:func:`aslm_core.noise.wiener_smooth`);
+        ``zero_phase`` by a 4th-order Butterworth low-pass at ``input_cutoff_hz`` run forwards and
+        backwards.  P and Q are left as measured: only the inputs' noise is propagated by the model.
+    input_cutoff_hz : float
+        Cut-off of the ``zero_phase`` smoother [Hz].
 
     Returns
     -------
@@ -131,6 +155,16 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         theta = np.unwrap(theta)
     if hi[0] - lo[0] < 1e-6 * V[0] or hi[2] == lo[2] or hi[3] == lo[3]:
         raise WindowError("no_excitation", "V, P or Q is constant: ambient signals carry no information")
+    if input_smoother not in INPUT_SMOOTHERS:
+        raise ValueError(f"input_smoother must be one of {INPUT_SMOOTHERS}, got {input_smoother!r}")
+    est = noise.channel_floors(V, theta, P, Q, 1.0 / dt) if floors or input_smoother == "wiener" else {}
+    if input_smoother == "wiener":
+        V, theta = noise.wiener_smooth(np.stack([V, theta]), 1.0 / dt, [est["noise_v"], est["noise_theta"]])
+    elif input_smoother == "zero_phase":
+        if not 0.0 < input_cutoff_hz < 0.5 / dt:
+            raise ValueError(f"input_cutoff_hz must lie in (0, {0.5 / dt:g}) Hz for a {1 / dt:g} Hz window")
+        sos = _zero_phase(float(input_cutoff_hz), round(1.0 / dt, 3))
+        V, theta = signal.sosfiltfilt(sos, np.stack([V, theta]), axis=1)
     if lowpass_hz is not None:
         fs = 1.0 / dt
         if not 0.0 < lowpass_hz < 0.5 * fs:
@@ -139,4 +173,4 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         x = np.stack([V, theta, P, Q])
         V, theta, P, Q = signal.lfilter(b, a, x, axis=1, zi=zi[None, :] * x[:, :1])[0]
     tg = t[0] + dt * np.arange(n_grid)
-    return Prepared(tg, V, theta, P, Q, dt, flags)
+    return Prepared(tg, V, theta, P, Q, dt, flags, est)
