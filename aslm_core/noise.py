@@ -21,6 +21,8 @@ FLOOR_FROM_HZ = 5.0
 WIENER_SMOOTH_HZ = 0.5
 #: The smoother passes the signal at least up to this frequency [Hz] (its gain still weighs the noise).
 MIN_CUTOFF_HZ = 0.5
+#: A channel's signal ends where its smoothed power sinks to this multiple of its noise floor [-].
+CUTOFF_FACTOR = 1.0
 #: Length of the local line whose value at a window's end is the centre of the point reflection [s].
 EDGE_FIT_S = 0.1
 
@@ -212,7 +214,7 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     sx = (u * np.maximum(w, 0.0)[:, None, :]) @ u.conj().transpose(0, 2, 1)
     k_min = int(np.ceil(MIN_CUTOFF_HZ * ne / fs))
     for i in range(c):
-        below = np.flatnonzero(sm[k_min:, i, i].real <= r[i])
+        below = np.flatnonzero(sm[k_min:, i, i].real <= CUTOFF_FACTOR * r[i])
         if below.size:
             sx[k_min + below[0]:, i, :] = 0.0
             sx[k_min + below[0]:, :, i] = 0.0
