@@ -65,7 +65,8 @@ def periodogram(r: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
     r = np.asarray(r, dtype=np.float64)
     n = r.shape[-1]
     w, ww = _taper(n)
-    pxx = np.abs(np.fft.rfft(_detrend(r) * w, axis=-1)) ** 2 / (fs * ww)
+    spec = np.fft.rfft(_detrend(r) * w, axis=-1)
+    pxx = (spec.real**2 + spec.imag**2) / (fs * ww)
     if n % 2:
         pxx[..., 1:] *= 2.0
     else:
@@ -94,14 +95,17 @@ def noise_floor(r: np.ndarray, fs: float, from_hz: float = FLOOR_FROM_HZ) -> dic
         ``bins`` (number of bins), ``band`` [Hz].
     """
     f, pxx = periodogram(r, fs)
-    hi = 0.95 * fs / 2
-    sel = (f >= from_hz) & (f <= hi)
-    if sel.sum() < 20:
-        sel = f >= 0.6 * fs / 2
+    sel = _floor_band(f, fs, from_hz)
     vals = pxx[sel]
     psd = float(np.median(vals) / math.log(2.0))
     return {"psd": psd, "sigma": math.sqrt(psd * fs / 2), "bins": int(vals.size),
             "band": [float(f[sel][0]), float(f[sel][-1])]}
+
+
+def _floor_band(f: np.ndarray, fs: float, from_hz: float) -> np.ndarray:
+    """The periodogram bins the floor is the median of (see :func:`noise_floor`)."""
+    sel = (f >= from_hz) & (f <= 0.95 * fs / 2)
+    return sel if sel.sum() >= 20 else f >= 0.6 * fs / 2
 
 
 def channel_floors(V: np.ndarray, theta: np.ndarray, P: np.ndarray, Q: np.ndarray, fs: float) -> dict[str, float]:
@@ -122,15 +126,17 @@ def channel_floors(V: np.ndarray, theta: np.ndarray, P: np.ndarray, Q: np.ndarra
     dict
         ``noise_v`` [pu], ``noise_theta`` [rad], ``noise_p``, ``noise_q`` [pu].
     """
-    return {f"noise_{k}": noise_floor(x, fs)["sigma"] for k, x in (("v", V), ("theta", theta), ("p", P), ("q", Q))}
+    f, pxx = periodogram(np.stack([V, theta, P, Q]), fs)  # one FFT call for the four: this runs per window
+    psd = np.median(pxx[:, _floor_band(f, fs, FLOOR_FROM_HZ)], axis=1) / math.log(2.0)
+    return {f"noise_{k}": math.sqrt(float(v) * fs / 2) for k, v in zip(("v", "theta", "p", "q"), psd, strict=True)}
 
 
 def _end_value(x: np.ndarray, m: int, at_start: bool) -> float:
     """Value at the first (or last) sample of the least-squares line through the first (last) m samples."""
     seg = x[:m] if at_start else x[-m:]
-    k = np.arange(m, dtype=np.float64)
-    slope, icpt = np.polyfit(k, seg, 1)
-    return float(icpt if at_start else icpt + slope * (m - 1))
+    k = np.arange(m, dtype=np.float64) - 0.5 * (m - 1)
+    slope = float(seg @ k) / float(k @ k)
+    return float(seg.mean()) + slope * float(k[0] if at_start else k[-1])
 
 
 def _moving_average(x: np.ndarray, width: int) -> np.ndarray:
@@ -186,6 +192,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     x = np.atleast_2d(np.asarray(x, dtype=np.float64))
     var = np.asarray(sigma, dtype=np.float64) ** 2
     c, n = x.shape
+    if c > 2:
+        raise ValueError(f"wiener_smooth takes one or two channels, got {c}")
     if n < 8 or not np.any(var > 0.0):
         return x.copy()
     var = np.maximum(var, 1e-30)
@@ -193,9 +201,7 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     m = max(2, min(n // 4, int(round(EDGE_FIT_S * fs))))
     ext = np.stack([_extend(xi, pad, m) for xi in x])
     ne = ext.shape[1]
-    k = np.arange(ne, dtype=np.float64)
-    coef = np.polynomial.polynomial.polyfit(k, ext.T, 1)
-    line = coef[0][:, None] + coef[1][:, None] * k
+    line = ext - _detrend(ext)
     # Tapered to zero over the outer half of each pad, so the wrap-around of the FFT joins two zeros.
     taper = np.ones(ne)
     h = pad // 2
@@ -204,20 +210,38 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         taper[:h], taper[ne - h:] = ramp, ramp[::-1]
     spec = np.fft.rfft((ext - line) * taper, axis=1)  # white noise of variance σ² has E|X_k|² ≈ ne·σ²
     width = max(1, int(round(smooth_hz * ne / fs)))
-    sm = np.empty((spec.shape[1], c, c), dtype=complex)
-    for i in range(c):
-        for j in range(i, c):
-            sm[:, i, j] = _moving_average(spec[i] * spec[j].conj(), width)
-            sm[:, j, i] = sm[:, i, j].conj()
     r = ne * var
-    w, u = np.linalg.eigh(sm - np.diag(r))
-    sx = (u * np.maximum(w, 0.0)[:, None, :]) @ u.conj().transpose(0, 2, 1)
+    p = [_moving_average((spec[i] * spec[i].conj()).real, width) for i in range(c)]
     k_min = int(np.ceil(MIN_CUTOFF_HZ * ne / fs))
+    ends = []
     for i in range(c):
-        below = np.flatnonzero(sm[k_min:, i, i].real <= CUTOFF_FACTOR * r[i])
-        if below.size:
-            sx[k_min + below[0]:, i, :] = 0.0
-            sx[k_min + below[0]:, :, i] = 0.0
-    gain = sx @ np.linalg.inv(sx + np.diag(r))
-    out = np.fft.irfft(np.einsum("kij,jk->ik", gain, spec), n=ne, axis=1) + line
+        below = np.flatnonzero(p[i][k_min:] <= CUTOFF_FACTOR * r[i])
+        ends.append(k_min + int(below[0]) if below.size else p[i].size)
+    if c == 1:
+        s = np.maximum(p[0] - r[0], 0.0)
+        s[ends[0]:] = 0.0
+        return (np.fft.irfft(s / (s + r[0]) * spec[0], n=ne) + line[0])[None, pad:pad + n]
+    # Two channels: S = S_m − R with its negative eigenvalue clipped, in closed form per frequency.
+    b = _moving_average(spec[0] * spec[1].conj(), width)
+    a, d = p[0] - r[0], p[1] - r[1]
+    mid, rad = 0.5 * (a + d), np.sqrt(0.25 * (a - d) ** 2 + np.abs(b) ** 2)
+    lo, hi = mid - rad, mid + rad
+    # Where only the larger eigenvalue is positive, S = λ₊·(A − λ₋·I)/(λ₊ − λ₋); where none is, S = 0.
+    part = (lo < 0.0) & (hi > 0.0)
+    scale = np.where(part, hi / np.where(part, hi - lo, 1.0), 1.0)
+    shift = np.where(part, lo, 0.0)
+    keep = hi > 0.0
+    sa = np.where(keep, scale * (a - shift), 0.0)
+    sd = np.where(keep, scale * (d - shift), 0.0)
+    sb = np.where(keep, scale * b, 0.0)
+    sa[ends[0]:] = 0.0
+    sb[min(ends):] = 0.0
+    sd[ends[1]:] = 0.0
+    # gain = S·(S + R)⁻¹
+    ta, td = sa + r[0], sd + r[1]
+    det = ta * td - np.abs(sb) ** 2
+    g00, g01 = (sa * td - sb * sb.conj()) / det, (sb * ta - sa * sb) / det
+    g10, g11 = (sb.conj() * td - sd * sb.conj()) / det, (sd * ta - sb.conj() * sb) / det
+    est = np.stack([g00 * spec[0] + g01 * spec[1], g10 * spec[0] + g11 * spec[1]])
+    out = np.fft.irfft(est, n=ne, axis=1) + line
     return out[:, pad:pad + n]
