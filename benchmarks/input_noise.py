@@ -80,13 +80,16 @@ def summarise(cases, windows, results, injected) -> dict:
     out = {}
     for name in CANDIDATES:
         ratios, cover, est = [], [], []
-        failed = 0
+        failed = off = off_unflagged = 0
         for c, res, inj in zip(cases, results, injected, strict=True):
             r = res[name]
             if isinstance(r, WindowError):
                 failed += 1
                 continue
             ratios.append(r.d / c.truth.d)
+            if np.max(np.abs(ratios[-1] - 1)) > 0.2:
+                off += 1
+                off_unflagged += not any(f.startswith(("uncertain", "poor_fit", "at_bound", "restarts")) for f in r.flags)
             cover.append([abs(r.dynamic[p] - c.truth.dynamic[p]) < 1.96 * r.stderr[p] for p in common.PARAMS])
             est.append([r.quality[k] / inj[k] if inj[k] > 0 else np.nan for k in NOISE_KEYS])
         rr = np.array(ratios)
@@ -94,6 +97,7 @@ def summarise(cases, windows, results, injected) -> dict:
         st["median_abs_err"] = dict(zip(common.PARAMS, np.median(np.abs(rr - 1), axis=0).tolist(), strict=True))
         st["coverage_95"] = dict(zip(common.PARAMS, np.mean(cover, axis=0).tolist(), strict=True))
         st["failed"] = failed
+        st["off_20pct_unflagged"] = off_unflagged  # of n_off_20pct: without uncertain/poor_fit/at_bound/restarts
         e = np.array(est)
         st["noise_estimate_over_injected"] = {
             k: ({"median": float(np.nanmedian(e[:, i])), "min": float(np.nanmin(e[:, i])),
@@ -104,7 +108,7 @@ def summarise(cases, windows, results, injected) -> dict:
 
 
 HEAD = ["input noise", "candidate", "μ a / b / H2 / Tm", "σ a / b / H2 / Tm", "median |err| a / b / H2 / Tm [%]",
-        "worst [%]", "±1.96 SE cover [%]", "ms"]
+        "worst [%]", "off > 20 % (unflagged)", "±1.96 SE cover [%]", "ms"]
 
 
 def rows(level_out: dict) -> list[list]:
@@ -116,6 +120,7 @@ def rows(level_out: dict) -> list[list]:
                         " / ".join(f"{st['sigma'][k]:.3f}" for k in p),
                         " / ".join(f"{100 * st['median_abs_err'][k]:.1f}" for k in p),
                         f"{100 * max(st['max_abs_err'].values()):.0f}",
+                        f"{st['n_off_20pct']} ({st['off_20pct_unflagged']})",
                         " / ".join(f"{100 * st['coverage_95'][k]:.0f}" for k in p),
                         f"{st['median_time_ms']:.1f}"])
     return out
