@@ -193,13 +193,13 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     to the Fourier domain.  Per frequency the measured cross-spectral matrix S_m (the periodogram matrix
     averaged over ``smooth_hz``) is the signal's S plus R = diag(σ²); S = S_m − R with its negative
     eigenvalues clipped, and a channel's signal is zero above the first frequency (from 0.5 Hz) where its
-    power sinks to its floor (ambient content falls with frequency; the floor's own scatter would otherwise
-    open the gain: a per-bin rule let 12–16 % of the noise through).  The gain is S·(S + R)⁻¹.  Why the
-    conditional mean, and jointly: with x̂ = E[x | V, θ measured] the error x − x̂ is uncorrelated with
-    x̂ at every lag, so a model fitted on x̂ (regression calibration) is consistent to first order in the
-    ambient excursions.  V and θ are correlated (the network couples them), so smoothing each on its own
-    leaves V's error correlated with θ̂: that left a −4 % bias in a at 0.1 % / 1e-3 rad.  A low-pass
-    instead leaves its in-band noise in the regressors and removes the signal beyond its cut-off.
+    power sinks to its floor (ambient content falls with frequency; without that rule the floor's own
+    scatter opened the gain above 5 Hz and left half the error variance there).  The gain is S·(S + R)⁻¹.
+    Why the conditional mean: with x̂ = E[x | V, θ measured] the error x − x̂ is uncorrelated with x̂ at
+    every lag, so a model fitted on x̂ (regression calibration) is consistent to first order in the
+    ambient excursions.  Jointly, because the network makes V and θ coherent: V's error must be
+    uncorrelated with θ̂ too.  A low-pass instead leaves its in-band noise in the regressors and removes
+    the signal beyond its cut-off.  Measurements: docs/numerics.md.
     """
     x = np.atleast_2d(np.asarray(x, dtype=np.float64))
     var = np.asarray(sigma, dtype=np.float64) ** 2
