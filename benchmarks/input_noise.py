@@ -35,6 +35,7 @@ CANDIDATES = {
     "causal low-pass 2 Hz": IdentifyConfig(lowpass_hz=2.0),
     "zero-phase V/θ 3 Hz": IdentifyConfig(input_smoother="zero_phase", input_cutoff_hz=3.0),
     "Wiener V/θ": IdentifyConfig(input_smoother="wiener"),
+    "Wiener V/θ + causal low-pass 2 Hz": IdentifyConfig(input_smoother="wiener", lowpass_hz=2.0),
 }
 NOISE_KEYS = ("noise_v", "noise_theta", "noise_p", "noise_q")
 
