@@ -354,7 +354,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         "skip_s": problem.k0 * prep.dt,
         "of_paper": (math.sqrt(rr_p) + math.sqrt(rr_q)) / problem.l,
         "residual_rho_p": min(max(rho_p, 0.0), 0.95), "residual_rho_q": min(max(rho_q, 0.0), 0.95),
-        **prep.noise,
+        "lowpass_hz": prep.lowpass_hz, **prep.noise,
     }
     return IdentificationResult(
         dynamic={k: float(v) for k, v in zip(DYNAMIC_NAMES, d, strict=True)},

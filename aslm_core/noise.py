@@ -166,7 +166,8 @@ def _extend(x: np.ndarray, pad: int, m: int) -> np.ndarray:
     return np.concatenate((2.0 * x0 - x[pad:0:-1], x, 2.0 * x1 - x[-2:-pad - 2:-1]))
 
 
-def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float = WIENER_SMOOTH_HZ) -> np.ndarray:
+def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float = WIENER_SMOOTH_HZ,
+                  return_cutoffs: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Conditional mean of jointly stationary signals observed in white noise of known std: a non-causal
     multichannel Wiener smoother.
 
@@ -181,11 +182,16 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         (e.g. :func:`noise_floor`'s ``sigma``).
     smooth_hz : float
         Width of the moving average over the cross-spectrum the gain is formed from [Hz].
+    return_cutoffs : bool
+        Also return each channel's signal cut-off.
 
     Returns
     -------
     ndarray, shape (c, n)
         The smoothed signals.
+    ndarray, shape (c,)
+        Only with ``return_cutoffs``: per channel the frequency above which its signal is taken as zero
+        (where its averaged power sinks to its floor; fs/2 when it never does) [Hz].
 
     Notes
     -----
@@ -207,7 +213,7 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     if c > 2:
         raise ValueError(f"wiener_smooth takes one or two channels, got {c}")
     if n < 8 or not np.any(var > 0.0):
-        return x.copy()
+        return (x.copy(), np.full(c, 0.5 * fs)) if return_cutoffs else x.copy()
     var = np.maximum(var, 1e-30)
     pad = min(n - 2, int(round(2.0 * fs)))
     m = max(2, min(n // 4, int(round(EDGE_FIT_S * fs))))
@@ -229,10 +235,12 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     for i in range(c):
         below = np.flatnonzero(p[i][k_min:] <= CUTOFF_FACTOR * r[i])
         ends.append(k_min + int(below[0]) if below.size else p[i].size)
+    cutoffs = np.array(ends, dtype=np.float64) * fs / ne
     if c == 1:
         s = np.maximum(p[0] - r[0], 0.0)
         s[ends[0]:] = 0.0
-        return (np.fft.irfft(s / (s + r[0]) * spec[0], n=ne) + line[0])[None, pad:pad + n]
+        out = (np.fft.irfft(s / (s + r[0]) * spec[0], n=ne) + line[0])[None, pad:pad + n]
+        return (out, cutoffs) if return_cutoffs else out
     # Two channels: S = S_m − R with its negative eigenvalue clipped, in closed form per frequency.
     b = _moving_average(spec[0] * spec[1].conj(), width)
     a, d = p[0] - r[0], p[1] - r[1]
@@ -255,5 +263,5 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     g00, g01 = (sa * td - sb * sb.conj()) / det, (sb * ta - sa * sb) / det
     g10, g11 = (sb.conj() * td - sd * sb.conj()) / det, (sd * ta - sb.conj() * sb) / det
     est = np.stack([g00 * spec[0] + g01 * spec[1], g10 * spec[0] + g11 * spec[1]])
-    out = np.fft.irfft(est, n=ne, axis=1) + line
-    return out[:, pad:pad + n]
+    out = (np.fft.irfft(est, n=ne, axis=1) + line)[:, pad:pad + n]
+    return (out, cutoffs) if return_cutoffs else out

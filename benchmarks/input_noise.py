@@ -36,6 +36,7 @@ CANDIDATES = {
     "zero-phase V/θ 3 Hz": IdentifyConfig(input_smoother="zero_phase", input_cutoff_hz=3.0),
     "Wiener V/θ": IdentifyConfig(input_smoother="wiener"),
     "Wiener V/θ + causal low-pass 2 Hz": IdentifyConfig(input_smoother="wiener", lowpass_hz=2.0),
+    "Wiener V/θ + adaptive low-pass": IdentifyConfig(input_smoother="wiener_lowpass"),
 }
 NOISE_KEYS = ("noise_v", "noise_theta", "noise_p", "noise_q")
 
