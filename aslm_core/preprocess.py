@@ -86,7 +86,7 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         Cut-off [Hz] of a causal 2nd-order Butterworth low-pass applied identically to V, θ, P, Q
         (causal so the end of the window, the most recent data, is not distorted).
     floors : bool
-        Estimate the white-noise floor of every channel (``Prepared.noise``); implied by ``wiener``.
+        Estimate the white-noise floor of every channel (``Prepared.noise``); implied by the Wiener smoothers.
     input_smoother : {"none", "wiener", "wiener_lowpass", "zero_phase"}
         Applied to V and θ only, before the low-pass: ``wiener`` replaces them by their conditional
         mean given the window, with the noise std from their floors (:func:`aslm_core.noise.wiener_smooth`);
