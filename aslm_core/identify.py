@@ -242,7 +242,8 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
     t_start = time.perf_counter()
     config = config or IdentifyConfig()
     prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
-                   lowpass_hz=config.lowpass_hz)
+                   lowpass_hz=config.lowpass_hz, floors=True, input_smoother=config.input_smoother,
+                   input_cutoff_hz=config.input_cutoff_hz)
     problem = Problem(prep, window.f0, config)
     rng = np.random.default_rng(config.seed)
     starts = []
@@ -353,6 +354,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         "skip_s": problem.k0 * prep.dt,
         "of_paper": (math.sqrt(rr_p) + math.sqrt(rr_q)) / problem.l,
         "residual_rho_p": min(max(rho_p, 0.0), 0.95), "residual_rho_q": min(max(rho_q, 0.0), 0.95),
+        "lowpass_hz": prep.lowpass_hz, **prep.noise,
     }
     return IdentificationResult(
         dynamic={k: float(v) for k, v in zip(DYNAMIC_NAMES, d, strict=True)},

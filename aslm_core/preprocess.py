@@ -8,15 +8,25 @@ from functools import lru_cache
 import numpy as np
 from scipy import signal
 
+from aslm_core import noise
 from aslm_core.errors import WindowError
 from aslm_core.window import SIGNALS, Window
 
 CHANNELS = SIGNALS  # V, θ, P, Q: put on one grid and filtered together
+#: Smoothers of the inputs V and θ (see :func:`prepare`).
+INPUT_SMOOTHERS = ("none", "wiener", "wiener_lowpass", "zero_phase")
+#: ``wiener_lowpass``: cut-off of the low-pass as a fraction of the lower signal cut-off of V and θ [-].
+PREFILTER_FRACTION = 0.5
 
 
 @dataclass
 class Prepared:
-    """A window on a uniform grid, gaps repaired, θ unwrapped, optionally low-passed."""
+    """A window on a uniform grid, gaps repaired, θ unwrapped, optionally smoothed or low-passed.
+
+    ``noise``: the white-noise std of the measured channels (:func:`aslm_core.noise.channel_floors`,
+    before any filtering), when asked for.  ``lowpass_hz``: the cut-off of the causal low-pass applied
+    (given, or chosen by ``wiener_lowpass``), 0 for none [Hz].
+    """
 
     t: np.ndarray
     V: np.ndarray
@@ -25,6 +35,8 @@ class Prepared:
     Q: np.ndarray
     dt: float
     flags: list[str] = field(default_factory=list)
+    noise: dict[str, float] = field(default_factory=dict)
+    lowpass_hz: float = 0.0
 
 
 def _fill_short_gaps(x: np.ndarray, max_run: int, name: str) -> int:
@@ -43,15 +55,22 @@ def _fill_short_gaps(x: np.ndarray, max_run: int, name: str) -> int:
     return int(bad.sum())
 
 
-@lru_cache(maxsize=32)
+@lru_cache(maxsize=128)
 def _lowpass(cutoff_hz: float, fs: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """2nd-order Butterworth low-pass (b, a) and its unit-step initial state (designing it costs ~1 ms)."""
     b, a = signal.butter(2, cutoff_hz, fs=fs)
     return b, a, signal.lfilter_zi(b, a)
 
 
+@lru_cache(maxsize=32)
+def _zero_phase(cutoff_hz: float, fs: float) -> np.ndarray:
+    """4th-order Butterworth low-pass as second-order sections (run forwards and backwards: zero phase)."""
+    return signal.butter(4, cutoff_hz, fs=fs, output="sos")
+
+
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,
-            lowpass_hz: float | None = None) -> Prepared:
+            lowpass_hz: float | None = None, floors: bool = False, input_smoother: str = "none",
+            input_cutoff_hz: float = 3.0) -> Prepared:
     """Check a window and bring it onto a clean uniform grid.
 
     Parameters
@@ -66,6 +85,18 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     lowpass_hz : float or None
         Cut-off [Hz] of a causal 2nd-order Butterworth low-pass applied identically to V, θ, P, Q
         (causal so the end of the window, the most recent data, is not distorted).
+    floors : bool
+        Estimate the white-noise floor of every channel (``Prepared.noise``); implied by the Wiener smoothers.
+    input_smoother : {"none", "wiener", "wiener_lowpass", "zero_phase"}
+        Applied to V and θ only, before the low-pass: ``wiener`` replaces them by their conditional
+        mean given the window, with the noise std from their floors (:func:`aslm_core.noise.wiener_smooth`);
+        ``wiener_lowpass`` does the same and then, unless ``lowpass_hz`` is given, low-passes all four
+        channels as ``lowpass_hz`` would at ``PREFILTER_FRACTION`` × the lower of V's and θ's signal
+        cut-off (where their power sinks to the noise floor; no low-pass when neither does: exact inputs);
+        ``zero_phase`` by a 4th-order Butterworth low-pass at ``input_cutoff_hz`` run forwards and
+        backwards.  P and Q are not smoothed: only the inputs' noise is propagated by the model.
+    input_cutoff_hz : float
+        Cut-off of the ``zero_phase`` smoother [Hz].
 
     Returns
     -------
@@ -131,6 +162,21 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         theta = np.unwrap(theta)
     if hi[0] - lo[0] < 1e-6 * V[0] or hi[2] == lo[2] or hi[3] == lo[3]:
         raise WindowError("no_excitation", "V, P or Q is constant: ambient signals carry no information")
+    if input_smoother not in INPUT_SMOOTHERS:
+        raise ValueError(f"input_smoother must be one of {INPUT_SMOOTHERS}, got {input_smoother!r}")
+    wiener = input_smoother in ("wiener", "wiener_lowpass")
+    est = noise.channel_floors(V, theta, P, Q, 1.0 / dt) if floors or wiener else {}
+    if wiener:
+        (V, theta), cut = noise.wiener_smooth(np.stack([V, theta]), 1.0 / dt, [est["noise_v"], est["noise_theta"]],
+                                              return_cutoffs=True)
+        if input_smoother == "wiener_lowpass" and lowpass_hz is None and cut.min() < 0.45 / dt:
+            # Rounded to 0.1 Hz so the filter designs are cached.
+            lowpass_hz = max(0.1, round(PREFILTER_FRACTION * float(cut.min()), 1))
+    elif input_smoother == "zero_phase":
+        if not 0.0 < input_cutoff_hz < 0.5 / dt:
+            raise ValueError(f"input_cutoff_hz must lie in (0, {0.5 / dt:g}) Hz for a {1 / dt:g} Hz window")
+        sos = _zero_phase(float(input_cutoff_hz), round(1.0 / dt, 3))
+        V, theta = signal.sosfiltfilt(sos, np.stack([V, theta]), axis=1)
     if lowpass_hz is not None:
         fs = 1.0 / dt
         if not 0.0 < lowpass_hz < 0.5 * fs:
@@ -139,4 +185,4 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         x = np.stack([V, theta, P, Q])
         V, theta, P, Q = signal.lfilter(b, a, x, axis=1, zi=zi[None, :] * x[:, :1])[0]
     tg = t[0] + dt * np.arange(n_grid)
-    return Prepared(tg, V, theta, P, Q, dt, flags)
+    return Prepared(tg, V, theta, P, Q, dt, flags, est, float(lowpass_hz or 0.0))

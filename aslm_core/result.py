@@ -12,6 +12,7 @@ from aslm_core.params import DYNAMIC_NAMES
 Integrator = Literal["rk4", "euler"]
 Objective = Literal["paper", "ml", "ssq"]
 StaticModel = Literal["zip", "exponential"]
+InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
 
 
 @dataclass(frozen=True)
@@ -43,6 +44,16 @@ class IdentifyConfig:
         Random feasible starts (in addition to the warm start, if given).
     lowpass_hz : float or None
         Cut-off of the optional causal Butterworth low-pass applied to V, θ, P, Q [Hz].
+    input_smoother : {"none", "wiener", "wiener_lowpass", "zero_phase"}
+        Smoother of the inputs V and θ before the model is played back on them (P and Q not smoothed),
+        against the bias their PMU noise causes (errors in variables): ``wiener`` = their conditional
+        mean given the window, the noise std taken from each channel's floor above 5 Hz;
+        ``wiener_lowpass`` = the same, then (unless ``lowpass_hz`` is set) the causal low-pass of all
+        four channels at half the frequency where V's or θ's signal sinks to its floor, none with exact
+        inputs; ``zero_phase`` = a zero-phase low-pass of V and θ at ``input_cutoff_hz``.  See
+        docs/numerics.md.
+    input_cutoff_hz : float
+        Cut-off of the ``zero_phase`` input smoother [Hz].
     max_iter : int
         Levenberg–Marquardt iterations per start.
     seed : int or None
@@ -65,6 +76,8 @@ class IdentifyConfig:
     skip_max_s: float = 3.0
     n_starts: int = 3
     lowpass_hz: float | None = None
+    input_smoother: InputSmoother = "none"
+    input_cutoff_hz: float = 3.0
     max_iter: int = 60
     seed: int | None = 0
     max_gap_samples: int = 5
@@ -94,7 +107,9 @@ class IdentificationResult:
         Standard errors of D from the Jacobian at the optimum, sandwich form of the configured objective
         (per-channel noise, residual autocorrelation).
     quality : dict
-        Indicators: SNR estimates [dB], excitation (std of V [pu]), constraint margin, n samples.
+        Indicators: SNR estimates [dB], excitation (std of V [pu]), constraint margin, n samples, the
+        white-noise std of the measured channels ``noise_v``, ``noise_p``, ``noise_q`` [pu] and
+        ``noise_theta`` [rad], ``lowpass_hz`` the causal low-pass applied (0: none) [Hz].
     flags : list of str
         Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``.
     """

@@ -7,53 +7,17 @@ above that floor in the ambient band, coherent with what drives it (V, dV/dt, th
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from scipy import signal, stats
+
+from aslm_core.noise import FLOOR_FROM_HZ, noise_floor, periodogram
+
+__all__ = ["FLOOR_FROM_HZ", "band_excess", "coherence", "locate", "noise_floor", "periodogram", "time_segments"]
 
 #: Bands reported [Hz] (the last one is capped at the Nyquist frequency).
 BANDS: tuple[tuple[float, float], ...] = ((0.05, 0.5), (0.5, 1.0), (1.0, 2.0), (2.0, 5.0))
 #: Smallest in-band excess variance, as a fraction of the noise variance, that counts as a mismatch [-].
 MIN_EXCESS = 0.05
-#: Lower edge of the band the noise floor is measured in [Hz].
-FLOOR_FROM_HZ = 5.0
-
-
-def periodogram(r: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
-    """One-sided periodogram of a linearly detrended residual with a 10 % Tukey taper [pu²/Hz]."""
-    return signal.periodogram(r, fs=fs, window=("tukey", 0.1), detrend="linear", scaling="density")
-
-
-def noise_floor(r: np.ndarray, fs: float, from_hz: float = FLOOR_FROM_HZ) -> dict:
-    """White-noise floor of a residual from its high-frequency band.
-
-    Parameters
-    ----------
-    r : ndarray
-        Residual [pu].
-    fs : float
-        Sample rate [Hz].
-    from_hz : float
-        Lower edge of the floor band [Hz]; the band ends at 0.95 × Nyquist.  If that leaves fewer than
-        20 bins (low frame rates) the top 40 % of the spectrum is used.
-
-    Returns
-    -------
-    dict
-        ``psd`` [pu²/Hz] (median of the band's bins divided by ln 2 — the median of a χ²₂ periodogram
-        bin is ln 2 times its mean — so a tone or a few outliers do not lift the floor), ``sigma`` [pu] (white-noise std that floor implies, sqrt(psd·fs/2)),
-        ``bins`` (number of bins), ``band`` [Hz].
-    """
-    f, pxx = periodogram(r, fs)
-    hi = 0.95 * fs / 2
-    sel = (f >= from_hz) & (f <= hi)
-    if sel.sum() < 20:
-        sel = f >= 0.6 * fs / 2
-    vals = pxx[sel]
-    psd = float(np.median(vals) / math.log(2.0))
-    return {"psd": psd, "sigma": math.sqrt(psd * fs / 2), "bins": int(vals.size),
-            "band": [float(f[sel][0]), float(f[sel][-1])]}
 
 
 def band_excess(r: np.ndarray, fs: float, floor: dict, *, alpha: float = 0.01, n_tests: int = 8) -> list[dict]:

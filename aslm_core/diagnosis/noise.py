@@ -46,8 +46,8 @@ from functools import lru_cache
 import numpy as np
 from scipy import fft, signal
 
-from aslm_core.diagnosis.locate import FLOOR_FROM_HZ, noise_floor, periodogram
 from aslm_core.diagnosis.segment import Segment
+from aslm_core.noise import FLOOR_FROM_HZ, noise_floor, periodogram
 
 #: Upper edge of the ambient band the fits and held-out tests use [Hz].
 BAND_HZ = 5.0

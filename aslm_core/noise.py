@@ -1,0 +1,267 @@
+"""White measurement-noise floors of a window's channels, and a smoother of the noisy inputs V and θ.
+
+The measurement noise of a PMU is broadband while ambient load dynamics live below ~2 Hz (paper §III.A),
+so a channel's spectrum above a few hertz is its noise floor.  The identifier reports the floors of V, θ,
+P and Q, and can replace the measured V and θ by their conditional mean given the window (a Wiener
+smoother, :func:`wiener_smooth`) before playing the model back on them: the model is driven by its
+inputs, so input noise passes through it into the fit (errors in variables) unless it is removed first.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from scipy import signal
+
+#: Lower edge of the band the noise floor is measured in [Hz].
+FLOOR_FROM_HZ = 5.0
+#: Width of the smoothing of the power spectrum the Wiener gain is formed from [Hz].
+WIENER_SMOOTH_HZ = 0.5
+#: The smoother passes the signal at least up to this frequency [Hz] (its gain still weighs the noise).
+MIN_CUTOFF_HZ = 0.5
+#: A channel's signal ends where its smoothed power sinks to this multiple of its noise floor [-].
+CUTOFF_FACTOR = 1.0
+#: Length of the local line whose value at a window's end is the centre of the point reflection [s].
+EDGE_FIT_S = 0.1
+
+
+@lru_cache(maxsize=32)
+def _taper(n: int) -> tuple[np.ndarray, float]:
+    """The periodic 10 % Tukey window of n samples and the sum of its squares."""
+    w = signal.get_window(("tukey", 0.1), n)
+    return w, float(w @ w)
+
+
+def _detrend(x: np.ndarray) -> np.ndarray:
+    """x minus its least-squares line along the last axis."""
+    n = x.shape[-1]
+    k = np.arange(n, dtype=np.float64) - 0.5 * (n - 1)
+    slope = (x @ k) / (k @ k)
+    return x - x.mean(axis=-1, keepdims=True) - np.multiply.outer(slope, k)
+
+
+def periodogram(r: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """One-sided periodogram of a linearly detrended residual with a 10 % Tukey taper [pu²/Hz].
+
+    The same numbers as ``scipy.signal.periodogram(r, fs, ("tukey", 0.1), detrend="linear")`` along the
+    last axis, at a tenth of its cost (the identifier takes four per window).
+
+    Parameters
+    ----------
+    r : ndarray
+        Signal(s) [pu or rad], time along the last axis.
+    fs : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    f : ndarray
+        Frequencies [Hz].
+    pxx : ndarray
+        Power spectral density [unit²/Hz].
+    """
+    r = np.asarray(r, dtype=np.float64)
+    n = r.shape[-1]
+    w, ww = _taper(n)
+    spec = np.fft.rfft(_detrend(r) * w, axis=-1)
+    pxx = (spec.real**2 + spec.imag**2) / (fs * ww)
+    if n % 2:
+        pxx[..., 1:] *= 2.0
+    else:
+        pxx[..., 1:-1] *= 2.0
+    return np.fft.rfftfreq(n, 1.0 / fs), pxx
+
+
+def noise_floor(r: np.ndarray, fs: float, from_hz: float = FLOOR_FROM_HZ) -> dict:
+    """White-noise floor of a residual from its high-frequency band.
+
+    Parameters
+    ----------
+    r : ndarray
+        Residual [pu].
+    fs : float
+        Sample rate [Hz].
+    from_hz : float
+        Lower edge of the floor band [Hz]; the band ends at 0.95 × Nyquist.  If that leaves fewer than
+        20 bins (low frame rates) the top 40 % of the spectrum is used.
+
+    Returns
+    -------
+    dict
+        ``psd`` [pu²/Hz] (median of the band's bins divided by ln 2 — the median of a χ²₂ periodogram
+        bin is ln 2 times its mean — so a tone or a few outliers do not lift the floor), ``sigma`` [pu] (white-noise std that floor implies, sqrt(psd·fs/2)),
+        ``bins`` (number of bins), ``band`` [Hz].
+    """
+    f, pxx = periodogram(r, fs)
+    sel = _floor_band(f, fs, from_hz)
+    vals = pxx[sel]
+    psd = float(np.median(vals) / math.log(2.0))
+    return {"psd": psd, "sigma": math.sqrt(psd * fs / 2), "bins": int(vals.size),
+            "band": [float(f[sel][0]), float(f[sel][-1])]}
+
+
+def _floor_band(f: np.ndarray, fs: float, from_hz: float) -> np.ndarray:
+    """The periodogram bins the floor is the median of (see :func:`noise_floor`)."""
+    sel = (f >= from_hz) & (f <= 0.95 * fs / 2)
+    return sel if sel.sum() >= 20 else f >= 0.6 * fs / 2
+
+
+def channel_floors(V: np.ndarray, theta: np.ndarray, P: np.ndarray, Q: np.ndarray, fs: float) -> dict[str, float]:
+    """White-noise std of each channel from its band above :data:`FLOOR_FROM_HZ`.
+
+    Ambient V, θ, P and Q have (almost) no content there, so the floor of the channel itself is its
+    measurement noise; an input without noise reports the level of its own high-frequency content.
+
+    Parameters
+    ----------
+    V, theta, P, Q : ndarray
+        The channels on a uniform grid [pu, rad, pu, pu].
+    fs : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    dict
+        ``noise_v`` [pu], ``noise_theta`` [rad], ``noise_p``, ``noise_q`` [pu].
+    """
+    # One FFT call for the four and a partition instead of np.median: this runs for every window.
+    x = np.stack([V, theta, P, Q])
+    _, pxx = periodogram(x, fs)
+    vals = pxx[:, _floor_bins(x.shape[1], round(fs, 3), FLOOR_FROM_HZ)]
+    m = vals.shape[1]
+    part = np.partition(vals, ((m - 1) // 2, m // 2), axis=1)
+    psd = 0.5 * (part[:, (m - 1) // 2] + part[:, m // 2]) / math.log(2.0)
+    return {"noise_v": math.sqrt(psd[0] * fs / 2), "noise_theta": math.sqrt(psd[1] * fs / 2),
+            "noise_p": math.sqrt(psd[2] * fs / 2), "noise_q": math.sqrt(psd[3] * fs / 2)}
+
+
+@lru_cache(maxsize=32)
+def _floor_bins(n: int, fs: float, from_hz: float) -> np.ndarray:
+    """Indices of the periodogram bins of an n-sample record the floor is the median of."""
+    return np.flatnonzero(_floor_band(np.fft.rfftfreq(n, 1.0 / fs), fs, from_hz))
+
+
+def _end_value(x: np.ndarray, m: int, at_start: bool) -> float:
+    """Value at the first (or last) sample of the least-squares line through the first (last) m samples."""
+    seg = x[:m] if at_start else x[-m:]
+    k = np.arange(m, dtype=np.float64) - 0.5 * (m - 1)
+    slope = float(seg @ k) / float(k @ k)
+    return float(seg.mean()) + slope * float(k[0] if at_start else k[-1])
+
+
+def _moving_average(x: np.ndarray, width: int) -> np.ndarray:
+    """Centred moving average (shorter at the ends)."""
+    if width <= 1:
+        return x
+    k = np.ones(width)
+    return np.convolve(x, k, mode="same") / np.convolve(np.ones_like(x), k, mode="same")
+
+
+def _extend(x: np.ndarray, pad: int, m: int) -> np.ndarray:
+    """x extended by ``pad`` samples at both ends, point-reflected about the value of a local line through
+    m samples (C¹ at the joints, so the extension adds no high-frequency content there)."""
+    x0, x1 = _end_value(x, m, True), _end_value(x, m, False)
+    return np.concatenate((2.0 * x0 - x[pad:0:-1], x, 2.0 * x1 - x[-2:-pad - 2:-1]))
+
+
+def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float = WIENER_SMOOTH_HZ,
+                  return_cutoffs: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """Conditional mean of jointly stationary signals observed in white noise of known std: a non-causal
+    multichannel Wiener smoother.
+
+    Parameters
+    ----------
+    x : ndarray, shape (c, n)
+        Measured signals on a uniform grid (e.g. V [pu] and θ [rad]).
+    fs : float
+        Sample rate [Hz].
+    sigma : array_like, shape (c,)
+        Std of each channel's white measurement noise, independent between channels [unit of x]
+        (e.g. :func:`noise_floor`'s ``sigma``).
+    smooth_hz : float
+        Width of the moving average over the cross-spectrum the gain is formed from [Hz].
+    return_cutoffs : bool
+        Also return each channel's signal cut-off.
+
+    Returns
+    -------
+    ndarray, shape (c, n)
+        The smoothed signals.
+    ndarray, shape (c,)
+        Only with ``return_cutoffs``: per channel the frequency above which its signal is taken as zero
+        (where its averaged power sinks to its floor; fs/2 when it never does) [Hz].
+
+    Notes
+    -----
+    Each signal is extended at both ends by a point reflection (``_extend``), its line removed, and taken
+    to the Fourier domain.  Per frequency the measured cross-spectral matrix S_m (the periodogram matrix
+    averaged over ``smooth_hz``) is the signal's S plus R = diag(σ²); S = S_m − R with its negative
+    eigenvalues clipped, and a channel's signal is zero above the first frequency (from 0.5 Hz) where its
+    power sinks to its floor (ambient content falls with frequency; without that rule the floor's own
+    scatter opened the gain above 5 Hz and left half the error variance there).  The gain is S·(S + R)⁻¹.
+    Why the conditional mean: with x̂ = E[x | V, θ measured] the error x − x̂ is uncorrelated with x̂ at
+    every lag, so a model fitted on x̂ (regression calibration) is consistent to first order in the
+    ambient excursions.  Jointly, because the network makes V and θ coherent: V's error must be
+    uncorrelated with θ̂ too.  A low-pass instead leaves its in-band noise in the regressors and removes
+    the signal beyond its cut-off.  Measurements: docs/numerics.md.
+    """
+    x = np.atleast_2d(np.asarray(x, dtype=np.float64))
+    var = np.asarray(sigma, dtype=np.float64) ** 2
+    c, n = x.shape
+    if c > 2:
+        raise ValueError(f"wiener_smooth takes one or two channels, got {c}")
+    if n < 8 or not np.any(var > 0.0):
+        return (x.copy(), np.full(c, 0.5 * fs)) if return_cutoffs else x.copy()
+    var = np.maximum(var, 1e-30)
+    pad = min(n - 2, int(round(2.0 * fs)))
+    m = max(2, min(n // 4, int(round(EDGE_FIT_S * fs))))
+    ext = np.stack([_extend(xi, pad, m) for xi in x])
+    ne = ext.shape[1]
+    line = ext - _detrend(ext)
+    # Tapered to zero over the outer half of each pad, so the wrap-around of the FFT joins two zeros.
+    taper = np.ones(ne)
+    h = pad // 2
+    if h > 0:
+        ramp = 0.5 - 0.5 * np.cos(np.pi * np.arange(h) / h)
+        taper[:h], taper[ne - h:] = ramp, ramp[::-1]
+    spec = np.fft.rfft((ext - line) * taper, axis=1)  # white noise of variance σ² has E|X_k|² ≈ ne·σ²
+    width = max(1, int(round(smooth_hz * ne / fs)))
+    r = ne * var
+    p = [_moving_average((spec[i] * spec[i].conj()).real, width) for i in range(c)]
+    k_min = int(np.ceil(MIN_CUTOFF_HZ * ne / fs))
+    ends = []
+    for i in range(c):
+        below = np.flatnonzero(p[i][k_min:] <= CUTOFF_FACTOR * r[i])
+        ends.append(k_min + int(below[0]) if below.size else p[i].size)
+    cutoffs = np.array(ends, dtype=np.float64) * fs / ne
+    if c == 1:
+        s = np.maximum(p[0] - r[0], 0.0)
+        s[ends[0]:] = 0.0
+        out = (np.fft.irfft(s / (s + r[0]) * spec[0], n=ne) + line[0])[None, pad:pad + n]
+        return (out, cutoffs) if return_cutoffs else out
+    # Two channels: S = S_m − R with its negative eigenvalue clipped, in closed form per frequency.
+    b = _moving_average(spec[0] * spec[1].conj(), width)
+    a, d = p[0] - r[0], p[1] - r[1]
+    mid, rad = 0.5 * (a + d), np.sqrt(0.25 * (a - d) ** 2 + np.abs(b) ** 2)
+    lo, hi = mid - rad, mid + rad
+    # Where only the larger eigenvalue is positive, S = λ₊·(A − λ₋·I)/(λ₊ − λ₋); where none is, S = 0.
+    part = (lo < 0.0) & (hi > 0.0)
+    scale = np.where(part, hi / np.where(part, hi - lo, 1.0), 1.0)
+    shift = np.where(part, lo, 0.0)
+    keep = hi > 0.0
+    sa = np.where(keep, scale * (a - shift), 0.0)
+    sd = np.where(keep, scale * (d - shift), 0.0)
+    sb = np.where(keep, scale * b, 0.0)
+    sa[ends[0]:] = 0.0
+    sb[min(ends):] = 0.0
+    sd[ends[1]:] = 0.0
+    # gain = S·(S + R)⁻¹
+    ta, td = sa + r[0], sd + r[1]
+    det = ta * td - np.abs(sb) ** 2
+    g00, g01 = (sa * td - sb * sb.conj()) / det, (sb * ta - sa * sb) / det
+    g10, g11 = (sb.conj() * td - sd * sb.conj()) / det, (sd * ta - sb.conj() * sb) / det
+    est = np.stack([g00 * spec[0] + g01 * spec[1], g10 * spec[0] + g11 * spec[1]])
+    out = (np.fft.irfft(est, n=ne, axis=1) + line)[:, pad:pad + n]
+    return (out, cutoffs) if return_cutoffs else out
