@@ -11,6 +11,21 @@ from scipy import signal
 from aslm_core import Window, motor
 
 
+# Real-time end-to-end modules: real Zenoh sessions, uvicorn, spawned workers, seconds of waiting for
+# periods.  `scripts/test --quick` leaves them out for an inner loop; CI runs everything.  A new module of
+# this kind either joins this list or marks itself with `pytestmark = pytest.mark.slow`.
+SLOW_MODULES = frozenset({
+    "test_andes_crosscheck", "test_service_cli", "test_service_diagnosis", "test_service_e2e",
+    "test_service_pool", "test_service_runtime",
+})
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.path.stem in SLOW_MODULES:
+            item.add_marker(pytest.mark.slow)
+
+
 @pytest.fixture(autouse=True)
 def hermetic_settings(monkeypatch):
     """No ``ASLM_*`` variable of the developer's environment reaches a test (or the processes it starts).

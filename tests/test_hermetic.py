@@ -17,3 +17,11 @@ def test_developer_environment_does_not_leak_into_tests():
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     assert "1 passed" in r.stdout
+
+
+def test_every_slow_module_exists():
+    # A misspelt name would silently put a real-time module into the quick inner loop.
+    from conftest import SLOW_MODULES
+
+    stems = {p.stem for p in (ROOT / "tests").rglob("test_*.py")}
+    assert SLOW_MODULES <= stems, sorted(SLOW_MODULES - stems)
