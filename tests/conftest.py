@@ -10,7 +10,6 @@ from scipy import signal
 
 from aslm_core import Window, motor
 
-
 # Real-time end-to-end modules: real Zenoh sessions, uvicorn, spawned workers, seconds of waiting for
 # periods.  `scripts/test --quick` leaves them out for an inner loop; CI runs everything.  A new module of
 # this kind either joins this list or marks itself with `pytestmark = pytest.mark.slow`.
