@@ -57,7 +57,8 @@ def _fill_short_gaps(x: np.ndarray, max_run: int, name: str) -> int:
 
 @lru_cache(maxsize=128)
 def _lowpass(cutoff_hz: float, fs: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """2nd-order Butterworth low-pass (b, a) and its unit-step initial state (designing it costs ~1 ms)."""
+    """2nd-order Butterworth low-pass (b, a) and its unit-step initial state (cached: designing it costs as much as a
+    short identification)."""
     b, a = signal.butter(2, cutoff_hz, fs=fs)
     return b, a, signal.lfilter_zi(b, a)
 

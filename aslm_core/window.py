@@ -84,8 +84,8 @@ class Window:
         Notes
         -----
         Equal to ``Window(*rows[:5], f=...)``, built without ``__init__``: the service cuts one
-        window per bus per period on its scheduling thread, and the dataclass's frozen ``__init__``
-        and conversions cost ~2 µs more than this there (×10,000 buses).
+        window per bus per period on its scheduling thread, where the dataclass's frozen ``__init__``
+        and conversions are a per-bus cost (docs/service.md, "One window type").
         """
         if rows.__class__ is not np.ndarray or rows.dtype is not _F64:
             rows = np.asarray(rows, dtype=np.float64)

@@ -1,12 +1,11 @@
 """Garbage collection while a service runs: automatic full collections off, one collection between periods.
 
-Automatic full (generation 2) collections are switched off while a service runs: one holds the GIL
-for as long as it scans every live object (measured 40–200 ms with 1,000 buses, more with 10,000),
-which stalled REST answers during periods.  Startup objects are frozen (never scanned again), and
-a collection runs between periods instead (min(T/4, 30 s) after one ends: the workers are idle
-then); it freezes what survives, so it scans only what the last period left (~10 ms at 1,000
-buses, ~70 ms at 10,000 with free cores).  Frozen objects are still freed when their last
-reference goes; only cycles among them wait for the complete collection every _FULL_GC_EVERY
+Why: an automatic full (generation 2) collection holds the GIL for as long as it scans every live
+object, which grows with the buses and stalled REST answers during periods (the figures are in
+docs/service.md, "Scheduling and workers").  So startup objects are frozen (never scanned again), and a
+collection runs between periods instead (min(T/4, 30 s) after one ends: the workers are idle then); it
+freezes what survives, so it scans only what the last period left.  Frozen objects are still freed when
+their last reference goes; only cycles among them wait for the complete collection every _FULL_GC_EVERY
 periods, which unfreezes everything first.
 """
 
