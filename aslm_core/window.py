@@ -90,7 +90,7 @@ class Window:
         if rows.__class__ is not np.ndarray or rows.dtype is not _F64:
             rows = np.asarray(rows, dtype=np.float64)
         window = object.__new__(cls)
-        # Spelled out rather than zipped with CHANNELS: 0.2 µs less; tests/test_api.py checks both agree.
+        # Spelled out rather than zipped with CHANNELS: 0.2 µs less; tests/aslm_core/test_public_api.py checks both agree.
         window.__dict__.update(t=rows[0], V=rows[1], theta=rows[2], P=rows[3], Q=rows[4],
                                f=rows[5] if with_f else None, f0=f0, bus=bus, meta={})
         return window

@@ -62,7 +62,7 @@ class PeriodSummary(BaseModel):
 
 # --- diagnosis ------------------------------------------------------------------------------------
 # A field-for-field mirror of aslm_core.diagnosis.report (descriptions are its Attributes sections;
-# tests/test_diagnosis_report.py keeps the two from drifting).  The service never imports aslm_core in its
+# tests/aslm_core/diagnosis/test_diagnosis_report.py keeps the two from drifting).  The service never imports aslm_core in its
 # main process (numba), hence a mirror and not the dataclasses themselves.
 
 

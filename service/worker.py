@@ -36,7 +36,7 @@ def result_dict(result) -> dict:
     ``to_dict`` is ``dataclasses.asdict``, which deep-copies every nested dict and list: 0.23 ms per
     window, ~7 % of a warm-started identification.  The result is discarded after pickling, so its
     fields can be shared; a field that is itself a dataclass falls back to ``to_dict``.
-    ``tests/test_service_worker.py`` checks that both give the same dict.
+    ``tests/service/test_service_worker.py`` checks that both give the same dict.
     """
     out = {f.name: getattr(result, f.name) for f in dataclasses.fields(result)}
     if any(dataclasses.is_dataclass(v) for v in out.values()):

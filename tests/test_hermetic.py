@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_developer_environment_does_not_leak_into_tests():
     env = {**os.environ, "ASLM_PERIOD_S": "60", "ASLM_WORKERS": "7", "ASLM_OBJECTIVE": "ml"}
     r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
-                        "tests/test_service_settings.py::test_defaults"],
+                        "tests/service/test_service_settings.py::test_defaults"],
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     assert "1 passed" in r.stdout

@@ -38,7 +38,7 @@ def test_diagnosis_reaches_rest_zenoh_and_storage(tmp_path):
             rest = httpx.get(f"{svc.url}/buses/{bus}/diagnosis/latest", timeout=5).json()
             assert rest == got[bus]
             # The DESIGN §4 contract.  (The verdict itself is the diagnosis tests' business, input noise
-            # included: tests/test_diagnosis_input_noise.py.)
+            # included: tests/aslm_core/diagnosis/test_diagnosis_input_noise.py.)
             assert rest["verdict"] in {"consistent", "explained", "unexplained"}, rest
             assert {"located", "missing_physics", "fit_before", "fit_after"} <= set(rest)
             assert set(rest["fit_before"]) >= {"fd_p", "fd_q"}

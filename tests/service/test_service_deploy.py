@@ -14,7 +14,7 @@ from service.cli import build_parser
 from service.settings import ServiceSettings, load_settings
 
 yaml = pytest.importorskip("yaml")
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 COMPOSE = yaml.safe_load((ROOT / "docker-compose.yml").read_text())
 SERVICES = COMPOSE["services"]
 _INTERP = re.compile(r"\$\{([A-Z_]+)(?::?-([^}]*))?\}")

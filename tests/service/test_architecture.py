@@ -16,7 +16,7 @@ from service.sinks import SINKS
 from service.sources.base import Inlet
 from service.testing import MemorySource
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 T0, FS = 1_000_000.0, 50.0
 
 

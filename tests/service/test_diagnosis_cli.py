@@ -13,7 +13,7 @@ from aslm_sim.cases import make_case
 from aslm_sim.effects import apply_effect
 from service.files import write_window
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:

@@ -13,7 +13,7 @@ from doc_helpers import undocumented
 
 import aslm_sim
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MODULES = ("truth", "network", "noise", "cases", "faults", "fleet", "motors", "effects.apply")
 
 

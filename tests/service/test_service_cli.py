@@ -7,7 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def aslm(*args: str, timeout: float, env: dict | None = None) -> subprocess.CompletedProcess:

@@ -12,7 +12,7 @@ import pytest
 from aslm_core import IdentifyConfig, identify, motor
 from aslm_sim.cases import make_cases
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from benchmarks import baselines  # noqa: E402
 
 
