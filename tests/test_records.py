@@ -10,8 +10,7 @@ import re
 import numpy as np
 import pytest
 
-from aslm_core.records import Assumptions, RecordError, admissible, export, invert, transformed
-from aslm_core.records import pslf, psse
+from aslm_core.records import Assumptions, RecordError, admissible, export, invert, pslf, psse, transformed
 
 STATIC = {"Pz": 0.06, "Pi": 0.045, "Pp": 0.045, "Qz": 1.3105, "Qi": 0.03, "Qp": 0.03}
 D_ANDES = {"a": 22.796, "b": 19.159, "H2": 1.0, "Tm": 0.2}
@@ -210,5 +209,7 @@ def test_export_payload_states_its_assumptions():
     assert a["xp"] == 0.15 and a["loading"] == 0.7 and a["v0"] == 0.98 and a["free"] == "xp"
     assert out["admissible"]["xp"][1] > 0.15 and out["format"] == "psse"
     assert set(out["values"]) == set(out["units"]) == set(out["stderr"])
+    assert out["stderr"]["Td0"] is None and out["admissible"]["td0"][1] is None  # strict JSON: no NaN, no inf
+    json.dumps(out, allow_nan=False)
     with pytest.raises(RecordError, match="unknown record format"):
         export({"dynamic": D_ANDES, "static": STATIC}, "matpower")

@@ -113,10 +113,20 @@ class MotorRecord:
     admissible: dict[str, list[float] | None]
 
     def to_dict(self) -> dict:
-        """Plain JSON-serialisable dict; ``assumptions`` records ``free`` too."""
+        """Plain JSON dict; ``assumptions`` records ``free`` too.  Non-finite numbers become null (strict JSON):
+        an unbounded interval end, or a standard error that D's did not give."""
         return {"assumptions": {**asdict(self.assumptions), "free": self.assumptions.free},
-                "values": dict(self.values), "stderr": dict(self.stderr), "admissible": dict(self.admissible),
+                "values": _finite(self.values), "stderr": _finite(self.stderr),
+                "admissible": {k: None if iv is None else [_num(x) for x in iv] for k, iv in self.admissible.items()},
                 "units": dict(QUANTITIES)}
+
+
+def _num(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def _finite(d: dict[str, float]) -> dict[str, float | None]:
+    return {k: _num(v) for k, v in d.items()}
 
 
 # name → unit and base of every derived quantity.
