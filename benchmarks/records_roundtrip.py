@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import os
 import sys
 import tempfile
@@ -31,6 +32,7 @@ from aslm_core.records import andes as ra
 # A fault (deep sag, cleared) then a shallow sag (a more distant fault), on the load bus [s, pu].
 EVENTS = [{"tf": 1.0, "tc": 1.1, "xf": 0.02, "rf": 0.0}, {"tf": 2.0, "tc": 2.5, "xf": 0.2, "rf": 0.0}]
 X_LINE = 0.05
+TRIP_AT = 2.8  # [s] the motor trips in the X' sweep: what differs between records of the same D
 
 
 def _load(path: str, **kw):
@@ -70,13 +72,15 @@ def _bus_load(ss, bus_uid: int) -> dict:
         if m.bus.v[i] == bus_idx:
             P += y[:, m.p.a[i]]
             Q += y[:, m.q.a[i]]
+    Pm, Qm = P.copy(), Q.copy()
     z = ss.ZIP
     for i in range(z.n):
         if z.bus.v[i] == bus_idx:
             P += z.pp0.v[i] + z.pi0.v[i] * V + z.pz0.v[i] * V**2
             Q += z.qp0.v[i] + z.qi0.v[i] * V + z.qz0.v[i] * V**2
     keep = np.concatenate(([True], np.diff(t) > 1e-9))
-    return {"t": t[keep], "V": V[keep], "theta": th[keep], "P": P[keep], "Q": Q[keep]}
+    return {"t": t[keep], "V": V[keep], "theta": th[keep], "P": P[keep], "Q": Q[keep], "P_motor": Pm[keep],
+            "Q_motor": Qm[keep]}
 
 
 def _tds(ss, tf: float, tstep: float) -> None:
@@ -93,7 +97,8 @@ def _tds(ss, tf: float, tstep: float) -> None:
 def uniform(rec: dict, dt: float) -> dict:
     """The record linearly interpolated onto a uniform grid of step dt [s] from its first time."""
     grid = np.arange(rec["t"][0], rec["t"][-1] + 1e-9, dt)
-    return {"t": grid, **{k: np.interp(grid, rec["t"], rec[k]) for k in ("V", "theta", "P", "Q")}}
+    return {"t": grid, **{k: np.interp(grid, rec["t"], rec[k]) for k in ("V", "theta", "P", "Q", "P_motor", "Q_motor")
+                          if k in rec}}
 
 
 def fd(y: np.ndarray, model: np.ndarray) -> float:
@@ -137,30 +142,50 @@ def run_case(case: dict, *, tf: float, tstep: float, bus_uid: int = 1) -> dict:
 
 
 def roundtrip(identified: dict, asm: Assumptions, *, tf: float = 3.0, tstep: float = 0.002,
-              events: list[dict] | None = None) -> dict:
-    """FD of the exported record's P, Q in ANDES against the identified model's playback on the same V, θ."""
+              events: list[dict] | None = None, trip_at: float | None = None) -> dict:
+    """FD of the exported record's P, Q in ANDES against the identified model's playback on the same V, θ.
+
+    ``trip_at`` [s]: the motor is switched off then (an ANDES ``Toggle``), what an undervoltage relay does;
+    the playback has no trip, so the FD covers the time before it.
+    """
     from aslm_core.diagnosis.playback import model_power
 
     events = EVENTS if events is None else events
     rec, case = exported_two_bus(identified, asm, events)
+    if trip_at is not None:
+        motor = case["Motor3"][0]["idx"]
+        case["Toggle"] = [{"idx": "TRIP", "u": 1, "name": "TRIP", "model": "Motor3", "dev": motor, "t": trip_at}]
     t0 = time.perf_counter()
     out = uniform(run_case(case, tf=tf, tstep=tstep), tstep)
     tds_s = time.perf_counter() - t0
     p_pb, q_pb = model_power(out["V"], out["theta"], identified, tstep, asm.f0)
+    before = out["t"] < (trip_at if trip_at is not None else math.inf) - 1e-9
     return {"xp": rec.values["Xp"], "td0": rec.values["Td0"], "v0": rec.values["v0"],
-            "fd_p": fd(out["P"], p_pb), "fd_q": fd(out["Q"], q_pb), "v_min": float(out["V"].min()),
+            "q_motor": rec.values["Q_motor"], "qz_static": rec.values["Qz"], "motor_x": rec.values["X"],
+            "fd_p": fd(out["P"][before], p_pb[before]), "fd_q": fd(out["Q"][before], q_pb[before]),
+            "v_min": float(out["V"].min()),
             "tds_s": tds_s, "signals": out, "playback": {"P": p_pb, "Q": q_pb}}
 
 
 def xp_sweep(identified: dict, asm: Assumptions, n: int = 5, **kw) -> list[dict]:
-    """The round trip for X' across its admissible interval (edges excluded: they are singular)."""
+    """The round trip for X' across its admissible interval (edges excluded: they are singular), the motor
+    tripping at :data:`TRIP_AT` after the fault and the sag."""
     d = np.array([identified["dynamic"][k] for k in ("a", "b", "H2", "Tm")])
     lo, hi = admissible(d, identified["static"], asm)["xp"]
     xps = np.linspace(lo, hi, n + 2)[1:-1]
-    return [roundtrip(identified, replace(asm, xp=float(x), td0=None), **kw) for x in xps]
+    return [roundtrip(identified, replace(asm, xp=float(x), td0=None), trip_at=TRIP_AT, tf=TRIP_AT + 0.5, **kw)
+            for x in xps]
 
 
-def truth(*, tstep: float = 0.01, tf_fault: float = 3.0) -> dict:
+def ac_x1() -> float:
+    """X' of the cross-check's motor on the system base (x1 of docs/andes_crosscheck.md)."""
+    from benchmarks import andes_crosscheck as ac
+
+    m, r = ac.MOTOR, 100.0 / ac.MOTOR["Sn"]
+    return (m["xs"] + m["xr1"] * m["xm"] / (m["xr1"] + m["xm"])) * r
+
+
+def truth(*, tstep: float = 0.005, tf_fault: float = 3.0) -> dict:
     """ANDES recording with known truth → identify → export → fault in ieee14 with both loads at bus 9."""
     import andes
 
@@ -216,6 +241,10 @@ def truth(*, tstep: float = 0.01, tf_fault: float = 3.0) -> dict:
     n = min(a["t"].size, b["t"].size)
     return {"identified": identified, "truth_d": sim["truth"].tolist(), "window_v_mean": v9,
             "fd_p": fd(a["P"][:n], b["P"][:n]), "fd_q": fd(a["Q"][:n], b["Q"][:n]),
+            # The motor alone (its Q without V²/X': the split between motor and static is the assumption's).
+            "fd_p_motor": fd(a["P_motor"][:n], b["P_motor"][:n]),
+            "fd_q_motor": fd(a["Q_motor"][:n] - a["V"][:n] ** 2 / ac_x1(), b["Q_motor"][:n] - b["V"][:n] ** 2 / rec.values["Xp_sys"]),
+            "static_truth": sim["static_truth"], "static_identified": res.static,
             "v_min_truth": float(a["V"].min()), "v_min_record": float(b["V"].min()),
             "xp_record": rec.values["Xp"], "xp_truth": 0.1 + 0.1 * 3.0 / 3.1}
 
@@ -238,7 +267,9 @@ def _figure(sweep: list[dict], path: str) -> None:
     ax[2].set_ylabel("Q [pu]")
     ax[2].set_xlabel("t [s]")
     ax[0].legend(fontsize=7)
-    ax[0].set_title("Exported ANDES records across X' (motor base): same D, different large-disturbance response")
+    ax[0].set_title(f"ANDES records across X' (motor base), same D: fault, sag, motor trip at {TRIP_AT:g} s", fontsize=9)
+    for a in ax:
+        a.axvline(TRIP_AT, color="k", lw=0.5, ls=":")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
@@ -248,6 +279,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="skip the IEEE 14-bus truth run; 3 X' values")
     p.add_argument("--json", default=None)
     p.add_argument("--figure", default=None, help="write the X' sweep figure (PNG) here")
+    p.add_argument("--truth-tstep", type=float, default=0.005, help="ANDES step of the truth runs [s]")
     args = p.parse_args(argv)
     from benchmarks import andes_crosscheck as ac
 
@@ -266,18 +298,23 @@ def main(argv: list[str] | None = None) -> int:
     for r in sweep:
         s = r["signals"]
         n = min(s["t"].size, ref["t"].size)
-        rows.append({"xp": r["xp"], "td0": r["td0"], "fd_p": r["fd_p"], "fd_q": r["fd_q"], "v_min": r["v_min"],
-                     "max_dp_vs_mid": float(np.max(np.abs(s["P"][:n] - ref["P"][:n]))),
-                     "max_dq_vs_mid": float(np.max(np.abs(s["Q"][:n] - ref["Q"][:n])))})
+        after = s["t"][:n] > TRIP_AT + 0.3  # settled after the trip
+        rows.append({"p_after_trip": float(np.mean(s["P"][:n][after])), "q_after_trip": float(np.mean(s["Q"][:n][after])),"xp": r["xp"], "td0": r["td0"], "fd_p": r["fd_p"], "fd_q": r["fd_q"], "v_min": r["v_min"],
+                     "q_motor": r["q_motor"], "qz_static": r["qz_static"], "motor_x": r["motor_x"],
+                     "max_dp_vs_mid": float(np.max(np.abs(s["P"][:n] - ref["P"][:n])[s["t"][:n] < TRIP_AT])),
+                     "max_dq_vs_mid": float(np.max(np.abs(s["Q"][:n] - ref["Q"][:n])[s["t"][:n] < TRIP_AT]))})
         print(f"X' {r['xp']:.3f}  Td0 {r['td0']:.3f} s  FD_P {r['fd_p']:.6f}  FD_Q {r['fd_q']:.6f}  "
-              f"V min {r['v_min']:.3f}  max|ΔP| {rows[-1]['max_dp_vs_mid']:.4f}  max|ΔQ| {rows[-1]['max_dq_vs_mid']:.4f}")
+              f"V min {r['v_min']:.3f}  before the trip max|ΔP| {rows[-1]['max_dp_vs_mid']:.4f}  max|ΔQ| {rows[-1]['max_dq_vs_mid']:.4f}  "
+              f"Q_motor(v0) {r['q_motor']:.4f}  Qz_static {r['qz_static']:.4f}  X {r['motor_x']:.3f}  "
+              f"after trip P {rows[-1]['p_after_trip']:.4f} Q {rows[-1]['q_after_trip']:.4f}")
     out["xp_sweep"] = rows
     if args.figure:
         _figure(sweep, args.figure)
     if not args.quick:
-        tr = truth()
+        tr = truth(tstep=args.truth_tstep)
         out["truth"] = tr
-        print(f"truth (IEEE 14 bus 9, fault): FD_P {tr['fd_p']:.5f}, FD_Q {tr['fd_q']:.5f}; "
+        print(f"truth (IEEE 14 bus 9, fault): FD_P {tr['fd_p']:.5f}, FD_Q {tr['fd_q']:.5f}; motor alone "
+              f"FD_P {tr['fd_p_motor']:.5f}, FD_Q−V²/X' {tr['fd_q_motor']:.5f}; "
               f"X' record {tr['xp_record']:.3f} vs truth {tr['xp_truth']:.4f}; identified D {tr['identified']['dynamic']}")
     if args.json:
         with open(args.json, "w") as fh:
