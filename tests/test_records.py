@@ -213,3 +213,11 @@ def test_export_payload_states_its_assumptions():
     json.dumps(out, allow_nan=False)
     with pytest.raises(RecordError, match="unknown record format"):
         export({"dynamic": D_ANDES, "static": STATIC}, "matpower")
+
+
+def test_records_import_without_numba():
+    """The service's main process (REST, the records sink) builds records without the identifier's kernels."""
+    from fresh_interpreter import run_python
+
+    code = "import sys, aslm_core.records, service.records\nprint('numba' in sys.modules)"
+    assert run_python(code) == "False"
