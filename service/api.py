@@ -136,6 +136,7 @@ def record_query(
     loading: Annotated[float, Query(gt=0, le=1, description="record assumption: motor loading factor")] = 0.8,
     v0: Annotated[float, Query(gt=0, description="record assumption: power-flow voltage of the bus [pu]")] = 1.0,
 ) -> RecordQuery:
+    """The record query parameters (a FastAPI dependency shared by the two parameters endpoints)."""
     return RecordQuery(fmt, xp, td0, loading, v0)
 
 

@@ -15,7 +15,6 @@ from service.sinks.records import RecordsSink
 
 D = {"a": 22.796, "b": 19.159, "H2": 1.0, "Tm": 0.2}
 ZIP = {"Pz": 0.06, "Pi": 0.045, "Pp": 0.045, "Qz": 1.3105, "Qi": 0.03, "Qp": 0.03}
-_ = View
 
 
 def _ok(bus: str, period: float, dynamic: dict | None = None) -> BusResult:
