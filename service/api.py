@@ -5,9 +5,10 @@ from __future__ import annotations
 import hmac
 import time
 from dataclasses import dataclass
-from typing import Annotated, Protocol
+from typing import Annotated, Literal, Protocol
 
 from fastapi import Depends, FastAPI, Header, HTTPException, Query, Response
+from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 
 from service.buffers import BufferStore
@@ -112,6 +113,46 @@ class ConfigUpdate(BaseModel):
     period_s: float | None = Field(None, gt=0, description="New period T [s] (>= window_s + late_s)")
 
 
+RecordFormat = Literal["andes", "psse", "pslf"]
+
+
+@dataclass(frozen=True)
+class RecordQuery:
+    """``?format=…`` and the record assumptions of the parameters endpoints (docs/records.md)."""
+
+    fmt: RecordFormat | None
+    xp: float | None
+    td0: float | None
+    loading: float
+    v0: float
+
+
+def record_query(
+    fmt: Annotated[RecordFormat | None, Query(alias="format", description="records for a simulator instead of "
+                                              "the identified parameters: andes, psse or pslf")] = None,
+    xp: Annotated[float | None, Query(gt=0, description="record assumption: X' on the motor base [pu] "
+                                      "(default 0.2)")] = None,
+    td0: Annotated[float | None, Query(gt=0, description="record assumption: Td0 [s] instead of X'")] = None,
+    loading: Annotated[float, Query(gt=0, le=1, description="record assumption: motor loading factor")] = 0.8,
+    v0: Annotated[float, Query(gt=0, description="record assumption: power-flow voltage of the bus [pu]")] = 1.0,
+) -> RecordQuery:
+    """The record query parameters (a FastAPI dependency shared by the two parameters endpoints)."""
+    return RecordQuery(fmt, xp, td0, loading, v0)
+
+
+def _records(results: list, q: RecordQuery, f0: float) -> list[dict]:
+    """The records of results (BusResult or JSON), 422 with the reason when one cannot be written."""
+    from aslm_core.records import Assumptions, RecordError
+    from service.records import record_payload
+
+    asm = Assumptions(xp=q.xp, td0=q.td0, loading=q.loading, v0=q.v0, f0=f0)
+    try:
+        return [record_payload(r if isinstance(r, BusResult) else BusResult.model_validate_json(r), q.fmt, asm)
+                for r in results]
+    except RecordError as exc:
+        raise HTTPException(422, str(exc)) from None
+
+
 def create_app(service: ServiceView) -> FastAPI:
     """FastAPI application bound to one running service (a :class:`ServiceView`)."""
     app = FastAPI(title="ASLM service", version="0.1.0",
@@ -160,8 +201,8 @@ def create_app(service: ServiceView) -> FastAPI:
         return out
 
     @app.get("/buses/{bus:path}/parameters/latest", response_model=BusResult)
-    async def latest(bus: str, ok: Annotated[bool, Query(description="latest successful result only")] = False
-                     ) -> Response:
+    async def latest(bus: str, rq: Annotated[RecordQuery, Depends(record_query)],
+                     ok: Annotated[bool, Query(description="latest successful result only")] = False) -> Response:
         # Async and pre-serialised: answered on the event loop without a thread hop or re-validation,
         # so it stays fast while a period is being computed.
         js = service.latest.results_json.get(bus)
@@ -171,14 +212,19 @@ def create_app(service: ServiceView) -> FastAPI:
             js = older.model_dump_json() if older is not None else None
         if js is None:
             raise HTTPException(404, f"no result for bus {bus!r} yet")
+        if rq.fmt is not None:
+            return JSONResponse(_records([js], rq, service.settings.f0)[0])
         return Response(js, media_type="application/json")
 
     @app.get("/buses/{bus:path}/parameters", response_model=list[BusResult])
-    def history(bus: str,
+    def history(bus: str, rq: Annotated[RecordQuery, Depends(record_query)],
                 since: Annotated[float | None, Query(description="earliest period, UTC [s]")] = None,
                 until: Annotated[float | None, Query(description="latest period, UTC [s]")] = None,
                 limit: Annotated[int, Query(ge=1, le=10000)] = 100) -> list[BusResult]:
-        return service.storage.history(bus, since, until, limit)
+        found = service.storage.history(bus, since, until, limit)
+        if rq.fmt is not None:
+            return JSONResponse(_records([r for r in found if r.status == "ok"], rq, service.settings.f0))
+        return found
 
     @app.get("/buses/{bus:path}/diagnosis/latest", response_model=LatestDiagnosis)
     async def diagnosis(bus: str) -> Response:

@@ -1,0 +1,93 @@
+"""Records sink: ``{prefix}/records/{format}/{bus}``, the records of every successful result for ANDES, PSS/E
+and PSLF, each payload stating its assumptions (docs/records.md).
+
+The assumptions are the documented defaults of :class:`aslm_core.records.Assumptions` at the service's
+``f0``; a planner who needs others asks REST (``?format=…&xp=…``) or runs ``aslm export``.  A result that
+cannot be written (e.g. no motor, or X' outside its interval) is published as ``{"bus", "period",
+"format", "error"}`` on the same key, so that a subscriber learns why there is no record.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from collections.abc import Callable
+
+from aslm_core.records import FORMATS, Assumptions, RecordError
+from service.context import Context
+from service.models import BusResult, PeriodSummary
+from service.records import record_payload
+
+log = logging.getLogger(__name__)
+
+
+class RecordsSink:
+    """Publishes the records of each successful result.
+
+    Parameters
+    ----------
+    put : callable
+        ``put(key, json_text)``: the publication (a Zenoh put in the service).
+    prefix : str
+        Zenoh key prefix.
+    assumptions : Assumptions
+    formats : tuple of str
+        Record formats to publish (default all of :data:`aslm_core.records.FORMATS`).
+    on_error : callable, optional
+        Called once per failed put.
+    """
+
+    name = "records"
+    persists = False
+
+    def __init__(self, put: Callable[[str, str], None], prefix: str, assumptions: Assumptions,
+                 formats: tuple[str, ...] = FORMATS, on_error: Callable[[], None] | None = None) -> None:
+        self._put = put
+        self.prefix = prefix
+        self.assumptions = assumptions
+        self.formats = formats
+        self._on_error = on_error or (lambda: None)
+        self.published = 0
+
+    def _payload(self, res: BusResult, fmt: str) -> str:
+        try:
+            return json.dumps(record_payload(res, fmt, self.assumptions))
+        except RecordError as exc:
+            return json.dumps({"bus": res.bus, "period": res.period, "format": fmt, "error": str(exc)})
+
+    def write_results(self, batch: list[BusResult], payloads: list[str]) -> None:  # noqa: ARG002 - Sink signature
+        """Put the records of each successful result; a failed put is logged and counted."""
+        for res in batch:
+            if res.status != "ok" or res.parameters is None:
+                continue
+            for fmt in self.formats:
+                try:
+                    self._put(f"{self.prefix}/records/{fmt}/{res.bus}", self._payload(res, fmt))
+                    self.published += 1
+                except Exception:  # noqa: BLE001 - one bus's records never stop the others
+                    self._on_error()
+                    log.exception("publishing the %s records of %s failed", fmt, res.bus)
+
+    def write_diagnosis(self, bus: str, period: float, payload: str) -> None:
+        """Diagnoses carry no records."""
+
+    def write_period(self, summary: PeriodSummary) -> None:
+        """Nothing is published per period."""
+
+    def close(self) -> None:
+        """Nothing held (the session is the instance's)."""
+
+
+def build(ctx: Context) -> RecordsSink:
+    """The records sink on the instance's Zenoh session; failed puts count as
+    ``aslm_internal_errors{where="publish"}``."""
+    import zenoh
+
+    session = ctx.zenoh_session()
+
+    def put(key: str, payload: str) -> None:
+        session.put(key, payload, encoding=zenoh.Encoding.APPLICATION_JSON,
+                    congestion_control=zenoh.CongestionControl.BLOCK)
+
+    return RecordsSink(put, ctx.settings.prefix, Assumptions(f0=ctx.settings.f0),
+                       on_error=ctx.metrics.request_errors.labels("publish").inc)
