@@ -14,7 +14,7 @@ from aslm_core import Window, motor
 # periods.  `scripts/test --quick` leaves them out for an inner loop; CI runs everything.  A new module of
 # this kind either joins this list or marks itself with `pytestmark = pytest.mark.slow`.
 SLOW_MODULES = frozenset({
-    "test_andes_crosscheck", "test_service_cli", "test_service_diagnosis", "test_service_e2e",
+    "test_andes_crosscheck", "test_records_andes", "test_service_cli", "test_service_diagnosis", "test_service_e2e",
     "test_service_pool", "test_service_runtime",
 })
 
