@@ -75,3 +75,24 @@ def test_dask_address_accepted_and_token_masked():
     assert s.executor == "tcp://scheduler:8786"
     assert s.public_dict()["operator_token"] == "***"
     assert "secret" not in repr(s)
+
+
+@pytest.mark.parametrize("overrides,needle", [
+    ({"period_s": float("nan")}, "period_s"),
+    ({"period_s": float("inf")}, "period_s"),
+    ({"period_s": 1e12}, "period_s (1e+12 s) must be at most 86400 s"),
+    ({"window_s": float("inf")}, "window_s"),
+    ({"late_s": float("nan")}, "late_s"),
+    ({"task_timeout_s": float("inf")}, "task_timeout_s"),
+])
+def test_non_finite_and_out_of_range_start_up_values_are_refused(overrides, needle):
+    # The bounds PUT /config applies hold for the start-up settings too (issue 17, defect 2).
+    with pytest.raises(SettingsError) as info:
+        load_settings(**overrides)
+    assert needle in str(info.value)
+
+
+def test_non_finite_period_from_the_environment_is_refused(monkeypatch):
+    monkeypatch.setenv("ASLM_PERIOD_S", "inf")
+    with pytest.raises(SettingsError, match="period_s"):
+        load_settings()
