@@ -6,7 +6,7 @@ import hmac
 import math
 import time
 from dataclasses import dataclass
-from typing import Annotated, Protocol
+from typing import Annotated, Literal, Protocol
 
 from fastapi import Depends, FastAPI, Header, HTTPException, Query, Request, Response
 from fastapi.encoders import jsonable_encoder
@@ -34,11 +34,14 @@ class RunStatus:
         Boundary of the period being computed, if any [s].
     workers_replaced : int
         Worker processes replaced after a crash or timeout.
+    problems : tuple of str
+        ``"<component>: <reason>"`` for each part not doing its job (``/health`` is then ``degraded``).
     """
 
     next_period: float | None
     running_period: float | None
     workers_replaced: int
+    problems: tuple[str, ...] = ()
 
 
 class ServiceView(Protocol):
@@ -78,7 +81,10 @@ class ServiceView(Protocol):
 class Health(BaseModel):
     """Liveness and a summary of the service state."""
 
-    status: str = Field(description="ok")
+    status: Literal["ok", "degraded"] = Field(description="ok, or degraded while a part of the service is not "
+                                                           "doing its job (see problems)")
+    problems: list[str] = Field(default_factory=list, description="'<component>: <reason>' for each of scheduler, "
+                                "storage, ingest, pool that is not doing its job")
     instance: str
     uptime_s: float
     period_s: float = Field(description="Period T in force [s]")
@@ -165,7 +171,8 @@ def create_app(service: ServiceView) -> FastAPI:
         periods = service.storage.periods(limit=1)
         run = service.status()
         return Health(
-            status="ok", instance=service.settings.instance, uptime_s=time.time() - started,
+            status="degraded" if run.problems else "ok", problems=list(run.problems),
+            instance=service.settings.instance, uptime_s=time.time() - started,
             period_s=service.period_s, next_period=run.next_period, running_period=run.running_period,
             last_period=periods[0] if periods else None, buses=tot.buses,
             frames_received=tot.frames_received, frames_dropped=sum(tot.frames_rejected.values()),

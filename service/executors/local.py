@@ -144,6 +144,17 @@ class LocalPool:
             time.sleep(0.02)
         return False
 
+    def problem(self) -> str | None:
+        """Why the pool is not doing its job (dispatcher thread dead, no worker ready), or None."""
+        if self._closed:
+            return None
+        if not self._thread.is_alive():
+            return "pool dispatcher thread dead"
+        workers = list(self._workers)
+        if not any(w.ready and w.process.is_alive() for w in workers):
+            return f"no worker ready (of {len(workers)}; {self.replaced} replaced since start)"
+        return None
+
     def close(self, timeout: float = 5.0) -> None:
         """Stop the workers; queued and running tasks resolve as ``shutdown``."""
         with self._lock:
