@@ -237,7 +237,8 @@ class FailedDiagnosis(BaseModel):
     bus: str = Field(description="Bus identifier (the {bus} of {prefix}/pmu/{bus})")
     period: float = Field(description="Period boundary of the diagnosed window, UTC since the epoch [s]")
     verdict: Literal["failed"] = Field(description="failed")
-    reason: str | None = Field(description="window:<reason>, error:<ExceptionType>, timeout, worker_crashed or shutdown")
+    reason: str | None = Field(description="window:<reason>, error:<ExceptionType>, timeout, worker_crashed, shutdown, "
+                                           "or shed (not started before the next round of diagnoses was queued)")
     message: str = Field(description="What went wrong, for people")
 
 
