@@ -3,19 +3,22 @@
 from __future__ import annotations
 
 import hmac
+import math
 import time
 from dataclasses import dataclass
 from typing import Annotated, Literal, Protocol
 
-from fastapi import Depends, FastAPI, Header, HTTPException, Query, Response
+from fastapi import Depends, FastAPI, Header, HTTPException, Query, Request, Response
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from service.buffers import BufferStore
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
 from service.models import BusResult, LatestDiagnosis, PeriodSummary
-from service.settings import ServiceSettings
+from service.settings import PERIOD_MAX_S, ServiceSettings
 from service.storage import Storage
 
 
@@ -31,11 +34,14 @@ class RunStatus:
         Boundary of the period being computed, if any [s].
     workers_replaced : int
         Worker processes replaced after a crash or timeout.
+    problems : tuple of str
+        ``"<component>: <reason>"`` for each part not doing its job (``/health`` is then ``degraded``).
     """
 
     next_period: float | None
     running_period: float | None
     workers_replaced: int
+    problems: tuple[str, ...] = ()
 
 
 class ServiceView(Protocol):
@@ -75,7 +81,10 @@ class ServiceView(Protocol):
 class Health(BaseModel):
     """Liveness and a summary of the service state."""
 
-    status: str = Field(description="ok")
+    status: Literal["ok", "degraded"] = Field(description="ok, or degraded while a part of the service is not "
+                                                           "doing its job (see problems)")
+    problems: list[str] = Field(default_factory=list, description="'<component>: <reason>' for each of scheduler, "
+                                "storage, ingest, pool that is not doing its job")
     instance: str
     uptime_s: float
     period_s: float = Field(description="Period T in force [s]")
@@ -108,9 +117,32 @@ class ConfigView(BaseModel):
 
 
 class ConfigUpdate(BaseModel):
-    """Run-time changes; they take effect from the next period and are persisted."""
+    """Run-time changes; they take effect from the next period and are persisted.
 
-    period_s: float | None = Field(None, gt=0, description="New period T [s] (>= window_s + late_s)")
+    Unknown fields and non-finite numbers are refused (422): a field that is ignored looks applied.
+    """
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    period_s: float | None = Field(None, gt=0, le=PERIOD_MAX_S,
+                                   description=f"New period T [s] (>= window_s + late_s, <= {PERIOD_MAX_S:g})")
+
+
+def _json_safe(value: object) -> object:
+    """``value`` with every non-finite float replaced by its text (``'nan'``, ``'inf'``), recursively."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+async def _validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:  # noqa: ARG001
+    """FastAPI's 422, with non-finite inputs echoed as text: the default handler echoes the input as JSON
+    numbers, which cannot hold NaN or inf, so ``{"period_s": NaN}`` became a 500."""
+    return JSONResponse(status_code=422, content={"detail": jsonable_encoder(_json_safe(exc.errors()))})
 
 
 RecordFormat = Literal["andes", "psse", "pslf"]
@@ -157,6 +189,7 @@ def create_app(service: ServiceView) -> FastAPI:
     """FastAPI application bound to one running service (a :class:`ServiceView`)."""
     app = FastAPI(title="ASLM service", version="0.1.0",
                   description="Ambient-signal load model identification from PMU streams.")
+    app.add_exception_handler(RequestValidationError, _validation_error)
     started = time.time()
 
     def operator(authorization: Annotated[str | None, Header()] = None,
@@ -178,7 +211,8 @@ def create_app(service: ServiceView) -> FastAPI:
         periods = service.storage.periods(limit=1)
         run = service.status()
         return Health(
-            status="ok", instance=service.settings.instance, uptime_s=time.time() - started,
+            status="degraded" if run.problems else "ok", problems=list(run.problems),
+            instance=service.settings.instance, uptime_s=time.time() - started,
             period_s=service.period_s, next_period=run.next_period, running_period=run.running_period,
             last_period=periods[0] if periods else None, buses=tot.buses,
             frames_received=tot.frames_received, frames_dropped=sum(tot.frames_rejected.values()),

@@ -13,6 +13,7 @@ from service.clock import SYSTEM_CLOCK, Clock
 from service.context import Context
 from service.executors import make_executor
 from service.gc_policy import BetweenPeriodsGC
+from service.health import COMPONENTS, HealthCollector, IngestWatch, pool_problem, scheduler_problem
 from service.http_server import HttpServer
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
@@ -80,6 +81,12 @@ class Service:
         self._stopped = False
         self.gc = BetweenPeriodsGC(busy=lambda: self._stopped or (
             self.scheduler is not None and self.scheduler.running_period is not None))
+        self._storage_sink = None
+        self._last_summary: PeriodSummary | None = None
+        self._ingest = IngestWatch(self.store, clock)
+        self.metrics.registry.register(HealthCollector(self.problems, lambda: {
+            "scheduler_restarts": self.scheduler.restarts if self.scheduler else 0,
+            "diagnoses_shed": self.scheduler.diagnoses.shed if self.scheduler else 0}))
 
     # --- lifecycle ------------------------------------------------------------------------------------
     def start(self, wait_workers: float = 120.0) -> Service:
@@ -93,6 +100,8 @@ class Service:
         named = [registry.load(SINKS, name)(self.context) for name in s.sinks]
         self.sinks = SinkChain([self.latest, self.metrics, *named],
                                on_error=lambda where: self.metrics.request_errors.labels(where).inc())
+        self._storage_sink = next((sink for sink in named if sink.name == "storage"), None)
+        self._record_interrupted()
         inlet = Inlet(self.store, max_future_s=s.max_future_s, f0=s.f0, clock=self.clock)
         for name in s.sources:
             source = registry.load(SOURCES, name)(self.context)
@@ -104,6 +113,7 @@ class Service:
             on_results=self.sinks.write_results, on_period=self._on_period, warm_starts=self.warm_starts,
             options={"n_starts": s.n_starts, "lowpass_hz": s.lowpass_hz, "objective": s.objective}, n_starts_warm=s.n_starts_warm,
             diagnose_every=s.diagnose_every, on_diagnosis=self._on_diagnosis, clock=self.clock,
+            on_start=self._period_started, diagnose_in_flight=max(1, s.workers - 1),
         )
         self.scheduler.start()
         if self.rest:
@@ -151,7 +161,21 @@ class Service:
         sched = self.scheduler
         return RunStatus(next_period=sched.next_period if sched else None,
                          running_period=sched.running_period if sched else None,
-                         workers_replaced=getattr(self.executor, "replaced", 0))
+                         workers_replaced=getattr(self.executor, "replaced", 0),
+                         problems=tuple(f"{part}: {why}" for part, why in self.problems().items() if why))
+
+    def problems(self) -> dict[str, str | None]:
+        """Each part of the service (:data:`service.health.COMPONENTS`) → why it is not doing its job, or
+        None; ``/health`` is ``degraded`` while any has a reason."""
+        if self._stopped:
+            return dict.fromkeys(COMPONENTS)
+        storage = self._storage_sink.problem() if self._storage_sink is not None else None
+        return {
+            "scheduler": scheduler_problem(self.scheduler, self.clock, self.settings.late_s, self.period_s),
+            "storage": storage,
+            "ingest": self._ingest.problem() if self.settings.sources else None,
+            "pool": pool_problem(self.executor, self._last_summary) if self.executor is not None else "not started",
+        }
 
     # --- run-time configuration --------------------------------------------------------------------
     def set_period(self, period_s: float) -> None:
@@ -180,4 +204,31 @@ class Service:
 
     def _on_period(self, summary: PeriodSummary) -> None:
         self.sinks.write_period(summary)
+        if summary.status != "completed":
+            return
+        self._last_summary = summary
+        try:
+            self.storage.clear_running(summary.period)
+        except Exception:  # noqa: BLE001 - a stale mark is dropped at the next start (its period is stored)
+            log.exception("clearing the running mark of period %s failed", summary.period)
         self.gc.period_done(summary.period_s)
+
+    # --- crash recovery -------------------------------------------------------------------------------
+    def _period_started(self, boundary: float, period_s: float, buses: list[str]) -> None:
+        # Persisted before any result, so that a kill -9 during the period is recorded at the next start.
+        self.storage.mark_running(boundary, period_s, buses)
+
+    def _record_interrupted(self) -> None:
+        """Record each period a previous run started and never completed (killed, or failed) as
+        ``interrupted``, with the buses that got no result."""
+        try:
+            found = self.storage.interrupted(self.clock.now(), self.settings.late_s)
+        except Exception:  # noqa: BLE001 - the service starts anyway; the marks stay for the next start
+            log.exception("reading the periods a previous run left running failed")
+            return
+        for summary in found:
+            log.warning("period %.0f was interrupted (the service stopped while it ran): %d results stored, "
+                        "%d buses got none", summary.period, summary.n_ok + summary.n_failed + summary.n_skipped,
+                        len(summary.no_result))
+            self.sinks.write_period(summary)
+            self.storage.clear_running(summary.period)

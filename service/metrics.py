@@ -69,6 +69,12 @@ class ServiceMetrics:
         self.diagnoses = Counter("aslm_diagnoses", "Discrepancy diagnoses by verdict", ["verdict"], registry=r)
         self.request_errors = Counter("aslm_internal_errors", "Internal errors caught, by place", ["where"],
                                       registry=r)
+        self.periods_missed = Counter("aslm_periods_missed", "Period boundaries without a completed period, "
+                                      "by status (overrun, interrupted)", ["status"], registry=r)
+        self.storage_lost = Counter("aslm_storage_lost", "Records never stored: dropped from the storage "
+                                    "backlog while storage failed, by kind", ["kind"], registry=r)
+        self.storage_backlog = Gauge("aslm_storage_backlog", "Records kept for a retry while storage fails",
+                                     registry=r)
 
     def results(self, batch: list[BusResult]) -> None:
         """Count a batch of results."""
@@ -82,7 +88,10 @@ class ServiceMetrics:
                 self.identify_s.observe(res.parameters.elapsed_s)
 
     def period(self, summary: PeriodSummary) -> None:
-        """Record a completed period."""
+        """Record a completed period, or count a missed one (overrun, interrupted) by its status."""
+        if summary.status != "completed":
+            self.periods_missed.labels(summary.status).inc()
+            return
         self.latency_s.observe(summary.latency_s)
         self.last_period.set(summary.period)
 

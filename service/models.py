@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from aslm_core.params import DYNAMIC_PARAMS, EXPONENTIAL_PARAMS, ZIP_PARAMS, ParamSpec
 
 Status = Literal["ok", "failed", "skipped"]
+PeriodStatus = Literal["completed", "overrun", "interrupted"]
 
 
 def _listed(params: tuple[ParamSpec, ...]) -> str:
@@ -56,8 +57,15 @@ class PeriodSummary(BaseModel):
     n_ok: int
     n_failed: int
     n_skipped: int
-    latency_s: float = Field(description="From the end of the late-data allowance to the last result published [s]")
+    latency_s: float = Field(description="From the end of the late-data allowance to the last result published "
+                                         "(overrun, interrupted: to when the record was made) [s]")
     completed_at: float
+    status: PeriodStatus = Field(
+        "completed", description="completed; overrun (not run: the previous period was still running at its "
+                                 "boundary, or the scheduler was restarting); interrupted (the service stopped "
+                                 "or failed while it ran, recorded at the next start)")
+    no_result: list[str] = Field(
+        default_factory=list, description="Buses known at the boundary that got no result (overrun, interrupted)")
 
 
 # --- diagnosis ------------------------------------------------------------------------------------
@@ -229,7 +237,8 @@ class FailedDiagnosis(BaseModel):
     bus: str = Field(description="Bus identifier (the {bus} of {prefix}/pmu/{bus})")
     period: float = Field(description="Period boundary of the diagnosed window, UTC since the epoch [s]")
     verdict: Literal["failed"] = Field(description="failed")
-    reason: str | None = Field(description="window:<reason>, error:<ExceptionType>, timeout, worker_crashed or shutdown")
+    reason: str | None = Field(description="window:<reason>, error:<ExceptionType>, timeout, worker_crashed, shutdown, "
+                                           "or shed (not started before the next round of diagnoses was queued)")
     message: str = Field(description="What went wrong, for people")
 
 

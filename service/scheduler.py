@@ -23,6 +23,7 @@ from aslm_core.params import DYNAMIC_NAMES
 from aslm_core.window import Window
 from service.buffers import BufferStore
 from service.clock import SYSTEM_CLOCK, Clock
+from service.diagnosis_queue import DiagnosisQueue
 from service.executors.base import Executor, TaskOutcome, WindowTask
 from service.models import BusResult, Identified, PeriodSummary
 
@@ -107,14 +108,31 @@ class Scheduler:
         Called with (bus, period, :class:`TaskOutcome`) of each finished diagnosis.
     clock : Clock
         Boundaries, waits, ``completed_at`` and latencies (default the system clock).
+    on_start : callable, optional
+        Called with (boundary [s], T [s], the buses known) as a period starts, before any result: the
+        service persists it so that a period a crash interrupts is recorded at the next start.
+    diagnose_in_flight : int
+        Diagnoses handed to the executor at a time (:class:`~service.diagnosis_queue.DiagnosisQueue`).
+
+    Notes
+    -----
+    The thread is supervised: an exception outside a period (planning, waiting) is logged, counted in
+    ``restarts`` and the loop starts again after ``restart_delay_s`` [s]; :meth:`problem` reports it until
+    a period completes.  Every boundary leaves a :class:`PeriodSummary`: ``completed``; ``overrun`` for a
+    boundary that passed while the previous period was still running (or while the loop restarted);
+    ``interrupted`` for a period that raised.
     """
+
+    #: Overrun records written at most for one gap (a clock jump of days at a short T); the rest are logged.
+    MAX_OVERRUN_RECORDS = 1000
 
     def __init__(self, store: BufferStore, executor: Executor, rules: QualityRules, *, late_s: float,
                  f0: float, period_s: Callable[[], float], on_results: Callable[[list[BusResult]], None],
                  on_period: Callable[[PeriodSummary], None], warm_starts: dict[str, list[float]],
                  options: dict | None = None, n_starts_warm: int | None = None, diagnose_every: int = 0,
                  on_diagnosis: Callable[[str, float, TaskOutcome], None] | None = None,
-                 clock: Clock = SYSTEM_CLOCK) -> None:
+                 clock: Clock = SYSTEM_CLOCK, on_start: Callable[[float, float, list[str]], None] | None = None,
+                 diagnose_in_flight: int = 1) -> None:
         self.store = store
         self.clock = clock
         self.executor = executor
@@ -135,10 +153,18 @@ class Scheduler:
         self._thread: threading.Thread | None = None
         self.next_period: float | None = None
         self.running_period: float | None = None
+        self.on_start = on_start
+        self.diagnoses = DiagnosisQueue(executor, self._diagnosed, in_flight=diagnose_in_flight)
+        self.restarts = 0
+        self.restart_delay_s = 1.0
+        self.overruns = 0
+        self._death: str | None = None  # why the loop last died, until a period completes after it
+        self._last = -math.inf  # boundary of the last period run (kept across restarts of the loop)
+        self._reported: set[str] = set()  # buses with a result in the period running
 
     def start(self) -> None:
         """Start the scheduling thread."""
-        self._thread = threading.Thread(target=self._loop, name="aslm-scheduler", daemon=True)
+        self._thread = threading.Thread(target=self._supervise, name="aslm-scheduler", daemon=True)
         self._thread.start()
 
     def stop(self, timeout: float = 10.0) -> None:
@@ -152,11 +178,39 @@ class Scheduler:
         """Recompute the next boundary now (the period changed)."""
         self._replan.set()
 
+    @property
+    def alive(self) -> bool:
+        """Whether the scheduling thread runs."""
+        return self._thread is not None and self._thread.is_alive()
+
+    def problem(self) -> str | None:
+        """Why the scheduler is not doing its job (its thread dead, or restarted since the last completed
+        period), or None."""
+        if self._thread is not None and not self._thread.is_alive() and not self._stop.is_set():
+            return f"scheduler thread dead ({self._death or 'no reason recorded'})"
+        if self._death is not None:
+            return f"scheduler restarted {self.restarts} time(s); last death: {self._death}"
+        return None
+
+    def _supervise(self) -> None:
+        """Run the loop; restart it after any exception it lets through (it must never die silently)."""
+        while not self._stop.is_set():
+            try:
+                self._loop()
+            except Exception as exc:  # noqa: BLE001 - supervision: log, count, report, restart
+                self.restarts += 1
+                self._death = f"{type(exc).__name__}: {exc}"
+                self.next_period = None
+                log.exception("scheduler loop died (restart %d in %g s)", self.restarts, self.restart_delay_s)
+                self._stop.wait(self.restart_delay_s)
+            else:
+                return
+
     def _loop(self) -> None:
-        last = -math.inf
         while not self._stop.is_set():
             period_s = self.period_s()
-            boundary = next_boundary(max(self.clock.now() - self.late_s, last), period_s)
+            boundary = next_boundary(max(self.clock.now() - self.late_s, self._last), period_s)
+            self._record_overruns(boundary, period_s)
             self.next_period = boundary
             self._replan.clear()
             delay = boundary + self.late_s - self.clock.now()
@@ -168,11 +222,48 @@ class Scheduler:
                 self.run_period(boundary, period_s)
             except Exception:  # noqa: BLE001 - one bad period must not end the service
                 log.exception("period %s failed", boundary)
-            last = boundary
+                self._missed(boundary, period_s, "interrupted", sorted(set(self.store.buses()) - self._reported))
+            finally:
+                self.running_period = None
+                self.diagnoses.resume()
+            self._last = boundary
+
+    def _record_overruns(self, boundary: float, period_s: float) -> None:
+        """A record for each boundary after the last period run and before ``boundary`` (they were skipped)."""
+        if not math.isfinite(self._last):
+            return
+        first = math.floor(self._last / period_s) + 1
+        skipped = int(round(boundary / period_s)) - first
+        if skipped <= 0:
+            return
+        self.overruns += skipped
+        buses = sorted(self.store.buses())
+        log.warning("%d period boundar%s from %.0f skipped (overrun: the previous period was still running); "
+                    "%d buses got no result", skipped, "y" if skipped == 1 else "ies", first * period_s,
+                    len(buses))
+        for k in range(max(0, skipped - self.MAX_OVERRUN_RECORDS), skipped):
+            self._missed((first + k) * period_s, period_s, "overrun", buses)
+
+    def _missed(self, boundary: float, period_s: float, status: str, no_result: list[str]) -> None:
+        """Report the period of ``boundary`` as ``overrun`` or ``interrupted`` (buses without a result)."""
+        now = self.clock.now()
+        try:
+            self.on_period(PeriodSummary(period=boundary, period_s=period_s, n_ok=0, n_failed=0, n_skipped=0,
+                                         latency_s=now - (boundary + self.late_s), completed_at=now,
+                                         status=status, no_result=no_result))
+        except Exception:  # noqa: BLE001 - reporting trouble must not stop the scheduling
+            log.exception("reporting the %s period %s failed", status, boundary)
 
     def run_period(self, boundary: float, period_s: float) -> PeriodSummary:
         """Cut, check, identify and report every known bus for the period ending at ``boundary``."""
         self.running_period = boundary
+        self._reported = set()
+        self.diagnoses.pause()  # identification goes first: no diagnosis is handed out while a period runs
+        if self.on_start is not None:
+            try:
+                self.on_start(boundary, period_s, list(self.store.buses()))
+            except Exception:  # noqa: BLE001 - the period runs even if its start could not be recorded
+                log.exception("recording the start of period %s failed", boundary)
         started = self.clock.now()
         done: list[BusResult] = []
         pending: dict[Future, tuple[str, Window, bool]] = {}
@@ -250,23 +341,25 @@ class Scheduler:
         )
         self.on_period(summary)
         self.running_period = None
+        self._death = None
         self.periods_run += 1
         if self.diagnose_every > 0 and self.on_diagnosis is not None and self.periods_run % self.diagnose_every == 0:
             self._submit_diagnoses(boundary, identified)
+        self.diagnoses.resume()
         log.info("period %.0f: %d ok, %d failed, %d skipped in %.2f s", boundary, summary.n_ok, summary.n_failed,
                  summary.n_skipped, summary.latency_s)
         return summary
 
     def _submit_diagnoses(self, boundary: float, identified: dict[str, tuple[Window, dict]]) -> None:
-        """Queue the discrepancy diagnosis of each bus identified this period (results come back async)."""
-        for bus, (cut, value) in identified.items():
-            task = WindowTask(cut, fn="service.worker:diagnose_window", previous=value)
-            fut = self.executor.submit(task)
-            fut.add_done_callback(lambda f, bus=bus: self._diagnosed(bus, boundary, f))
+        """Queue the discrepancy diagnosis of each bus identified this period (results come back async);
+        diagnoses of an earlier period still waiting are shed."""
+        self.diagnoses.enqueue(boundary, [
+            WindowTask(cut, fn="service.worker:diagnose_window", previous=value, background=True)
+            for cut, value in identified.values()])
 
-    def _diagnosed(self, bus: str, boundary: float, fut: Future) -> None:
+    def _diagnosed(self, bus: str, boundary: float, outcome: TaskOutcome) -> None:
         try:
-            self.on_diagnosis(bus, boundary, fut.result())
+            self.on_diagnosis(bus, boundary, outcome)
         except Exception:  # noqa: BLE001 - one bus's diagnosis never stops the others
             log.exception("reporting the diagnosis of %s failed", bus)
 
@@ -276,6 +369,7 @@ class Scheduler:
         except Exception:  # noqa: BLE001 - storage/publication trouble must not stop the period
             log.exception("reporting %d results failed", len(batch))
         done.extend(batch)
+        self._reported.update(r.bus for r in batch)
 
     def _record(self, bus: str, boundary: float, period_s: float, status: str, reason: str | None,
                 cut: Window | None, warm: bool, outcome: TaskOutcome | None = None) -> BusResult:

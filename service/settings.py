@@ -8,6 +8,7 @@ the results database and applied on top of these at the next start (see :mod:`se
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import socket
@@ -29,6 +30,9 @@ from service.sources import SOURCES
 
 _KEY_CHUNK = re.compile(r"^[A-Za-z0-9_\-.]+(/[A-Za-z0-9_\-.]+)*$")
 
+PERIOD_MAX_S = 86400.0
+"""Longest period T [s] the service accepts, at start and through ``PUT /config`` (one day)."""
+
 CONFIG_ENV = "ASLM_CONFIG"
 """Environment variable naming the TOML settings file (the ``--config`` flag overrides it)."""
 
@@ -40,7 +44,10 @@ class ServiceSettings(BaseSettings):
     ``ASLM_ZENOH_CONNECT='["tcp/zenoh-router:7447"]'``.
     """
 
-    model_config = SettingsConfigDict(env_prefix="ASLM_", extra="forbid", validate_default=True)
+    # allow_inf_nan=False: NaN or ±inf in any float setting is refused (an infinite period killed the
+    # scheduler thread with OverflowError, issue 17).
+    model_config = SettingsConfigDict(env_prefix="ASLM_", extra="forbid", validate_default=True,
+                                      allow_inf_nan=False)
 
     # --- topics and timing -------------------------------------------------------------------
     prefix: str = Field("aslm", description="Zenoh key-expression prefix (aslm/pmu/**, aslm/params/**, ...)")
@@ -249,13 +256,18 @@ class ServiceSettings(BaseSettings):
 
 
 def check_period(period_s: float, settings: ServiceSettings) -> None:
-    """Refuse a period that cannot hold a window plus the late-data allowance.
+    """Refuse a period [s] that is not finite, longer than :data:`PERIOD_MAX_S` or shorter than a window
+    plus the late-data allowance (start-up settings, ``PUT /config`` and the persisted value alike).
 
     Raises
     ------
     ValueError
         With a message naming the values involved.
     """
+    if not math.isfinite(period_s):
+        raise ValueError(f"period_s must be a finite number of seconds (got {period_s})")
+    if period_s > PERIOD_MAX_S:
+        raise ValueError(f"period_s ({period_s:g} s) must be at most {PERIOD_MAX_S:g} s")
     if period_s < settings.window_s + settings.late_s:
         raise ValueError(
             f"period_s ({period_s:g} s) must be at least window_s + late_s "

@@ -10,6 +10,9 @@ import json
 import sqlite3
 import threading
 import time
+from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -36,12 +39,21 @@ CREATE TABLE IF NOT EXISTS diagnoses (
     body TEXT NOT NULL,
     PRIMARY KEY (bus, period)
 );
+CREATE TABLE IF NOT EXISTS running (
+    period REAL PRIMARY KEY,
+    period_s REAL NOT NULL,
+    buses TEXT NOT NULL
+);
 CREATE TABLE IF NOT EXISTS config (
     key TEXT PRIMARY KEY,
     value TEXT NOT NULL,
     updated REAL NOT NULL
 );
 """
+
+
+class StorageError(RuntimeError):
+    """The SQLite file cannot be opened or initialised (one line an operator can act on)."""
 
 
 class Storage:
@@ -55,14 +67,31 @@ class Storage:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
-        if str(path) != ":memory:":
-            self.path.parent.mkdir(parents=True, exist_ok=True)
         self._lock = threading.Lock()
-        self._db = sqlite3.connect(str(path), check_same_thread=False, isolation_level=None)
+        try:
+            if str(path) != ":memory:":
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._db = sqlite3.connect(str(path), check_same_thread=False, isolation_level=None)
+            with self._lock:
+                self._db.execute("PRAGMA journal_mode=WAL")
+                self._db.execute("PRAGMA synchronous=NORMAL")  # durable at checkpoints; fine for results
+                self._db.executescript(_SCHEMA)
+        except (OSError, sqlite3.Error) as exc:
+            raise StorageError(f"storage_url: cannot use {self.path} as the SQLite file: {exc}") from None
+
+    @contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        """One transaction under the lock, rolled back if anything in it raises (a transaction left open
+        would make every later ``BEGIN`` fail, and so every later write)."""
         with self._lock:
-            self._db.execute("PRAGMA journal_mode=WAL")
-            self._db.execute("PRAGMA synchronous=NORMAL")  # durable at checkpoints; fine for results
-            self._db.executescript(_SCHEMA)
+            self._db.execute("BEGIN")
+            try:
+                yield self._db
+            except BaseException:
+                if self._db.in_transaction:
+                    self._db.execute("ROLLBACK")
+                raise
+            self._db.execute("COMMIT")
 
     def close(self) -> None:
         """Close the connection."""
@@ -74,11 +103,9 @@ class Storage:
         """Append results in one transaction; ``bodies`` are their JSON if the caller has it already."""
         bodies = bodies if bodies is not None else [r.model_dump_json() for r in results]
         rows = [(r.bus, r.period, r.status, r.completed_at, b) for r, b in zip(results, bodies, strict=True)]
-        with self._lock:
-            self._db.execute("BEGIN")
-            self._db.executemany(
+        with self._transaction() as db:
+            db.executemany(
                 "INSERT INTO results (bus, period, status, completed_at, body) VALUES (?, ?, ?, ?, ?)", rows)
-            self._db.execute("COMMIT")
 
     def latest(self, bus: str, *, ok_only: bool = False) -> BusResult | None:
         """Most recent result of ``bus`` (only successful ones with ``ok_only``)."""
@@ -128,12 +155,56 @@ class Storage:
 
     def purge(self, before: float) -> int:
         """Delete results and periods with ``period < before`` [s]; returns the results deleted."""
-        with self._lock:
-            self._db.execute("BEGIN")
-            n = self._db.execute("DELETE FROM results WHERE period < ?", (before,)).rowcount
-            self._db.execute("DELETE FROM periods WHERE period < ?", (before,))
-            self._db.execute("COMMIT")
+        with self._transaction() as db:
+            n = db.execute("DELETE FROM results WHERE period < ?", (before,)).rowcount
+            db.execute("DELETE FROM periods WHERE period < ?", (before,))
         return n
+
+    # --- periods that have started and not completed (a crash leaves them) ----------------------------
+    def mark_running(self, period: float, period_s: float, buses: list[str]) -> None:
+        """Record that the period of boundary ``period`` [s] has started with ``buses`` known."""
+        with self._lock:
+            self._db.execute("INSERT OR REPLACE INTO running (period, period_s, buses) VALUES (?, ?, ?)",
+                             (period, period_s, json.dumps(buses)))
+
+    def clear_running(self, period: float) -> None:
+        """The period of boundary ``period`` [s] is over (completed, or recorded as interrupted)."""
+        with self._lock:
+            self._db.execute("DELETE FROM running WHERE period = ?", (period,))
+
+    def interrupted(self, now: float, late_s: float) -> list[PeriodSummary]:
+        """Periods that started and never completed (the process was killed or failed while they ran).
+
+        Parameters
+        ----------
+        now : float
+            Time of this check, UTC [s]: their ``completed_at``.
+        late_s : float
+            Late-data allowance [s]: ``latency_s`` counts from boundary + ``late_s``.
+
+        Returns
+        -------
+        list of PeriodSummary
+            Status ``interrupted``, the results each period got counted by status, and the buses known at
+            its start that got none.  A period whose completed summary was stored is not among them.
+        """
+        with self._lock:
+            marks = self._db.execute("SELECT period, period_s, buses FROM running ORDER BY period").fetchall()
+            done = {p for (p,) in self._db.execute(
+                "SELECT period FROM periods WHERE period IN (SELECT period FROM running)").fetchall()}
+            got = {p: self._db.execute("SELECT bus, status FROM results WHERE period = ?", (p,)).fetchall()
+                   for p, _, _ in marks if p not in done}
+        out = []
+        for period, period_s, buses in marks:
+            if period in done:
+                continue
+            status = dict(got[period])
+            counts = Counter(status.values())
+            out.append(PeriodSummary(
+                period=period, period_s=period_s, n_ok=counts["ok"], n_failed=counts["failed"],
+                n_skipped=counts["skipped"], latency_s=now - (period + late_s), completed_at=now,
+                status="interrupted", no_result=[b for b in json.loads(buses) if b not in status]))
+        return out
 
     # --- configuration -------------------------------------------------------------------------------
     # --- diagnoses -------------------------------------------------------------------------------
@@ -154,11 +225,9 @@ class Storage:
     def set_config(self, values: dict[str, Any]) -> None:
         """Persist run-time configuration changes (JSON values)."""
         now = time.time()
-        with self._lock:
-            self._db.execute("BEGIN")
-            self._db.executemany("INSERT OR REPLACE INTO config (key, value, updated) VALUES (?, ?, ?)",
-                                 [(k, json.dumps(v), now) for k, v in values.items()])
-            self._db.execute("COMMIT")
+        with self._transaction() as db:
+            db.executemany("INSERT OR REPLACE INTO config (key, value, updated) VALUES (?, ?, ?)",
+                           [(k, json.dumps(v), now) for k, v in values.items()])
 
     def get_config(self) -> dict[str, Any]:
         """Persisted run-time configuration."""

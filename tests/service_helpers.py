@@ -143,3 +143,9 @@ def unpicklable_identify(task) -> dict:
     if task.bus == "bad":
         out["oops"] = lambda: None
     return out
+
+
+def slow_identify(task) -> dict:
+    """fake_identify after 0.3 s of wall time (a stand-in for a diagnosis, ~0.7 s in the service)."""
+    time.sleep(0.3)
+    return fake_identify(task)

@@ -34,9 +34,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"aslm serve: {exc}", file=sys.stderr)
         return 2
     from service.app import Service
+    from service.storage import StorageError
 
     stop = stop_event_on_signals()
-    svc = Service(settings)
+    try:
+        svc = Service(settings)
+    except StorageError as exc:  # an unusable storage path: the one-line error of invalid settings
+        print(f"aslm serve: {exc}", file=sys.stderr)
+        return 2
     try:
         svc.start()
         log.info("serving: prefix %r, period %g s, window %g s, %s executor; REST %s (OpenAPI at /docs)",

@@ -26,6 +26,9 @@ class WindowTask:
         ``module:function`` to run instead of the executor's (e.g. the diagnosis).
     previous : dict or None
         The bus's identification of this window (``IdentificationResult.to_dict()``), for the diagnosis.
+    background : bool
+        Runs only when no identification waits (the diagnosis): an executor that can order its tasks
+        gives such a task only to an idle worker and nothing else to that worker while it runs.
     """
 
     window: Window
@@ -33,6 +36,7 @@ class WindowTask:
     options: dict[str, Any] = field(default_factory=dict)
     fn: str | None = None
     previous: dict | None = None
+    background: bool = False
 
     @property
     def bus(self) -> str:

@@ -91,6 +91,9 @@ class LocalPool:
         self.timeout_s = timeout_s
         self.depth = max(1, int(depth))
         self._queue: collections.deque[tuple[int, WindowTask, Future]] = collections.deque()
+        # Background tasks (diagnoses) wait here: one goes only to an idle worker when no foreground task
+        # waits, and a worker running one gets nothing else, so no identification waits behind it.
+        self._background: collections.deque[tuple[int, WindowTask, Future]] = collections.deque()
         self._ids = itertools.count()
         self._lock = threading.Lock()
         self._wake_r, self._wake_w = self._ctx.Pipe(duplex=False)
@@ -113,7 +116,8 @@ class LocalPool:
                 for fut in futs:
                     fut.set_result(TaskOutcome(ok=False, reason="shutdown", message="pool closed"))
                 return futs
-            self._queue.extend((next(self._ids), task, fut) for task, fut in zip(tasks, futs, strict=True))
+            for task, fut in zip(tasks, futs, strict=True):
+                (self._background if task.background else self._queue).append((next(self._ids), task, fut))
         self._wake()
         return futs
 
@@ -140,6 +144,17 @@ class LocalPool:
             time.sleep(0.02)
         return False
 
+    def problem(self) -> str | None:
+        """Why the pool is not doing its job (dispatcher thread dead, no worker ready), or None."""
+        if self._closed:
+            return None
+        if not self._thread.is_alive():
+            return "pool dispatcher thread dead"
+        workers = list(self._workers)
+        if not any(w.ready and w.process.is_alive() for w in workers):
+            return f"no worker ready (of {len(workers)}; {self.replaced} replaced since start)"
+        return None
+
     def close(self, timeout: float = 5.0) -> None:
         """Stop the workers; queued and running tasks resolve as ``shutdown``."""
         with self._lock:
@@ -160,9 +175,10 @@ class LocalPool:
             self._fail_all(w, "shutdown", "pool closed")
             w.conn.close()
         with self._lock:
-            while self._queue:
-                _, _, fut = self._queue.popleft()
-                fut.set_result(TaskOutcome(ok=False, reason="shutdown", message="pool closed"))
+            for waiting in (self._queue, self._background):
+                while waiting:
+                    _, _, fut = waiting.popleft()
+                    fut.set_result(TaskOutcome(ok=False, reason="shutdown", message="pool closed"))
 
     # --- internals ----------------------------------------------------------------------------------
     def _wake(self) -> None:
@@ -199,7 +215,8 @@ class LocalPool:
                 fut.set_result(TaskOutcome(ok=False, reason=reason, message=message,
                                            elapsed_s=self.timeout_s if reason == "timeout" else 0.0))
         with self._lock:
-            self._queue.extendleft(reversed(w.inflight))  # not started: they run elsewhere, in order
+            for item in reversed(w.inflight):  # not started: they run elsewhere, in order
+                (self._background if item[1].background else self._queue).appendleft(item)
         w.inflight.clear()
         if not self._closed:
             i = self._workers.index(w)
@@ -209,7 +226,8 @@ class LocalPool:
     def _dispatch(self) -> None:
         """Top up every ready worker with ``depth // 2`` or fewer tasks to ``depth``, least loaded first."""
         low = self.depth // 2
-        open_ = [w for w in self._workers if w.ready and len(w.inflight) <= low]
+        open_ = [w for w in self._workers
+                 if w.ready and len(w.inflight) <= low and not any(item[1].background for item in w.inflight)]
         if not open_:
             return
         batches: dict[int, list] = {id(w): [] for w in open_}
@@ -219,18 +237,27 @@ class LocalPool:
                 w = min(open_, key=lambda w: len(w.inflight))
                 if len(w.inflight) >= self.depth:
                     break
-                item = self._queue.popleft()
-                fut = item[2]
-                # A task queued again after its worker died is already running (for its future).
-                if not fut.running() and not fut.set_running_or_notify_cancel():
-                    continue  # cancelled
-                if not w.inflight:
-                    w.deadline = now + self.timeout_s
-                w.inflight.append(item)
-                batches[id(w)].append((item[0], item[1]))
+                self._hand(w, self._queue.popleft(), now, batches)
+            idle = [w for w in open_ if not w.inflight]
+            while idle and self._background and not self._queue:
+                w = idle[-1]
+                if self._hand(w, self._background.popleft(), now, batches):
+                    idle.pop()
         for w in open_:
             if batches[id(w)]:
                 w.outbox.put(batches[id(w)])
+
+    def _hand(self, w: _Worker, item: tuple[int, WindowTask, Future], now: float, batches: dict[int, list]) -> bool:
+        """Give ``item`` to ``w`` in this round's batch; False if its future was cancelled."""
+        fut = item[2]
+        # A task queued again after its worker died is already running (for its future).
+        if not fut.running() and not fut.set_running_or_notify_cancel():
+            return False
+        if not w.inflight:
+            w.deadline = now + self.timeout_s
+        w.inflight.append(item)
+        batches[id(w)].append((item[0], item[1]))
+        return True
 
     def _receive(self, w: _Worker) -> None:
         """Take every message ``w`` has sent so far."""

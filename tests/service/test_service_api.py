@@ -119,3 +119,15 @@ def test_put_config_changes_the_period_through_the_view(rest):
     ok = client.put("/config", json={"period_s": 20.0}, headers={"X-Operator-Token": "op-secret"})
     assert ok.status_code == 200 and ok.json()["period_s"] == 20.0 and view.period_s == 20.0
     assert client.get("/config").json()["settings"]["operator_token"] == "***"
+
+
+@pytest.mark.parametrize("body", [
+    '{"period_s": 1e999}', '{"period_s": 1e12}', '{"period_s": NaN}', '{"period_s": Infinity}',
+    '{"period_s": -Infinity}', '{"window_s": 3}', '{"period_s": 20, "window_s": 3}',
+])
+def test_put_config_refuses_non_finite_huge_and_unknown_values_with_422(rest, body):
+    view, _, client = rest
+    r = client.put("/config", content=body, headers={"Authorization": "Bearer op-secret",
+                                                    "Content-Type": "application/json"})
+    assert r.status_code == 422, (body, r.status_code, r.text)
+    assert view.period_s == 10.0  # nothing changed

@@ -33,3 +33,12 @@ def test_demo_runs_one_period_and_exits():
     assert "ok=4 failed=0" in r.stdout
     assert r.stdout.count(" ok ") + r.stdout.count(" ok* ") >= 4
     assert "aslm demo: stopped" in r.stdout
+
+
+def test_serve_refuses_an_unusable_storage_path_with_one_line(tmp_path):
+    (tmp_path / "file").write_text("not a directory")
+    for path in (tmp_path / "file" / "aslm.sqlite", tmp_path):  # below a file; a directory
+        r = aslm("serve", "--storage", str(path), "--port", "0", timeout=60)
+        assert r.returncode == 2, r.stderr
+        lines = r.stderr.strip().splitlines()
+        assert lines[-1].startswith(f"aslm serve: storage_url: cannot use {path} as the SQLite file") and len(lines) == 1, r.stderr

@@ -118,3 +118,27 @@ def test_exceptions_become_reasons():
     finally:
         pool.close()
     assert pool.submit(task("late")).result(timeout=5).reason == "shutdown"
+
+
+def test_background_tasks_run_only_when_no_foreground_task_waits():
+    pool = LocalPool(2, "service_helpers:fake_identify", timeout_s=60)
+    try:
+        assert pool.wait_ready(120)
+        done: list[str] = []
+
+        def submit(tasks):
+            for fut, t in zip(pool.submit_many(tasks), tasks, strict=True):
+                fut.add_done_callback(lambda f, bus=t.bus: done.append(bus))
+        background = [task(f"bg{i}") for i in range(4)]
+        for t in background:
+            t.fn, t.background = "service_helpers:slow_identify", True
+        submit(background)  # both workers idle: bg0 and bg1 start, bg2 and bg3 wait
+        time.sleep(0.1)
+        submit([task(f"fg{i}") for i in range(16)])  # must not wait behind bg2, bg3 (FIFO put them first)
+        deadline = time.monotonic() + 30
+        while len(done) < 20 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert sorted(done[-2:]) == ["bg2", "bg3"], done
+        assert set(done[:-2]) == {f"fg{i}" for i in range(16)} | {"bg0", "bg1"}
+    finally:
+        pool.close()

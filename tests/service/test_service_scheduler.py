@@ -273,3 +273,96 @@ def test_the_service_runs_without_zenoh_on_a_manual_clock(tmp_path):
         assert not svc.context.zenoh_opened  # neither a source nor a sink asked for Zenoh
     finally:
         svc.stop()
+
+
+def test_the_scheduler_thread_survives_an_error_outside_a_period_and_reports_its_death(bench):
+    b = bench(period_s=10.0, start=T0 + 1.0).start()
+    b.scheduler.restart_delay_s = 0.0
+    b.period(T0 + 10, "b1")
+    plan = b.scheduler.period_s
+    failures = ["period_s unreadable"]
+
+    def flaky() -> float:
+        if failures:
+            raise RuntimeError(failures.pop())
+        return plan()
+
+    b.scheduler.period_s = flaky
+    b.scheduler.replan()  # the loop plans again, reads T, and raises outside run_period
+    b.clock.advance(0.0)
+    b.clock.settle()
+    assert b.scheduler.restarts == 1 and b.scheduler.alive
+    assert "RuntimeError: period_s unreadable" in b.scheduler.problem()
+    b.period(T0 + 20, "b1")
+    assert [p.period for p in b.sink.periods] == [T0 + 10, T0 + 20]
+    assert b.scheduler.problem() is None  # a period completed since the restart
+
+
+def test_boundaries_skipped_while_a_period_ran_late_leave_overrun_records(bench):
+    class Slow(MemorySink):
+        """The first period's results take 25 s of the clock to report: T0+20 and T0+30 pass meanwhile."""
+
+        def write_results(self, batch, payloads):
+            super().write_results(batch, payloads)
+            if len(self.results) == 2:
+                b.clock.advance(25.0)
+
+    b = bench(period_s=10.0, start=T0 + 1.0, sinks=(Slow("slow"),)).start()
+    b.period(T0 + 10, "b1", "b2")
+    assert b.scheduler.next_period == T0 + 40
+    b.period(T0 + 40, "b1", "b2")
+    got = [(p.period, p.status, p.no_result, p.n_ok) for p in b.sink.periods]
+    assert got == [(T0 + 10, "completed", [], 2), (T0 + 20, "overrun", ["b1", "b2"], 0),
+                   (T0 + 30, "overrun", ["b1", "b2"], 0), (T0 + 40, "completed", [], 2)]
+    assert [p.completed_at for p in b.sink.periods[1:3]] == [T0 + 35.5, T0 + 35.5]  # when it was noticed
+    assert b.scheduler.overruns == 2
+
+
+class HoldingExecutor(InlineExecutor):
+    """Identifications run inline; diagnoses (background tasks) wait until the test releases them."""
+
+    def __init__(self, fn_path: str) -> None:
+        super().__init__(fn_path)
+        self.held: list = []
+        self.order: list[tuple[str, str]] = []  # (kind, bus) in submission order
+
+    def submit(self, task):
+        self.order.append(("diagnosis" if task.background else "identify", task.bus))
+        if not task.background:
+            return super().submit(task)
+        from concurrent.futures import Future
+        fut = Future()
+        self.held.append((task, fut))
+        return fut
+
+    def release(self, n: int = 1) -> None:
+        from service.executors.base import TaskOutcome
+        for _ in range(n):
+            task, fut = self.held.pop(0)
+            fut.set_result(TaskOutcome(ok=True, value={"verdict": "consistent"}))
+
+
+def test_identification_never_waits_behind_diagnoses_and_late_diagnoses_are_shed(bench):
+    b = bench(period_s=10.0, start=T0 + 1.0)
+    ex = HoldingExecutor(FAKE)
+    reports: list[tuple[str, float, str | None]] = []
+    b.scheduler = Scheduler(
+        b.store, ex, RULES, late_s=LATE_S, f0=50.0, period_s=lambda: b.period_s, on_results=b.chain.write_results,
+        on_period=b.chain.write_period, warm_starts=b.warm, options={"n_starts": 3}, diagnose_every=1,
+        on_diagnosis=lambda bus, period, outcome: reports.append((bus, period, outcome.reason)), clock=b.clock,
+        diagnose_in_flight=1)
+    b.start()
+    buses = ("b1", "b2", "b3")
+    b.period(T0 + 10, *buses)
+    assert ex.order == [("identify", bus) for bus in buses] + [("diagnosis", "b1")]  # one at a time
+    assert b.scheduler.diagnoses.waiting == 2
+    ex.order.clear()
+    b.period(T0 + 20, *buses)
+    # The period's identifications went straight to the executor: b2 and b3's diagnoses of T0+10 were
+    # still waiting, were not handed out during the period, and were shed when those of T0+20 came.
+    assert ex.order == [("identify", bus) for bus in buses]
+    assert reports == [("b2", T0 + 10, "shed"), ("b3", T0 + 10, "shed")]
+    assert b.scheduler.diagnoses.shed == 2 and b.scheduler.diagnoses.waiting == 3
+    ex.release()  # b1 of T0+10 finishes: the next one (b1 of T0+20) is handed out
+    assert reports[-1] == ("b1", T0 + 10, None) and ex.order[-1] == ("diagnosis", "b1")
+    assert len(ex.held) == 1

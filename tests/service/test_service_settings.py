@@ -48,6 +48,13 @@ def test_precedence_toml_env_cli(tmp_path, monkeypatch):
     ({"sources": ["c37118"]}, "unknown sources ['c37118']; known: ['zenoh']"),
     ({"sinks": ["storage", "kafka"]}, "unknown sinks ['kafka']; known: ['records', 'storage', 'zenoh']"),
     ({"sinks": ["zenoh", "zenoh"]}, "sinks repeated"),
+    # The bounds PUT /config applies hold for the start-up settings too (issue 17, defect 2).
+    ({"period_s": float("nan")}, "period_s"),
+    ({"period_s": float("inf")}, "period_s"),
+    ({"period_s": 1e12}, "period_s (1e+12 s) must be at most 86400 s"),
+    ({"window_s": float("inf")}, "window_s"),
+    ({"late_s": float("nan")}, "late_s"),
+    ({"task_timeout_s": float("inf")}, "task_timeout_s"),
 ])
 def test_invalid_values_refused_with_clear_message(overrides, needle):
     if needle is None:  # checked when the path is used
@@ -75,3 +82,9 @@ def test_dask_address_accepted_and_token_masked():
     assert s.executor == "tcp://scheduler:8786"
     assert s.public_dict()["operator_token"] == "***"
     assert "secret" not in repr(s)
+
+
+def test_non_finite_period_from_the_environment_is_refused(monkeypatch):
+    monkeypatch.setenv("ASLM_PERIOD_S", "inf")
+    with pytest.raises(SettingsError, match="period_s"):
+        load_settings()
