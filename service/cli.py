@@ -5,13 +5,14 @@ from __future__ import annotations
 import argparse
 import sys
 
+from service.commands import bridge as bridge_cmd
 from service.commands import demo as demo_cmd
 from service.commands import diagnose as diagnose_cmd
 from service.commands import identify as identify_cmd
 from service.commands import replay as replay_cmd
 from service.commands import serve as serve_cmd
 
-COMMANDS = (identify_cmd, serve_cmd, replay_cmd, demo_cmd, diagnose_cmd)
+COMMANDS = (identify_cmd, serve_cmd, replay_cmd, demo_cmd, diagnose_cmd, bridge_cmd)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -89,6 +89,10 @@ class ServiceSettings(BaseSettings):
         description="Sources of PMU frames started by the service (service/sources/): 'zenoh' subscribes to "
                     "{prefix}/pmu/{pmu_keys}",
     )
+    pmu_mapping: Path | None = Field(
+        None, description="TOML file of the grid-protocol sources ('c37118'): where the stream is and which "
+                          "phasors form each bus (docs/protocols.md)",
+    )
     sinks: list[str] = Field(
         default_factory=lambda: ["storage", "zenoh"],
         description="Sinks of results, diagnoses and periods (service/sinks/): 'storage' (SQLite history, "
