@@ -165,20 +165,20 @@ class StreamDecoder:
         self._buf.clear()
 
     def _resync(self, buf: bytearray, off: int, size: int, reason: str) -> int:
-        # A frame cut short is followed by the next frame inside its announced size: resume there.
+        # A frame cut short has the next frame's header (same IDCODE) inside its announced size: resume
+        # there.  Matching the IDCODE keeps a 0xAA byte inside a damaged frame's payload from being
+        # taken for a frame start and counted a second time.
+        idcode = buf[off + 4: off + 6]
         pos = off + 1
         while True:
             nxt, nsize = c37.split(buf, pos)
-            if nsize == 0 or nxt >= off + size or nxt + nsize > len(buf):
+            if nxt >= off + size or nxt + 6 > len(buf):
                 break
-            try:
-                c37.parse(bytes(buf[nxt: nxt + nsize]))
-            except c37.C37Error:
-                pos = nxt + 1
-                continue
-            self.bad_frames["truncated"] += 1
-            self.skipped_bytes += nxt - off
-            return nxt
+            if nsize and buf[nxt + 4: nxt + 6] == idcode:
+                self.bad_frames["truncated"] += 1
+                self.skipped_bytes += nxt - off
+                return nxt
+            pos = nxt + 1
         self.bad_frames[reason] += 1
         return off + size
 
