@@ -28,6 +28,7 @@ Pmu.logger.setLevel(logging.WARNING)
 
 V_UNIT, I_UNIT = 915527, 45776  # PHUNIT in 1e-5 V or A per count (the package's own sample values)
 PHASORS = ["VA", "VB", "VC", "I1"]
+A = np.exp(2j * np.pi / 3)  # the 120° operator of symmetrical components
 STAT_OK = ("ok", True, "timestamp", False, False, False, 0, "<10", 0)
 
 

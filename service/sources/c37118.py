@@ -203,7 +203,8 @@ class C37118Client:
             self._send(c37.CMD_CFG2)
             self._cfg_asked = time.monotonic()
             self.connected.set()
-            data_on = False
+            data_on = False  # turned on once this connection has brought a configuration
+            configs_before = self.decoder.configs
             last_byte = time.monotonic()
             while not self._stop.is_set():
                 events = sel.select(timeout=min(0.1, s.batch_s))
@@ -220,7 +221,7 @@ class C37118Client:
                         self.decoder.end()  # a datagram holds whole frames: leftovers are truncated
                     last_byte = now
                 got_data = got_data or self.decoder.frames > 0
-                if self.decoder.cfg is not None and not data_on:
+                if self.decoder.configs > configs_before and not data_on:
                     self._send(c37.CMD_DATA_ON)
                     data_on = True
                 if self.decoder.need_config and now - self._cfg_asked > 1.0:
