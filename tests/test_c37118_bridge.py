@@ -269,7 +269,7 @@ def test_the_service_identifies_the_load_the_phasors_encode(eq_window):
             peer.send(data_frame(cfg2, t[k], phasors_of(w.V[k], w.theta[k], w.P[k], w.Q[k]))[0])
         wait_for(lambda: store.counts("eq").buffered >= t.size, 60, 0.1)  # the peer sends ~80 frames/s
         clock.advance_to(end + 0.5)
-        wait_for(lambda: sink.results, 300, 0.5)  # the period runs the identifier inline (numba's first compile)
+        wait_for(lambda: sink.results, 600, 0.5)  # the identifier runs inline (numba compiles on first use)
     finally:
         scheduler.stop()
         source.close()
