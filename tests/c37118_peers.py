@@ -97,8 +97,11 @@ class SynchroPmu:
         return len(self.pmu.client_buffers)
 
     def close(self) -> None:
+        """Stop the connection handlers (each polls its socket without sleeping) and the listener."""
         for p in self.pmu.clients:
             p.terminate()
+            p.join(5)
+        self.pmu.clients.clear()
         self.pmu.socket.close()
 
 

@@ -255,7 +255,8 @@ def test_the_service_identifies_the_load_the_phasors_encode(eq_window):
                           period_s=lambda: 20.0, on_results=SinkChain([sink], on_error=print).write_results,
                           on_period=lambda s: None, warm_starts={}, options={"n_starts": 3, "lowpass_hz": 2.0},
                           n_starts_warm=1, clock=clock)
-    source = C37118Source(StreamSettings(port=peer.port, idcode=7734, batch_s=0.1),
+    # The peer sends nothing once its frames are out: no silence timeout while the period runs.
+    source = C37118Source(StreamSettings(port=peer.port, idcode=7734, batch_s=0.1, timeout_s=3600.0),
                           parse_mapping({"buses": {"eq": BUSES["feeder"]}}))
     source.start(Inlet(store, max_future_s=5.0, f0=50.0, clock=clock))
     scheduler.start()
@@ -268,6 +269,7 @@ def test_the_service_identifies_the_load_the_phasors_encode(eq_window):
         for k in range(t.size):
             peer.send(data_frame(cfg2, t[k], phasors_of(w.V[k], w.theta[k], w.P[k], w.Q[k]))[0])
         wait_for(lambda: store.counts("eq").buffered >= t.size, 60, 0.1)  # the peer sends ~80 frames/s
+        peer.close()  # its connection handler polls without sleeping: stop it before the identifier runs
         clock.advance_to(end + 0.5)
         wait_for(lambda: sink.results, 600, 0.5)  # the identifier runs inline (numba compiles on first use)
     finally:
