@@ -36,6 +36,7 @@ host = "127.0.0.1"
 port = {port}
 idcode = 2
 batch_s = 0.2
+timeout_s = 3600.0  # the PMU falls silent when the recording ends: do not reconnect (it would replay)
 
 [buses.shelby]
 pmu = 2
@@ -49,7 +50,7 @@ base_mva = 100.0
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--capture", default=str(CAPTURE))
-    ap.add_argument("--period", type=float, default=15.0, help="period T [s] (window 10 s)")
+    ap.add_argument("--period", type=float, default=11.0, help="period T [s] (window 10 s, late 1 s)")
     ap.add_argument("--out", help="write the summary JSON here")
     args = ap.parse_args()
 
@@ -86,8 +87,7 @@ def main() -> int:
         "capture": Path(args.capture).name, "frames_recorded": int(cap.t.size), "frames_sent": pmu.sent,
         "send_seconds": round(sent_s, 1), "source_counts": source,
         "results": [{k: r[k] for k in ("period", "status", "reason", "n_frames", "parameters")} for r in results],
-        "diagnosis": {bus: {k: d.get(k) for k in ("verdict", "summary", "flags", "best", "candidates")
-                            if k in d} for bus, d in diagnoses.items()},
+        "diagnosis": diagnoses,
     }
     text = json.dumps(summary, indent=1, default=str)
     print(text)

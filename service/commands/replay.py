@@ -8,14 +8,15 @@ import sys
 import time
 from pathlib import Path
 
-from service.commands._common import setup_logging, stop_event_on_signals
+from service.commands._common import add_mapping_flags, setup_logging, stop_event_on_signals
 
 log = logging.getLogger("aslm.replay")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("replay", help="publish a synthetic fleet (or recordings) onto {prefix}/pmu/{bus}")
-    p.add_argument("files", nargs="*", metavar="FILE", help=".npz/.csv recordings (one bus each); none: synthetic")
+    p.add_argument("files", nargs="*", metavar="FILE",
+                   help=".npz/.csv recordings (one bus each) or COMTRADE with --mapping; none: synthetic")
     p.add_argument("--buses", type=int, default=10, help="synthetic buses (default 10)")
     p.add_argument("--rate", type=float, default=50.0, help="frames/s per bus (default 50)")
     p.add_argument("--batch", type=float, default=0.2, help="seconds of frames per message (default 0.2)")
@@ -32,6 +33,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="Zenoh endpoint (default tcp/127.0.0.1:7447; repeatable)")
     p.add_argument("--listen", action="append", metavar="ENDPOINT", help="Zenoh endpoint to listen on")
     p.add_argument("--log-level", default="INFO")
+    add_mapping_flags(p)
     p.set_defaults(func=run)
 
 
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
             if args.duration:
                 import threading
                 threading.Timer(args.duration, stop.set).start()
-            replay_files(pub, paths, batch_s=args.batch, loop=args.loop, stop=stop)
+            replay_files(pub, paths, batch_s=args.batch, loop=args.loop, stop=stop, mapping=args.mapping)
         else:
             from aslm_sim.fleet import SyntheticFleet
 
