@@ -8,7 +8,7 @@ import logging
 import sys
 import threading
 
-from service.commands._common import setup_logging, stop_event_on_signals
+from service.commands._common import add_publisher_flags, setup_logging, stop_event_on_signals
 
 log = logging.getLogger("aslm.bridge")
 
@@ -22,12 +22,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--idcode", type=int, help="IDCODE of the stream (overrides the mapping's)")
     p.add_argument("--udp", type=int, metavar="PORT", help="take data over UDP on this local port")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
-    p.add_argument("--prefix", default="aslm")
-    p.add_argument("--mode", default="peer", choices=["peer", "client"], help="Zenoh mode")
-    p.add_argument("--connect", action="append", metavar="ENDPOINT",
-                   help="Zenoh endpoint (default tcp/127.0.0.1:7447; repeatable)")
-    p.add_argument("--listen", action="append", metavar="ENDPOINT", help="Zenoh endpoint to listen on")
-    p.add_argument("--log-level", default="INFO")
+    add_publisher_flags(p)
     p.set_defaults(func=run)
 
 

@@ -8,7 +8,12 @@ import sys
 import time
 from pathlib import Path
 
-from service.commands._common import add_mapping_flags, setup_logging, stop_event_on_signals
+from service.commands._common import (
+    add_mapping_flags,
+    add_publisher_flags,
+    setup_logging,
+    stop_event_on_signals,
+)
 
 log = logging.getLogger("aslm.replay")
 
@@ -27,12 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--truth", metavar="FILE", help="write the true parameters (JSON) here")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     p.add_argument("--loop", action="store_true", help="repeat recordings")
-    p.add_argument("--prefix", default="aslm")
-    p.add_argument("--mode", default="peer", choices=["peer", "client"], help="Zenoh mode")
-    p.add_argument("--connect", action="append", metavar="ENDPOINT",
-                   help="Zenoh endpoint (default tcp/127.0.0.1:7447; repeatable)")
-    p.add_argument("--listen", action="append", metavar="ENDPOINT", help="Zenoh endpoint to listen on")
-    p.add_argument("--log-level", default="INFO")
+    add_publisher_flags(p)
     add_mapping_flags(p)
     p.set_defaults(func=run)
 

@@ -237,13 +237,11 @@ class Config:
         if self._dtype is None:
             fields: list[tuple] = [("head", "V14")]
             for k, p in enumerate(self.pmus):
-                ph = ">f4" if p.phasor_float else (">u2,>i2" if p.polar else ">i2")
                 fields.append((f"stat{k}", ">u2"))
-                if p.phasors:
-                    if p.phasor_float or not p.polar:
-                        fields.append((f"ph{k}", ph, (len(p.phasors), 2)))
-                    else:
-                        fields.append((f"ph{k}", [("mag", ">u2"), ("ang", ">i2")], (len(p.phasors),)))
+                if p.phasors and (p.phasor_float or not p.polar):
+                    fields.append((f"ph{k}", ">f4" if p.phasor_float else ">i2", (len(p.phasors), 2)))
+                elif p.phasors:  # integer polar: unsigned magnitude, signed angle in 1e-4 rad
+                    fields.append((f"ph{k}", [("mag", ">u2"), ("ang", ">i2")], (len(p.phasors),)))
                 ff = ">f4" if p.freq_float else ">i2"
                 fields += [(f"freq{k}", ff), (f"dfreq{k}", ff)]
                 if p.analogs:

@@ -70,16 +70,14 @@ class BusResolver:
     def batches(self, t: np.ndarray, blocks: list[c37.DataBlock], keep: np.ndarray | None = None
                 ) -> dict[str, FrameBatch]:
         """One batch per bus from decoded data (``keep`` selects frames)."""
-        if keep is not None and not keep.all():
-            t = t[keep]
+        sel = slice(None) if keep is None or keep.all() else keep
         out = {}
         for plan in self.plans:
             b = blocks[plan.block]
-            z = b.phasors if keep is None or keep.all() else b.phasors[keep]
-            sel = keep if keep is not None and not keep.all() else slice(None)
+            z = b.phasors[sel]
             v = z[:, plan.voltage[0]] if len(plan.voltage) == 1 else z[:, plan.voltage]
             cur = [z[:, ix[0]] if len(ix) == 1 else z[:, ix] for ix in plan.feeders]
-            out[plan.bm.bus] = bus_batch(plan.bm, t, v, cur, b.freq[sel], b.stat[sel])
+            out[plan.bm.bus] = bus_batch(plan.bm, t[sel], v, cur, b.freq[sel], b.stat[sel])
         return out
 
 
