@@ -231,6 +231,8 @@ class ServiceSettings(BaseSettings):
         check_period(self.period_s, self)
         if self.window_s * self.frame_rate < 10:
             raise ValueError("window_s * frame_rate gives fewer than 10 frames per window")
+        if "c37118" in self.sources and self.pmu_mapping is None:
+            raise ValueError("sources has 'c37118': pmu_mapping must name the mapping file (docs/protocols.md)")
         return self
 
     # --- derived -----------------------------------------------------------------------------------

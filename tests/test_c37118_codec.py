@@ -245,3 +245,17 @@ def test_positive_sequence_of_balanced_phases_is_phase_a():
 def test_mapping_errors_name_the_bus_and_key(bad, message):
     with pytest.raises(MappingError, match=message):
         parse_mapping(bad)
+
+
+def test_the_c37118_source_needs_a_mapping_file_in_the_settings(tmp_path):
+    from service.settings import SettingsError, load_settings
+
+    with pytest.raises(SettingsError, match="pmu_mapping"):
+        load_settings(sources=["c37118"], storage_url=str(tmp_path / "x.sqlite"))
+    path = tmp_path / "pdc.toml"
+    path.write_text('[c37118]\nport = 4712\nidcode = 7\n[buses.b]\npmu = 7\nvoltage = "V"\ncurrent = "I"\nbase_kv = 1\n')
+    settings = load_settings(sources=["c37118"], pmu_mapping=str(path), storage_url=str(tmp_path / "x.sqlite"))
+    from service.sources.c37118 import load
+
+    stream, mapping = load(settings.pmu_mapping)
+    assert (stream.port, stream.idcode, stream.transport, [b.bus for b in mapping.buses]) == (4712, 7, "tcp", ["b"])
