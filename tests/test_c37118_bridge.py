@@ -279,3 +279,29 @@ def test_the_service_identifies_the_load_the_phasors_encode(eq_window):
     res = sink.results[0]
     d = np.array([res.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")])
     assert res.status == "ok" and np.all(np.abs(d / D_TRUE - 1) < 0.05), d
+
+
+def test_aslm_bridge_pmu_serves_the_real_pcap_capture_at_its_rate():
+    capture = ROOT.parent / "shared" / "data" / "real" / "c37118-1pmu-tcp.pcap"
+    if not capture.is_file():
+        pytest.skip("real recording not present")
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "service.cli", "bridge", "pmu", str(capture), "--port", str(port), "--duration", "30",
+         "--log-level", "WARNING"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    got: list = []
+    buses = {"blue": {"pmu": "Blue PMU", "voltage": "V1LPM", "current": "VALPM", "base_kv": 1.0}}
+    client = C37118Client(StreamSettings(port=port, idcode=241, batch_s=0.1, backoff_s=(0.2, 0.5)),
+                          parse_mapping({"buses": buses}), lambda bus, b: got.append(b))
+    try:
+        client.start_thread()
+        wait_for(lambda: client.decoder.frames >= 252, 40, 0.1)
+        out, err = proc.communicate(timeout=40)
+    finally:
+        client.close()
+        proc.kill()
+    t = np.concatenate([b.t for b in got])
+    assert client.counts()["delivered"] == 252 and client.counts()["rejected"] == {}
+    np.testing.assert_allclose(np.diff(t), 1 / 50, atol=1e-6)  # re-stamped on the 50 frames/s grid
+    assert abs(t[-1] - time.time()) < 30
+    assert json.loads(out.strip().splitlines()[-1])["sent"] == 252, err

@@ -142,3 +142,39 @@ class CapturePmu:
             self.sent += 1
             k += 1
             next_t += period
+
+
+def capture_stream(path, idcode: int = 1) -> tuple[c37.Config, list[bytes]]:
+    """The configuration and data frames of a capture file, to serve with :class:`CapturePmu`.
+
+    ``.pcap``: what the PMU (port 4712) sent, as C37.118.2 frames; anything else is read as IEEE 1344
+    frames and re-encoded (``idcode`` is then the stream's IDCODE).
+
+    Raises
+    ------
+    ValueError
+        A capture without a configuration or without data frames of it.
+    """
+    from pathlib import Path
+
+    if Path(path).suffix.lower() in (".pcap", ".cap"):
+        from service.readers.pcap import pmu_payload
+
+        payload, cfg, frames, pos = pmu_payload(path), None, [], 0
+        while True:
+            off, size = c37.split(payload, pos)
+            if not size or off + size > len(payload):
+                break
+            frame = c37.parse(payload[off: off + size])
+            if frame.ftype in (c37.CFG1, c37.CFG2) and cfg is None:
+                cfg = c37.parse_config(frame)
+            elif frame.ftype == c37.DATA and cfg is not None and size == cfg.data_size:
+                frames.append(payload[off: off + size])
+            pos = off + size
+    else:
+        from service.readers.ieee1344 import read_1344, to_c37118
+
+        cfg, frames = to_c37118(read_1344(path), idcode=idcode)
+    if cfg is None or not frames:
+        raise ValueError(f"{path}: no configuration, or no data frames of it")
+    return cfg, frames
