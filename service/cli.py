@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from service.commands import bridge as bridge_cmd
 from service.commands import demo as demo_cmd
 from service.commands import diagnose as diagnose_cmd
 from service.commands import export as export_cmd
@@ -12,7 +13,7 @@ from service.commands import identify as identify_cmd
 from service.commands import replay as replay_cmd
 from service.commands import serve as serve_cmd
 
-COMMANDS = (identify_cmd, serve_cmd, replay_cmd, demo_cmd, diagnose_cmd, export_cmd)
+COMMANDS = (identify_cmd, serve_cmd, replay_cmd, demo_cmd, diagnose_cmd, export_cmd, bridge_cmd)
 
 
 def build_parser() -> argparse.ArgumentParser:

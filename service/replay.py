@@ -125,15 +125,16 @@ class FleetReplayer:
 
 
 def replay_files(publisher: FramePublisher, paths: list[Path], *, batch_s: float = 0.2, loop: bool = False,
-                 stop: threading.Event | None = None) -> None:
-    """Replay recorded windows (``.npz``/``.csv``, one bus per file named by its stem) in real time.
+                 stop: threading.Event | None = None, mapping: str | Path | None = None) -> None:
+    """Replay recorded windows (``.npz``/``.csv``, one bus per file named by its stem; COMTRADE, the
+    ``mapping``'s buses) in real time.
 
     Times are re-stamped so the first frame is now; with ``loop`` the recordings repeat end to end.
     """
-    from service.files import read_window
+    from service.files import read_windows
 
     stop = stop or threading.Event()
-    windows = [read_window(p) for p in paths]
+    windows = [w for p in paths for w in read_windows(p, mapping=mapping)]
     start = time.time()
     offset = 0.0
     while not stop.is_set():

@@ -96,6 +96,10 @@ class ServiceSettings(BaseSettings):
         description="Sources of PMU frames started by the service (service/sources/): 'zenoh' subscribes to "
                     "{prefix}/pmu/{pmu_keys}",
     )
+    pmu_mapping: Path | None = Field(
+        None, description="TOML file of the grid-protocol sources ('c37118'): where the stream is and which "
+                          "phasors form each bus (docs/protocols.md)",
+    )
     sinks: list[str] = Field(
         default_factory=lambda: ["storage", "zenoh"],
         description="Sinks of results, diagnoses and periods (service/sinks/): 'storage' (SQLite history, "
@@ -234,6 +238,8 @@ class ServiceSettings(BaseSettings):
         check_period(self.period_s, self)
         if self.window_s * self.frame_rate < 10:
             raise ValueError("window_s * frame_rate gives fewer than 10 frames per window")
+        if "c37118" in self.sources and self.pmu_mapping is None:
+            raise ValueError("sources has 'c37118': pmu_mapping must name the mapping file (docs/protocols.md)")
         return self
 
     # --- derived -----------------------------------------------------------------------------------

@@ -40,6 +40,22 @@ def add_setting_flags(p: argparse.ArgumentParser, skip: tuple[str, ...] = ()) ->
     p.add_argument("--log-level", default="INFO", help="logging level (default INFO)")
 
 
+def add_publisher_flags(p: argparse.ArgumentParser) -> None:
+    """Flags of a command that publishes frames onto Zenoh: prefix, session mode and endpoints, logging."""
+    p.add_argument("--prefix", default="aslm")
+    p.add_argument("--mode", default="peer", choices=["peer", "client"], help="Zenoh mode")
+    p.add_argument("--connect", action="append", metavar="ENDPOINT",
+                   help="Zenoh endpoint (default tcp/127.0.0.1:7447; repeatable)")
+    p.add_argument("--listen", action="append", metavar="ENDPOINT", help="Zenoh endpoint to listen on")
+    p.add_argument("--log-level", default="INFO")
+
+
+def add_mapping_flags(p: argparse.ArgumentParser) -> None:
+    """``--mapping`` and ``--bus``: which channels of a COMTRADE file form the load bus."""
+    p.add_argument("--mapping", metavar="TOML", help="bus mapping for COMTRADE .cfg/.cff files (docs/protocols.md)")
+    p.add_argument("--bus", help="the mapping's bus to read (default its first)")
+
+
 def setting_overrides(args: argparse.Namespace) -> dict:
     """The settings given on the command line."""
     names = [f for _, f, _, _ in SETTING_FLAGS] + ["zenoh_connect", "zenoh_listen"]

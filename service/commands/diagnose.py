@@ -9,6 +9,7 @@ from pathlib import Path
 
 from aslm_core import WindowError, warmup
 from aslm_core.diagnosis import DiagnosisConfig, DiagnosisReport, diagnose
+from service.commands._common import add_mapping_flags
 from service.files import read_window
 
 
@@ -21,13 +22,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "default: identified from the recording")
     p.add_argument("--report", metavar="DIR", default=None, help="write a Markdown report with PNG figures to DIR")
     p.add_argument("--f0", type=float, default=None, help="nominal frequency [Hz] (default: file's, else 50)")
+    add_mapping_flags(p)
     p.add_argument("--train-fraction", type=float, default=0.65, help="share of the window fitted on (rest held out)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     try:
-        window = read_window(args.file, f0=args.f0)
+        window = read_window(args.file, f0=args.f0, mapping=args.mapping, bus=args.bus)
         model = None
         if args.model:
             model = json.loads(Path(args.model).read_text())

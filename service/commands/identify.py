@@ -7,6 +7,7 @@ import json
 import sys
 
 from aslm_core import IdentifyConfig, WindowError, identify, warmup
+from service.commands._common import add_mapping_flags
 from service.files import read_window
 
 
@@ -15,6 +16,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("files", nargs="+", metavar="FILE", help=".npz or .csv with t, V, theta, P, Q")
     p.add_argument("--json", action="store_true", help="one JSON object per line per FILE")
     p.add_argument("--f0", type=float, default=None, help="nominal frequency [Hz] (default: file's, else 50)")
+    add_mapping_flags(p)
     p.add_argument("--integrator", choices=["rk4", "euler"], default="rk4")
     p.add_argument("--objective", choices=["paper", "ml", "ssq"], default="paper")
     p.add_argument("--static", choices=["zip", "exponential"], default="zip")
@@ -32,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     status = 0
     for path in args.files:
         try:
-            window = read_window(path, f0=args.f0)
+            window = read_window(path, f0=args.f0, mapping=args.mapping, bus=args.bus)
             result = identify(window, config=config)
         except (OSError, ValueError, WindowError) as exc:
             status = 1

@@ -8,14 +8,20 @@ import sys
 import time
 from pathlib import Path
 
-from service.commands._common import setup_logging, stop_event_on_signals
+from service.commands._common import (
+    add_mapping_flags,
+    add_publisher_flags,
+    setup_logging,
+    stop_event_on_signals,
+)
 
 log = logging.getLogger("aslm.replay")
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("replay", help="publish a synthetic fleet (or recordings) onto {prefix}/pmu/{bus}")
-    p.add_argument("files", nargs="*", metavar="FILE", help=".npz/.csv recordings (one bus each); none: synthetic")
+    p.add_argument("files", nargs="*", metavar="FILE",
+                   help=".npz/.csv recordings (one bus each) or COMTRADE with --mapping; none: synthetic")
     p.add_argument("--buses", type=int, default=10, help="synthetic buses (default 10)")
     p.add_argument("--rate", type=float, default=50.0, help="frames/s per bus (default 50)")
     p.add_argument("--batch", type=float, default=0.2, help="seconds of frames per message (default 0.2)")
@@ -26,12 +32,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--truth", metavar="FILE", help="write the true parameters (JSON) here")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     p.add_argument("--loop", action="store_true", help="repeat recordings")
-    p.add_argument("--prefix", default="aslm")
-    p.add_argument("--mode", default="peer", choices=["peer", "client"], help="Zenoh mode")
-    p.add_argument("--connect", action="append", metavar="ENDPOINT",
-                   help="Zenoh endpoint (default tcp/127.0.0.1:7447; repeatable)")
-    p.add_argument("--listen", action="append", metavar="ENDPOINT", help="Zenoh endpoint to listen on")
-    p.add_argument("--log-level", default="INFO")
+    add_publisher_flags(p)
+    add_mapping_flags(p)
     p.set_defaults(func=run)
 
 
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
             if args.duration:
                 import threading
                 threading.Timer(args.duration, stop.set).start()
-            replay_files(pub, paths, batch_s=args.batch, loop=args.loop, stop=stop)
+            replay_files(pub, paths, batch_s=args.batch, loop=args.loop, stop=stop, mapping=args.mapping)
         else:
             from aslm_sim.fleet import SyntheticFleet
 
