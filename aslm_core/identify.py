@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from aslm_core import motor, optimize, static
+from aslm_core import excitation, motor, optimize, static
 from aslm_core.errors import NoEquilibriumError, WindowError
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import Prepared, prepare
@@ -184,9 +184,9 @@ def levenberg_marquardt(problem: Problem, d0: np.ndarray, max_iter: int = 60, xt
             "status": optimize.STATUS_NAMES[status]}
 
 
-def _standard_errors(problem: Problem, rr: tuple[float, float], rho: tuple[float, float],
-                     jj: np.ndarray) -> np.ndarray:
-    """Standard errors of D: sandwich covariance of the configured objective's estimator.
+def _covariance(problem: Problem, rr: tuple[float, float], rho: tuple[float, float],
+                jj: np.ndarray) -> np.ndarray:
+    """Covariance of D: sandwich form of the configured objective's estimator (inf where singular).
 
     ``rr``: ‖r‖² per channel; ``rho``: lag-1 residual autocorrelation per channel; ``jj``: JᵀJ per channel
     (projected). At the optimum Σ_c w_c·J_cᵀr_c = 0 with the objective's channel weights w_c (eq. 7:
@@ -210,9 +210,8 @@ def _standard_errors(problem: Problem, rr: tuple[float, float], rho: tuple[float
     try:
         binv = np.linalg.inv(bread)
     except np.linalg.LinAlgError:
-        return np.full(4, np.inf)
-    cov = binv @ meat @ binv.T
-    return np.sqrt(np.maximum(cov.diagonal(), 0.0))
+        return np.diag(np.full(4, np.inf))
+    return binv @ meat @ binv.T
 
 
 def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None = None,
@@ -320,10 +319,16 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     rr_p, rr_q, rho_p, rho_q, ss_p, ss_q, v_rel, dth_std = optimize.fit_statistics(
         pb._dp, pb._dq, pb.p_meas, pb.q_meas, pb._p, pb._q, pb.basis, prep.V, prep.theta, jj, bty)
     beta = optimize.solve_upper(problem.r_factor, np.ascontiguousarray(bty.T))
-    se = _standard_errors(problem, (rr_p, rr_q), (rho_p, rho_q), jj)
+    cov_d = _covariance(problem, (rr_p, rr_q), (rho_p, rho_q), jj)
+    se = np.sqrt(np.maximum(cov_d.diagonal(), 0.0))
     fd_p = 1.0 - rr_p / ss_p
     fd_q = 1.0 - rr_q / ss_q
     flags = list(prep.flags)
+    static_local, static_se, extra = _static_and_excitation(problem, prep, beta, (rr_p, rr_q), (rho_p, rho_q),
+                                                            cov_d)
+    if static.split_unidentifiable(static_se, math.hypot(float(pb.p_meas.mean()), float(pb.q_meas.mean())),
+                                   config.static):
+        flags.append("static_split_unidentifiable")
     lower, upper = problem.lower, problem.upper
     for i, name in enumerate(DYNAMIC_NAMES):
         if d[i] <= lower[i] * (1 + 1e-9) or d[i] >= upper[i] * (1 - 1e-9):
@@ -354,11 +359,13 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         "skip_s": problem.k0 * prep.dt,
         "of_paper": (math.sqrt(rr_p) + math.sqrt(rr_q)) / problem.l,
         "residual_rho_p": min(max(rho_p, 0.0), 0.95), "residual_rho_q": min(max(rho_q, 0.0), 0.95),
-        "lowpass_hz": prep.lowpass_hz, **prep.noise,
+        "lowpass_hz": prep.lowpass_hz, **prep.noise, **extra,
     }
     return IdentificationResult(
         dynamic={k: float(v) for k, v in zip(DYNAMIC_NAMES, d, strict=True)},
         static=static.coefficients(beta[:, 0], beta[:, 1], config.static),
+        static_stderr=static_se,
+        static_local=static_local,
         objective=float(final["cost"]),
         fit={"fd_p": fd_p, "fd_q": fd_q},
         stderr={k: float(v) for k, v in zip(DYNAMIC_NAMES, se, strict=True)},
@@ -371,6 +378,40 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         bus=window.bus,
         config=config.to_dict(),
     )
+
+
+def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, rr: tuple[float, float],
+                           rho: tuple[float, float], cov_d: np.ndarray) -> tuple[dict, dict, dict]:
+    """The static part's level and slope with standard errors, and the excitation indicators.
+
+    Needs the motor's P, Q and their D-gradients at the optimum in ``problem._p``, ``_q``, ``_dp``, ``_dq``.
+    The static coefficients move with D (β = R⁻¹Qᵀ(y − m(D))): their covariance adds G·cov(D)·Gᵀ with
+    G = −R⁻¹Qᵀ·∂m/∂D to the regression's own (Tm shifts P0 one for one).  Returns ``static_local``,
+    ``static_stderr`` (see :func:`aslm_core.static.local_part`) and the ``quality`` entries
+    ``static_cond``, ``excitation_share_p|q``, ``own_std_p|q`` [pu], ``own_ratio_p|q``
+    (:func:`aslm_core.excitation.split`).
+    """
+    pb = problem
+    m = pb.basis.shape[1]
+    rinv = np.linalg.inv(pb.r_factor)
+    covs = []
+    for c in range(2):
+        r1 = min(max(rho[c], 0.0), 0.95)
+        var = rr[c] / max(pb.l - m - 4, 1) * (1.0 + r1) / (1.0 - r1)
+        g = -rinv @ (pb.basis.T @ (pb._dp if c == 0 else pb._dq)[pb.k0:])
+        covs.append(var * (rinv @ rinv.T) + g @ np.where(np.isfinite(cov_d), cov_d, 0.0) @ g.T)
+    local, coef_se, cond = static.local_part(beta[:, 0], beta[:, 1], pb.r_factor, prep.V[pb.k0:], covs[0], covs[1],
+                                             pb.config.static)
+    extra = {"static_cond": cond}
+    fs = 1.0 / prep.dt
+    for c, name in ((0, "p"), (1, "q")):
+        meas = pb.p_meas if c == 0 else pb.q_meas
+        y = meas - (pb._p if c == 0 else pb._q)[pb.k0:]
+        resid = y - pb.basis @ (pb.basis.T @ y)
+        white = excitation.white_variance(prep.noise.get(f"noise_{name}", 0.0), fs, prep.lowpass_hz)
+        share, own_std, own_ratio = excitation.split(meas, resid, white)
+        extra.update({f"excitation_share_{name}": share, f"own_std_{name}": own_std, f"own_ratio_{name}": own_ratio})
+    return local, coef_se, extra
 
 
 def identify_many(windows: Sequence[Window], *, warm_starts: Sequence[np.ndarray | None] | None = None,

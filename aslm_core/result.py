@@ -109,9 +109,19 @@ class IdentificationResult:
     quality : dict
         Indicators: SNR estimates [dB], excitation (std of V [pu]), constraint margin, n samples, the
         white-noise std of the measured channels ``noise_v``, ``noise_p``, ``noise_q`` [pu] and
-        ``noise_theta`` [rad], ``lowpass_hz`` the causal low-pass applied (0: none) [Hz].
+        ``noise_theta`` [rad], ``lowpass_hz`` the causal low-pass applied (0: none) [Hz], ``static_cond``
+        (condition number of the static regressors, unit-norm columns), ``excitation_share_p``, ``_q``
+        (the model's share of the measured ambient variance, white floor removed) [-], ``own_std_p``,
+        ``_q`` (std of the residual's coloured part: the load's own fluctuation) [pu] and ``own_ratio_p``,
+        ``_q`` (that std over the measured ambient std) [-].
     flags : list of str
-        Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``.
+        Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``,
+        ``static_split_unidentifiable`` (a static coefficient's standard error above 10 % of the load).
+    static_stderr : dict
+        Standard errors of the ``static`` coefficients [pu or -] (D taken as known).
+    static_local : dict
+        What ambient data identify of the static part: ``V0`` (mean V) [pu], ``P0``, ``Q0`` (static power
+        at V0) [pu], ``dPdV``, ``dQdV`` [pu/pu], ``kpv``, ``kqv`` (local exponents) [-], each with ``*_se``.
     """
 
     dynamic: dict[str, float]
@@ -127,6 +137,8 @@ class IdentificationResult:
     elapsed_s: float = 0.0
     bus: str = ""
     config: dict = field(default_factory=dict)
+    static_stderr: dict[str, float] = field(default_factory=dict)
+    static_local: dict[str, float] = field(default_factory=dict)
 
     @property
     def d(self) -> np.ndarray:

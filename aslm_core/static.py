@@ -75,3 +75,87 @@ def static_power(V: np.ndarray, static: dict[str, float]) -> tuple[np.ndarray, n
     if "P0" in static:
         return static["P0"] * V ** static["np"], static["Q0"] * V ** static["nq"]
     raise ValueError(f"unknown static model with keys {sorted(static)}")
+
+
+#: A static coefficient's standard error above this fraction of the load |P + jQ| means the window cannot split the static part into Z, I and P (flag ``static_split_unidentifiable``).
+SPLIT_SE_FRACTION = 0.1
+
+
+def local_part(beta_p: np.ndarray, beta_q: np.ndarray, r_factor: np.ndarray, V: np.ndarray,
+               cov_p: np.ndarray, cov_q: np.ndarray,
+               model: str = "zip") -> tuple[dict[str, float], dict[str, float], float]:
+    """What ambient data identify of the static part: its level and slope at the window's mean V.
+
+    With V moving by tenths of a percent the columns [1, V, V²] are nearly collinear: their coefficients
+    (the Z/I/P split) come with standard errors of tens to thousands of pu, while the level P0 and the local
+    slope dP/dV are well determined.
+
+    Parameters
+    ----------
+    beta_p, beta_q : ndarray
+        Regression coefficients of P and Q on the columns of :func:`regressors` [pu].
+    r_factor : ndarray
+        R of the thin QR of the regressor matrix over the regression samples.
+    V : ndarray
+        Voltage over the regression samples [pu].
+    cov_p, cov_q : ndarray
+        Covariance of beta_p and beta_q [pu²] (the regression's σ²·R⁻¹R⁻ᵀ, Φ = Q·R, plus what D's
+        uncertainty adds; see :func:`aslm_core.identify._static_and_excitation`).
+    model : {"zip", "exponential"}
+
+    Returns
+    -------
+    local : dict
+        ``V0`` [pu] (mean V), ``P0``, ``Q0`` [pu] (static power at V0), ``dPdV``, ``dQdV`` [pu/pu],
+        ``kpv``, ``kqv`` [-] (the local exponents dP/dV·V0/P0, dQ/dV·V0/Q0), and ``*_se`` of each.
+    coef_se : dict
+        Standard error of each named static coefficient (keys as :func:`coefficients`).
+    cond : float
+        Condition number of the regressor matrix with unit-norm columns [-].
+    """
+    v0 = float(V.mean())
+    m = r_factor.shape[0]
+    if model == "zip":
+        level = np.array([1.0, v0, v0 * v0])
+        slope = np.array([0.0, 1.0, 2.0 * v0])
+    else:
+        level = np.array([1.0, np.log(v0)])
+        slope = np.array([0.0, 1.0 / v0])
+    local: dict[str, float] = {"V0": v0}
+    coef_se: dict[str, float] = {}
+    for ch, beta, cov in (("P", beta_p, cov_p), ("Q", beta_q, cov_q)):
+        x0, dx = float(level @ beta), float(slope @ beta)
+        se0 = float(np.sqrt(max(level @ cov @ level, 0.0)))
+        sed = float(np.sqrt(max(slope @ cov @ slope, 0.0)))
+        # Local exponent k = dx·V0/x0; delta method on (x0, dx).
+        gk = np.array([-dx * v0 / x0**2, v0 / x0]) if x0 != 0 else np.array([np.nan, np.nan])
+        c2 = np.array([[level @ cov @ level, level @ cov @ slope], [slope @ cov @ level, slope @ cov @ slope]])
+        local.update({f"{ch}0": x0, f"d{ch}dV": dx, f"k{ch.lower()}v": dx * v0 / x0 if x0 != 0 else float("nan"),
+                      f"{ch}0_se": se0, f"d{ch}dV_se": sed,
+                      f"k{ch.lower()}v_se": float(np.sqrt(max(gk @ c2 @ gk, 0.0)))})
+        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        if model == "zip":
+            coef_se.update({f"{ch}z": float(se[2]), f"{ch}i": float(se[1]), f"{ch}p": float(se[0])})
+        else:
+            g = np.array([-beta[1] / beta[0] ** 2, 1.0 / beta[0]]) if beta[0] != 0 else np.array([np.nan, np.nan])
+            coef_se.update({f"{ch}0": float(se[0]), f"n{ch.lower()}": float(np.sqrt(max(g @ cov @ g, 0.0)))})
+    scaled = r_factor / np.sqrt(np.sum(r_factor * r_factor, axis=0))[None, :m]
+    return local, coef_se, float(np.linalg.cond(scaled))
+
+
+def split_unidentifiable(coef_se: dict[str, float], s_load: float, model: str = "zip") -> bool:
+    """True when a ZIP coefficient's standard error exceeds :data:`SPLIT_SE_FRACTION` of the load.
+
+    Parameters
+    ----------
+    coef_se : dict
+        Standard errors of the static coefficients (from :func:`local_part`) [pu].
+    s_load : float
+        Size of the whole load, |mean P + j·mean Q| over the window [pu] (the static part alone, or Q
+        alone, can be near zero).
+    model : {"zip", "exponential"}
+        Always False for the exponential model, whose two coefficients are the level and the slope.
+    """
+    if model != "zip":
+        return False
+    return bool(max(coef_se.values()) > SPLIT_SE_FRACTION * max(abs(s_load), 1e-12))
