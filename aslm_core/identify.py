@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from aslm_core import excitation, motor, optimize, static
+from aslm_core import disturbance, excitation, motor, optimize, static
 from aslm_core.errors import NoEquilibriumError, WindowError
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import Prepared, prepare
@@ -268,7 +268,18 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
         if math.isfinite(r["cost"]):
             longer.evaluations += problem.evaluations
             final, final_problem = r, longer
-    return _result(final_problem, window, best, runs, prep, config, t_start, final=final)
+    cov_d = None
+    extra: dict[str, float] = {}
+    if config.disturbance == "ar":
+        pem = disturbance.fit(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
+        final_problem.evaluations += pem["evaluations"]
+        if math.isfinite(pem["cost"]):
+            it = final["iterations"] if final is not best else 0
+            final = {**pem, "iterations": pem["iterations"] + it}
+            cov_d = pem["cov"]
+            extra = {"ar_order_p": float(len(pem["polys"][0]) - 1), "ar_order_q": float(len(pem["polys"][1]) - 1)}
+    return _result(final_problem, window, best, runs, prep, config, t_start, final=final, cov_d=cov_d,
+                   extra_quality=extra)
 
 
 def _transient_skip(d: np.ndarray, prep: Prepared, f0: float, config: IdentifyConfig) -> float:
@@ -306,8 +317,13 @@ def _descend(problem: Problem, start: np.ndarray, config: IdentifyConfig, known:
 
 
 def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prepared,
-            config: IdentifyConfig, t_start: float, final: dict | None = None) -> IdentificationResult:
-    """The result at ``final`` (default ``best``, the best of ``runs``, which the restart checks use)."""
+            config: IdentifyConfig, t_start: float, final: dict | None = None, cov_d: np.ndarray | None = None,
+            extra_quality: dict | None = None) -> IdentificationResult:
+    """The result at ``final`` (default ``best``, the best of ``runs``, which the restart checks use).
+
+    ``cov_d``: the covariance of D when the estimator gives its own (the prediction-error fit); default the
+    output-error sandwich.  ``extra_quality``: further ``quality`` entries.
+    """
     final = best if final is None else final
     d = final["d"]
     pb = problem
@@ -319,7 +335,8 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     rr_p, rr_q, rho_p, rho_q, ss_p, ss_q, v_rel, dth_std = optimize.fit_statistics(
         pb._dp, pb._dq, pb.p_meas, pb.q_meas, pb._p, pb._q, pb.basis, prep.V, prep.theta, jj, bty)
     beta = optimize.solve_upper(problem.r_factor, np.ascontiguousarray(bty.T))
-    cov_d = _covariance(problem, (rr_p, rr_q), (rho_p, rho_q), jj)
+    if cov_d is None:
+        cov_d = _covariance(problem, (rr_p, rr_q), (rho_p, rho_q), jj)
     se = np.sqrt(np.maximum(cov_d.diagonal(), 0.0))
     fd_p = 1.0 - rr_p / ss_p
     fd_q = 1.0 - rr_q / ss_q
@@ -359,7 +376,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         "skip_s": problem.k0 * prep.dt,
         "of_paper": (math.sqrt(rr_p) + math.sqrt(rr_q)) / problem.l,
         "residual_rho_p": min(max(rho_p, 0.0), 0.95), "residual_rho_q": min(max(rho_q, 0.0), 0.95),
-        "lowpass_hz": prep.lowpass_hz, **prep.noise, **extra,
+        "lowpass_hz": prep.lowpass_hz, **prep.noise, **extra, **(extra_quality or {}),
     }
     return IdentificationResult(
         dynamic={k: float(v) for k, v in zip(DYNAMIC_NAMES, d, strict=True)},

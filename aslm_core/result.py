@@ -13,6 +13,7 @@ Integrator = Literal["rk4", "euler"]
 Objective = Literal["paper", "ml", "ssq"]
 StaticModel = Literal["zip", "exponential"]
 InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
+Disturbance = Literal["none", "ar"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,14 @@ class IdentifyConfig:
         Longest run of missing samples repaired by interpolation.
     min_duration_s : float
         Shortest window accepted [s].
+    disturbance : {"none", "ar"}
+        Noise model of P and Q.  ``none``: white (output error).  ``ar``: the load's own fluctuation as
+        an AR process per channel (order by BIC, up to ``ar_max_order``) estimated from the output-error
+        residuals, then D by the prediction-error criterion on the whitened residuals, the AR models
+        re-estimated at that optimum and the fit repeated (:mod:`aslm_core.disturbance`); standard errors
+        from the whitened Jacobian.  See docs/numerics.md.
+    ar_max_order : int
+        Longest AR noise model tried [samples].
     coarse_to_fine : bool
         RK4 only: random starts descend first on a coarse grid (every m-th sample, m·dt ≤ 40 ms, the
         half-step inputs taken from the measured sample in between), then polish on the full grid.
@@ -83,6 +92,8 @@ class IdentifyConfig:
     max_gap_samples: int = 5
     min_duration_s: float = 5.0
     coarse_to_fine: bool = True
+    disturbance: Disturbance = "none"
+    ar_max_order: int = 30
 
     def to_dict(self) -> dict:
         """The options as a plain dict (flat, so cheaper than ``dataclasses.asdict``)."""
