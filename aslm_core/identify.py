@@ -33,6 +33,10 @@ EQUILIBRIUM_MARGIN = 1e-3
 COARSE_MAX_STEP_S = 0.04
 # The coarse descent only has to reach the basin; the full grid polishes.
 COARSE_XTOL = 1e-3
+# Flag a window whose P varies mostly for reasons V and θ do not explain (the load's own fluctuation, or a
+# misfit): the coloured residual's std above this fraction of P's ambient std.  At own/clean std 0.9 the
+# median error of D is 11-20 % with every estimator tried (docs/numerics.md).
+UNEXPLAINED_RATIO = 0.7
 
 
 class Problem:
@@ -366,6 +370,8 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
             break
     if min(fd_p, fd_q) < 0.5:
         flags.append("poor_fit")
+    if extra["own_ratio_p"] > UNEXPLAINED_RATIO:
+        flags.append("unexplained_fluctuation")
     # Ambient signal = measured variance minus what the fit leaves (the noise estimate), eq. 10.
     snr_p = 10.0 * math.log10(max(ss_p - rr_p, 1e-300) / max(rr_p, 1e-300))
     snr_q = 10.0 * math.log10(max(ss_q - rr_q, 1e-300) / max(rr_q, 1e-300))

@@ -127,7 +127,9 @@ class IdentificationResult:
         ``_q`` (that std over the measured ambient std) [-].
     flags : list of str
         Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``,
-        ``static_split_unidentifiable`` (a static coefficient's standard error above 10 % of the load).
+        ``static_split_unidentifiable`` (a static coefficient's standard error above 10 % of the load),
+        ``unexplained_fluctuation`` (``own_ratio_p`` above 0.7: P moves mostly for reasons V and θ do not
+        explain).
     static_stderr : dict
         Standard errors of the ``static`` coefficients [pu or -] (D taken as known).
     static_local : dict

@@ -80,3 +80,4 @@ def test_excitation_share_is_small_when_the_own_fluctuation_dominates(pair):
         assert rb.quality["excitation_share_p"] < 0.4
         true_ratio = np.std(b.states["P_own"]) / np.std(b.clean.P)
         assert rb.quality["own_ratio_p"] == pytest.approx(true_ratio, abs=0.15)
+        assert "unexplained_fluctuation" in rb.flags and "unexplained_fluctuation" not in ra.flags
