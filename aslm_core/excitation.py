@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 # Equivalent noise bandwidth of the preprocessing's 2nd-order Butterworth low-pass, × its cut-off:
 # (π/4)/sin(π/4).
 _LOWPASS_ENBW = (math.pi / 4.0) / math.sin(math.pi / 4.0)
@@ -35,32 +33,30 @@ def white_variance(noise_std: float, fs: float, lowpass_hz: float = 0.0) -> floa
     return noise_std * noise_std * min(1.0, 2.0 * _LOWPASS_ENBW * lowpass_hz / fs)
 
 
-def split(meas: np.ndarray, resid: np.ndarray, white_var: float) -> tuple[float, float, float]:
+def split(var_meas: float, var_resid: float, white_var: float) -> tuple[float, float, float]:
     """Excitation share and own-fluctuation level of one channel.
 
     Parameters
     ----------
-    meas : ndarray
-        The measured channel over the regression samples [pu].
-    resid : ndarray
-        The fit's residual over the same samples [pu] (measured − model).
+    var_meas : float
+        Variance of the measured channel over the regression samples [pu²].
+    var_resid : float
+        Variance of the fit's residual over the same samples [pu²].
     white_var : float
         Variance of the white measurement floor in the channel [pu²] (:func:`white_variance`).
 
     Returns
     -------
     share : float
-        Variance of the fitted model over the measured ambient variance (white floor removed), in
-        [0, 1]: near 1 when V and θ drive the channel, small when the load's own fluctuation does.
+        The share of the measured ambient variance (white floor removed) that the model explains, i.e.
+        not left in the residual's coloured part, in [0, 1]: near 1 when V and θ drive the channel, small
+        when the load's own fluctuation does.
     own_std : float
         Std of the residual's coloured part, the own fluctuation not explained by V and θ [pu].
     own_ratio : float
         own_std over the std of the measured ambient part [-] (0 without own fluctuation, → 1 when it
         dominates).
     """
-    fitted = meas - resid
-    amb = max(float(np.var(meas)) - white_var, 1e-300)
-    own_var = max(float(np.var(resid)) - white_var, 0.0)
-    share = min(max(float(np.var(fitted)) / amb, 0.0), 1.0)
-    own_std = math.sqrt(own_var)
-    return share, own_std, min(own_std / math.sqrt(amb), 1.0)
+    amb = max(var_meas - white_var, 1e-300)
+    own_var = min(max(var_resid - white_var, 0.0), amb)
+    return 1.0 - own_var / amb, math.sqrt(own_var), math.sqrt(own_var / amb)

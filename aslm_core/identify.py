@@ -346,7 +346,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     fd_q = 1.0 - rr_q / ss_q
     flags = list(prep.flags)
     static_local, static_se, extra = _static_and_excitation(problem, prep, beta, (rr_p, rr_q), (rho_p, rho_q),
-                                                            cov_d)
+                                                            (ss_p, ss_q), cov_d)
     if static.split_unidentifiable(static_se, math.hypot(float(pb.p_meas.mean()), float(pb.q_meas.mean())),
                                    config.static):
         flags.append("static_split_unidentifiable")
@@ -404,7 +404,8 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
 
 
 def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, rr: tuple[float, float],
-                           rho: tuple[float, float], cov_d: np.ndarray) -> tuple[dict, dict, dict]:
+                           rho: tuple[float, float], ss: tuple[float, float],
+                           cov_d: np.ndarray) -> tuple[dict, dict, dict]:
     """The static part's level and slope with standard errors, and the excitation indicators.
 
     Needs the motor's P, Q and their D-gradients at the optimum in ``problem._p``, ``_q``, ``_dp``, ``_dq``.
@@ -412,27 +413,25 @@ def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, r
     G = −R⁻¹Qᵀ·∂m/∂D to the regression's own (Tm shifts P0 one for one).  Returns ``static_local``,
     ``static_stderr`` (see :func:`aslm_core.static.local_part`) and the ``quality`` entries
     ``static_cond``, ``excitation_share_p|q``, ``own_std_p|q`` [pu], ``own_ratio_p|q``
-    (:func:`aslm_core.excitation.split`).
+    (:func:`aslm_core.excitation.split`).  ``rr``, ``ss``: residual and centred measured sums of squares per
+    channel (the residual has zero mean: the constant is a static regressor).
     """
     pb = problem
     m = pb.basis.shape[1]
-    rinv = np.linalg.inv(pb.r_factor)
-    covs = []
+    var = []
     for c in range(2):
         r1 = min(max(rho[c], 0.0), 0.95)
-        var = rr[c] / max(pb.l - m - 4, 1) * (1.0 + r1) / (1.0 - r1)
-        g = -rinv @ (pb.basis.T @ (pb._dp if c == 0 else pb._dq)[pb.k0:])
-        covs.append(var * (rinv @ rinv.T) + g @ np.where(np.isfinite(cov_d), cov_d, 0.0) @ g.T)
-    local, coef_se, cond = static.local_part(beta[:, 0], beta[:, 1], pb.r_factor, prep.V[pb.k0:], covs[0], covs[1],
+        var.append(rr[c] / max(pb.l - m - 4, 1) * (1.0 + r1) / (1.0 - r1))
+    covs = np.empty((2, m, m))
+    optimize.static_covariances(pb.r_factor, pb.basis, pb._dp, pb._dq, pb.k0, np.ascontiguousarray(cov_d),
+                                var[0], var[1], covs)
+    local, coef_se, cond = static.local_part(beta[:, 0], beta[:, 1], pb.r_factor, prep.V[pb.k0:], covs,
                                              pb.config.static)
     extra = {"static_cond": cond}
     fs = 1.0 / prep.dt
     for c, name in ((0, "p"), (1, "q")):
-        meas = pb.p_meas if c == 0 else pb.q_meas
-        y = meas - (pb._p if c == 0 else pb._q)[pb.k0:]
-        resid = y - pb.basis @ (pb.basis.T @ y)
         white = excitation.white_variance(prep.noise.get(f"noise_{name}", 0.0), fs, prep.lowpass_hz)
-        share, own_std, own_ratio = excitation.split(meas, resid, white)
+        share, own_std, own_ratio = excitation.split(ss[c] / pb.l, rr[c] / pb.l, white)
         extra.update({f"excitation_share_{name}": share, f"own_std_{name}": own_std, f"own_ratio_{name}": own_ratio})
     return local, coef_se, extra
 

@@ -6,6 +6,8 @@ so for a given motor D the static part is an ordinary least-squares fit.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -82,8 +84,7 @@ SPLIT_SE_FRACTION = 0.1
 
 
 def local_part(beta_p: np.ndarray, beta_q: np.ndarray, r_factor: np.ndarray, V: np.ndarray,
-               cov_p: np.ndarray, cov_q: np.ndarray,
-               model: str = "zip") -> tuple[dict[str, float], dict[str, float], float]:
+               covs: np.ndarray, model: str = "zip") -> tuple[dict[str, float], dict[str, float], float]:
     """What ambient data identify of the static part: its level and slope at the window's mean V.
 
     With V moving by tenths of a percent the columns [1, V, V²] are nearly collinear: their coefficients
@@ -98,9 +99,9 @@ def local_part(beta_p: np.ndarray, beta_q: np.ndarray, r_factor: np.ndarray, V: 
         R of the thin QR of the regressor matrix over the regression samples.
     V : ndarray
         Voltage over the regression samples [pu].
-    cov_p, cov_q : ndarray
-        Covariance of beta_p and beta_q [pu²] (the regression's σ²·R⁻¹R⁻ᵀ, Φ = Q·R, plus what D's
-        uncertainty adds; see :func:`aslm_core.identify._static_and_excitation`).
+    covs : ndarray
+        (2, m, m) covariances of beta_p and beta_q [pu²] (the regression's σ²·R⁻¹R⁻ᵀ, Φ = Q·R, plus what
+        D's uncertainty adds; :func:`aslm_core.optimize.static_covariances`).
     model : {"zip", "exponential"}
 
     Returns
@@ -116,31 +117,41 @@ def local_part(beta_p: np.ndarray, beta_q: np.ndarray, r_factor: np.ndarray, V: 
     v0 = float(V.mean())
     m = r_factor.shape[0]
     if model == "zip":
-        level = np.array([1.0, v0, v0 * v0])
-        slope = np.array([0.0, 1.0, 2.0 * v0])
+        lin = np.array([[1.0, v0, v0 * v0], [0.0, 1.0, 2.0 * v0]])  # level and slope at V0
     else:
-        level = np.array([1.0, np.log(v0)])
-        slope = np.array([0.0, 1.0 / v0])
+        lin = np.array([[1.0, math.log(v0)], [0.0, 1.0 / v0]])
+    # Both channels at once, then plain floats: numpy's per-call overhead dominates at m ≤ 3.
+    bs = np.empty((m, 2))
+    bs[:, 0], bs[:, 1] = beta_p, beta_q
+    vals = (lin @ bs).T.tolist()  # [[P0, dPdV], [Q0, dQdV]]
+    c2 = (lin @ covs @ lin.T).tolist()  # per channel: 2×2 covariance of (level, slope)
+    diag = np.diagonal(covs, axis1=1, axis2=2).tolist()
+    betas = (beta_p.tolist(), beta_q.tolist())
     local: dict[str, float] = {"V0": v0}
     coef_se: dict[str, float] = {}
-    for ch, beta, cov in (("P", beta_p, cov_p), ("Q", beta_q, cov_q)):
-        x0, dx = float(level @ beta), float(slope @ beta)
-        se0 = float(np.sqrt(max(level @ cov @ level, 0.0)))
-        sed = float(np.sqrt(max(slope @ cov @ slope, 0.0)))
+    for c, ch in enumerate(("P", "Q")):
+        (x0, dx), ((vll, vls), (_, vss)) = vals[c], c2[c]
         # Local exponent k = dx·V0/x0; delta method on (x0, dx).
-        gk = np.array([-dx * v0 / x0**2, v0 / x0]) if x0 != 0 else np.array([np.nan, np.nan])
-        c2 = np.array([[level @ cov @ level, level @ cov @ slope], [slope @ cov @ level, slope @ cov @ slope]])
-        local.update({f"{ch}0": x0, f"d{ch}dV": dx, f"k{ch.lower()}v": dx * v0 / x0 if x0 != 0 else float("nan"),
-                      f"{ch}0_se": se0, f"d{ch}dV_se": sed,
-                      f"k{ch.lower()}v_se": float(np.sqrt(max(gk @ c2 @ gk, 0.0)))})
-        se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        k = k_se = float("nan")
+        if x0 != 0.0:
+            k, g0, g1 = dx * v0 / x0, -dx * v0 / (x0 * x0), v0 / x0
+            k_se = math.sqrt(max(g0 * g0 * vll + 2.0 * g0 * g1 * vls + g1 * g1 * vss, 0.0))
+        low = ch.lower()
+        local.update({f"{ch}0": x0, f"d{ch}dV": dx, f"k{low}v": k, f"{ch}0_se": math.sqrt(max(vll, 0.0)),
+                      f"d{ch}dV_se": math.sqrt(max(vss, 0.0)), f"k{low}v_se": k_se})
+        se = [math.sqrt(max(v, 0.0)) for v in diag[c]]
         if model == "zip":
-            coef_se.update({f"{ch}z": float(se[2]), f"{ch}i": float(se[1]), f"{ch}p": float(se[0])})
+            coef_se.update({f"{ch}z": se[2], f"{ch}i": se[1], f"{ch}p": se[0]})
         else:
-            g = np.array([-beta[1] / beta[0] ** 2, 1.0 / beta[0]]) if beta[0] != 0 else np.array([np.nan, np.nan])
-            coef_se.update({f"{ch}0": float(se[0]), f"n{ch.lower()}": float(np.sqrt(max(g @ cov @ g, 0.0)))})
-    scaled = r_factor / np.sqrt(np.sum(r_factor * r_factor, axis=0))[None, :m]
-    return local, coef_se, float(np.linalg.cond(scaled))
+            b0, b1 = betas[c]
+            n_se = float("nan")
+            if b0 != 0.0:
+                (v00, v01), (_, v11) = covs[c].tolist()
+                g0, g1 = -b1 / (b0 * b0), 1.0 / b0
+                n_se = math.sqrt(max(g0 * g0 * v00 + 2.0 * g0 * g1 * v01 + g1 * g1 * v11, 0.0))
+            coef_se.update({f"{ch}0": se[0], f"n{low}": n_se})
+    sv = np.linalg.svd(r_factor / np.sqrt(np.sum(r_factor * r_factor, axis=0))[None, :m], compute_uv=False)
+    return local, coef_se, float(sv[0] / sv[-1])
 
 
 def split_unidentifiable(coef_se: dict[str, float], s_load: float, model: str = "zip") -> bool:
