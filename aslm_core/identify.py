@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from aslm_core import motor, optimize, static
+from aslm_core import disturbance, excitation, motor, optimize, static
 from aslm_core.errors import NoEquilibriumError, WindowError
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import Prepared, prepare
@@ -33,6 +33,10 @@ EQUILIBRIUM_MARGIN = 1e-3
 COARSE_MAX_STEP_S = 0.04
 # The coarse descent only has to reach the basin; the full grid polishes.
 COARSE_XTOL = 1e-3
+# Flag a window whose P varies mostly for reasons V and θ do not explain (the load's own fluctuation, or a
+# misfit): the coloured residual's std above this fraction of P's ambient std.  At own/clean std 0.9 the
+# median error of D is 11-20 % with every estimator tried (docs/numerics.md).
+UNEXPLAINED_RATIO = 0.7
 
 
 class Problem:
@@ -184,9 +188,9 @@ def levenberg_marquardt(problem: Problem, d0: np.ndarray, max_iter: int = 60, xt
             "status": optimize.STATUS_NAMES[status]}
 
 
-def _standard_errors(problem: Problem, rr: tuple[float, float], rho: tuple[float, float],
-                     jj: np.ndarray) -> np.ndarray:
-    """Standard errors of D: sandwich covariance of the configured objective's estimator.
+def _covariance(problem: Problem, rr: tuple[float, float], rho: tuple[float, float],
+                jj: np.ndarray) -> np.ndarray:
+    """Covariance of D: sandwich form of the configured objective's estimator (inf where singular).
 
     ``rr``: ‖r‖² per channel; ``rho``: lag-1 residual autocorrelation per channel; ``jj``: JᵀJ per channel
     (projected). At the optimum Σ_c w_c·J_cᵀr_c = 0 with the objective's channel weights w_c (eq. 7:
@@ -210,9 +214,8 @@ def _standard_errors(problem: Problem, rr: tuple[float, float], rho: tuple[float
     try:
         binv = np.linalg.inv(bread)
     except np.linalg.LinAlgError:
-        return np.full(4, np.inf)
-    cov = binv @ meat @ binv.T
-    return np.sqrt(np.maximum(cov.diagonal(), 0.0))
+        return np.diag(np.full(4, np.inf))
+    return binv @ meat @ binv.T
 
 
 def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None = None,
@@ -269,7 +272,18 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
         if math.isfinite(r["cost"]):
             longer.evaluations += problem.evaluations
             final, final_problem = r, longer
-    return _result(final_problem, window, best, runs, prep, config, t_start, final=final)
+    cov_d = None
+    extra: dict[str, float] = {}
+    if config.disturbance == "ar":
+        pem = disturbance.fit(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
+        final_problem.evaluations += pem["evaluations"]
+        if math.isfinite(pem["cost"]):
+            it = final["iterations"] if final is not best else 0
+            final = {**pem, "iterations": pem["iterations"] + it}
+            cov_d = pem["cov"]
+            extra = {"ar_order_p": float(len(pem["polys"][0]) - 1), "ar_order_q": float(len(pem["polys"][1]) - 1)}
+    return _result(final_problem, window, best, runs, prep, config, t_start, final=final, cov_d=cov_d,
+                   extra_quality=extra)
 
 
 def _transient_skip(d: np.ndarray, prep: Prepared, f0: float, config: IdentifyConfig) -> float:
@@ -307,8 +321,13 @@ def _descend(problem: Problem, start: np.ndarray, config: IdentifyConfig, known:
 
 
 def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prepared,
-            config: IdentifyConfig, t_start: float, final: dict | None = None) -> IdentificationResult:
-    """The result at ``final`` (default ``best``, the best of ``runs``, which the restart checks use)."""
+            config: IdentifyConfig, t_start: float, final: dict | None = None, cov_d: np.ndarray | None = None,
+            extra_quality: dict | None = None) -> IdentificationResult:
+    """The result at ``final`` (default ``best``, the best of ``runs``, which the restart checks use).
+
+    ``cov_d``: the covariance of D when the estimator gives its own (the prediction-error fit); default the
+    output-error sandwich.  ``extra_quality``: further ``quality`` entries.
+    """
     final = best if final is None else final
     d = final["d"]
     pb = problem
@@ -320,10 +339,17 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     rr_p, rr_q, rho_p, rho_q, ss_p, ss_q, v_rel, dth_std = optimize.fit_statistics(
         pb._dp, pb._dq, pb.p_meas, pb.q_meas, pb._p, pb._q, pb.basis, prep.V, prep.theta, jj, bty)
     beta = optimize.solve_upper(problem.r_factor, np.ascontiguousarray(bty.T))
-    se = _standard_errors(problem, (rr_p, rr_q), (rho_p, rho_q), jj)
+    if cov_d is None:
+        cov_d = _covariance(problem, (rr_p, rr_q), (rho_p, rho_q), jj)
+    se = np.sqrt(np.maximum(cov_d.diagonal(), 0.0))
     fd_p = 1.0 - rr_p / ss_p
     fd_q = 1.0 - rr_q / ss_q
     flags = list(prep.flags)
+    static_local, static_se, extra = _static_and_excitation(problem, prep, beta, (rr_p, rr_q), (rho_p, rho_q),
+                                                            (ss_p, ss_q), cov_d)
+    if static.split_unidentifiable(static_se, math.hypot(float(pb.p_meas.mean()), float(pb.q_meas.mean())),
+                                   config.static):
+        flags.append("static_split_unidentifiable")
     lower, upper = problem.lower, problem.upper
     for i, name in enumerate(DYNAMIC_NAMES):
         if d[i] <= lower[i] * (1 + 1e-9) or d[i] >= upper[i] * (1 - 1e-9):
@@ -344,6 +370,8 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
             break
     if min(fd_p, fd_q) < 0.5:
         flags.append("poor_fit")
+    if extra["own_ratio_p"] > UNEXPLAINED_RATIO:
+        flags.append("unexplained_fluctuation")
     # Ambient signal = measured variance minus what the fit leaves (the noise estimate), eq. 10.
     snr_p = 10.0 * math.log10(max(ss_p - rr_p, 1e-300) / max(rr_p, 1e-300))
     snr_q = 10.0 * math.log10(max(ss_q - rr_q, 1e-300) / max(rr_q, 1e-300))
@@ -354,11 +382,13 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         "skip_s": problem.k0 * prep.dt,
         "of_paper": (math.sqrt(rr_p) + math.sqrt(rr_q)) / problem.l,
         "residual_rho_p": min(max(rho_p, 0.0), 0.95), "residual_rho_q": min(max(rho_q, 0.0), 0.95),
-        "lowpass_hz": prep.lowpass_hz, **prep.noise,
+        "lowpass_hz": prep.lowpass_hz, **prep.noise, **extra, **(extra_quality or {}),
     }
     return IdentificationResult(
         dynamic={k: float(v) for k, v in zip(DYNAMIC_NAMES, d, strict=True)},
         static=static.coefficients(beta[:, 0], beta[:, 1], config.static),
+        static_stderr=static_se,
+        static_local=static_local,
         objective=float(final["cost"]),
         fit={"fd_p": fd_p, "fd_q": fd_q},
         stderr={k: float(v) for k, v in zip(DYNAMIC_NAMES, se, strict=True)},
@@ -371,6 +401,39 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         bus=window.bus,
         config=config.to_dict(),
     )
+
+
+def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, rr: tuple[float, float],
+                           rho: tuple[float, float], ss: tuple[float, float],
+                           cov_d: np.ndarray) -> tuple[dict, dict, dict]:
+    """The static part's level and slope with standard errors, and the excitation indicators.
+
+    Needs the motor's P, Q and their D-gradients at the optimum in ``problem._p``, ``_q``, ``_dp``, ``_dq``.
+    The static coefficients move with D (β = R⁻¹Qᵀ(y − m(D))): their covariance adds G·cov(D)·Gᵀ with
+    G = −R⁻¹Qᵀ·∂m/∂D to the regression's own (Tm shifts P0 one for one).  Returns ``static_local``,
+    ``static_stderr`` (see :func:`aslm_core.static.local_part`) and the ``quality`` entries
+    ``static_cond``, ``excitation_share_p|q``, ``own_std_p|q`` [pu], ``own_ratio_p|q``
+    (:func:`aslm_core.excitation.split`).  ``rr``, ``ss``: residual and centred measured sums of squares per
+    channel (the residual has zero mean: the constant is a static regressor).
+    """
+    pb = problem
+    m = pb.basis.shape[1]
+    var = []
+    for c in range(2):
+        r1 = min(max(rho[c], 0.0), 0.95)
+        var.append(rr[c] / max(pb.l - m - 4, 1) * (1.0 + r1) / (1.0 - r1))
+    covs = np.empty((2, m, m))
+    optimize.static_covariances(pb.r_factor, pb.basis, pb._dp, pb._dq, pb.k0, np.ascontiguousarray(cov_d),
+                                var[0], var[1], covs)
+    local, coef_se, cond = static.local_part(beta[:, 0], beta[:, 1], pb.r_factor, prep.V[pb.k0:], covs,
+                                             pb.config.static)
+    extra = {"static_cond": cond}
+    fs = 1.0 / prep.dt
+    for c, name in ((0, "p"), (1, "q")):
+        white = excitation.white_variance(prep.noise.get(f"noise_{name}", 0.0), fs, prep.lowpass_hz)
+        share, own_std, own_ratio = excitation.split(ss[c] / pb.l, rr[c] / pb.l, white)
+        extra.update({f"excitation_share_{name}": share, f"own_std_{name}": own_std, f"own_ratio_{name}": own_ratio})
+    return local, coef_se, extra
 
 
 def identify_many(windows: Sequence[Window], *, warm_starts: Sequence[np.ndarray | None] | None = None,

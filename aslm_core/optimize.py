@@ -93,6 +93,54 @@ def solve_upper(R, B):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
+def static_covariances(r_factor, basis, dp, dq, k0, cov_d, var_p, var_q, out):
+    """Covariances of the static coefficients of P and Q into out (2×m×m).
+
+    β = R⁻¹Bᵀ(y − m(D)) over the regression samples k0.. (basis B, l×m), so cov(β) = σ²·R⁻¹R⁻ᵀ plus
+    G·cov(D)·Gᵀ with G = R⁻¹Bᵀ·∂m/∂D (its sign cancels); non-finite entries of ``cov_d`` count as 0.
+    """
+    m = r_factor.shape[0]
+    l = basis.shape[0]
+    eye = np.eye(m)
+    rinv = solve_upper(r_factor, eye)
+    bg = np.empty((m, 4))
+    g = np.empty((m, 4))
+    gc = np.empty((m, 4))
+    for c in range(2):
+        grad = dp if c == 0 else dq
+        var = var_p if c == 0 else var_q
+        for u in range(m):
+            for j in range(4):
+                acc = 0.0
+                for i in range(l):
+                    acc += basis[i, u] * grad[k0 + i, j]
+                bg[u, j] = acc
+        for u in range(m):
+            for j in range(4):
+                acc = 0.0
+                for w in range(m):
+                    acc += rinv[u, w] * bg[w, j]
+                g[u, j] = acc
+        for u in range(m):
+            for j in range(4):
+                acc = 0.0
+                for k in range(4):
+                    v = cov_d[j, k]
+                    if np.isfinite(v):
+                        acc += g[u, k] * v
+                gc[u, j] = acc
+        for u in range(m):
+            for w in range(m):
+                acc = 0.0
+                for j in range(m):
+                    acc += rinv[u, j] * rinv[w, j]
+                acc *= var
+                for j in range(4):
+                    acc += gc[u, j] * g[w, j]
+                out[c, u, w] = acc
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def feasible(d, lower, upper, vmin, margin):
     for i in range(4):
         if d[i] < lower[i] or d[i] > upper[i]:

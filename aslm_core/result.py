@@ -13,6 +13,7 @@ Integrator = Literal["rk4", "euler"]
 Objective = Literal["paper", "ml", "ssq"]
 StaticModel = Literal["zip", "exponential"]
 InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
+Disturbance = Literal["none", "ar"]
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,14 @@ class IdentifyConfig:
         Longest run of missing samples repaired by interpolation.
     min_duration_s : float
         Shortest window accepted [s].
+    disturbance : {"none", "ar"}
+        Noise model of P and Q.  ``none``: white (output error).  ``ar``: the load's own fluctuation as
+        an AR process per channel (order by BIC, up to ``ar_max_order``) estimated from the output-error
+        residuals, then D by the prediction-error criterion on the whitened residuals, the AR models
+        re-estimated at that optimum and the fit repeated (:mod:`aslm_core.disturbance`); standard errors
+        from the whitened Jacobian.  See docs/numerics.md.
+    ar_max_order : int
+        Longest AR noise model tried [samples].
     coarse_to_fine : bool
         RK4 only: random starts descend first on a coarse grid (every m-th sample, m·dt ≤ 40 ms, the
         half-step inputs taken from the measured sample in between), then polish on the full grid.
@@ -83,6 +92,8 @@ class IdentifyConfig:
     max_gap_samples: int = 5
     min_duration_s: float = 5.0
     coarse_to_fine: bool = True
+    disturbance: Disturbance = "none"
+    ar_max_order: int = 30
 
     def to_dict(self) -> dict:
         """The options as a plain dict (flat, so cheaper than ``dataclasses.asdict``)."""
@@ -109,9 +120,21 @@ class IdentificationResult:
     quality : dict
         Indicators: SNR estimates [dB], excitation (std of V [pu]), constraint margin, n samples, the
         white-noise std of the measured channels ``noise_v``, ``noise_p``, ``noise_q`` [pu] and
-        ``noise_theta`` [rad], ``lowpass_hz`` the causal low-pass applied (0: none) [Hz].
+        ``noise_theta`` [rad], ``lowpass_hz`` the causal low-pass applied (0: none) [Hz], ``static_cond``
+        (condition number of the static regressors, unit-norm columns), ``excitation_share_p``, ``_q``
+        (the model's share of the measured ambient variance, white floor removed) [-], ``own_std_p``,
+        ``_q`` (std of the residual's coloured part: the load's own fluctuation) [pu] and ``own_ratio_p``,
+        ``_q`` (that std over the measured ambient std) [-].
     flags : list of str
-        Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``.
+        Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``,
+        ``static_split_unidentifiable`` (a static coefficient's standard error above 10 % of the load),
+        ``unexplained_fluctuation`` (``own_ratio_p`` above 0.7: P moves mostly for reasons V and θ do not
+        explain).
+    static_stderr : dict
+        Standard errors of the ``static`` coefficients [pu or -] (D taken as known).
+    static_local : dict
+        What ambient data identify of the static part: ``V0`` (mean V) [pu], ``P0``, ``Q0`` (static power
+        at V0) [pu], ``dPdV``, ``dQdV`` [pu/pu], ``kpv``, ``kqv`` (local exponents) [-], each with ``*_se``.
     """
 
     dynamic: dict[str, float]
@@ -127,6 +150,8 @@ class IdentificationResult:
     elapsed_s: float = 0.0
     bus: str = ""
     config: dict = field(default_factory=dict)
+    static_stderr: dict[str, float] = field(default_factory=dict)
+    static_local: dict[str, float] = field(default_factory=dict)
 
     @property
     def d(self) -> np.ndarray:

@@ -7,6 +7,7 @@ cases of a call run in one numba kernel (parallel over cases).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,6 +29,7 @@ from aslm_sim.network import (
     step_grid,
 )
 from aslm_sim.noise import ambient, channel_snr_db, noise_sigma, target_snr
+from aslm_sim.own import OWN_Q_PER_P, OWN_SHAPES, own_process
 from aslm_sim.truth import LoadTruth, random_truth
 
 __all__ = ["SyntheticCase", "make_case", "make_cases"]
@@ -62,7 +64,8 @@ class SyntheticCase:
         Disturbance level of NOISE_LEVELS, if the case was made by level.
     states : dict
         Noise-free internals at the samples: ``Ed``, ``Eq`` [pu], ``s`` [-] (eq. 1 states),
-        ``P_motor``, ``Q_motor`` (eq. 3), ``P_static``, ``Q_static`` (eq. 6) [pu], and ``snr``:
+        ``P_motor``, ``Q_motor`` (eq. 3), ``P_static``, ``Q_static`` (eq. 6) [pu], with an own fluctuation
+        ``P_own``, ``Q_own`` (added to the static part's constant-power term) [pu], and ``snr``:
         the achieved SNR per channel [dB].
     """
 
@@ -84,6 +87,8 @@ def make_cases(
     fs: float = 100.0,
     f0: float = 50.0,
     input_noise: bool = True,
+    own_sigma: float | Sequence[float] = 0.0,
+    own_shape: str = "lowpass",
 ) -> list[SyntheticCase]:
     """Simulate n ambient cases with known truth.
 
@@ -107,6 +112,13 @@ def make_cases(
         Nominal frequency [Hz] (ω0 = 2π·f0).
     input_noise : bool
         Add noise to V, θ and f too (same SNR rule per channel); False: noise on P and Q only.
+    own_sigma : float or sequence of float
+        The load's own fluctuation (:mod:`aslm_sim.own`): std of its constant-power part's ΔP, as a
+        fraction of the load's P at 1 pu (one value, or one per case); ΔQ = 0.33·ΔP.  It moves V and θ
+        through the network (closed loop).  0 (default): none, and the cases are those of earlier
+        versions for the same seed.
+    own_shape : str
+        Shape of the own process, one of :data:`aslm_sim.own.OWN_SHAPES`.
 
     Returns
     -------
@@ -119,6 +131,9 @@ def make_cases(
     noise-free channel; the noise std of each channel is set so that the expected SNR equals the
     target, so the achieved value scatters by ~±0.3 dB around it.
     """
+    sig_own = np.broadcast_to(np.asarray(own_sigma, dtype=np.float64), (n,))
+    if own_shape not in OWN_SHAPES:
+        raise ValueError(f"unknown own-fluctuation shape {own_shape!r} (use one of {OWN_SHAPES})")
     n_samp = int(round(duration_s * fs))
     n_skip = int(round(WARMUP_S * fs))
     m, k, h = step_grid(fs, MAX_STEP_S, MAX_FORCING_STEP_S)
@@ -129,19 +144,22 @@ def make_cases(
     children = np.random.SeedSequence(seed).spawn(n)
     for c0 in range(0, n, _CHUNK):
         cases.extend(_make_chunk(children[c0:c0 + _CHUNK], c0, sos, gain, m, k, h, n_skip, n_samp, n_int,
-                                 level, snr_db, seed, fs, f0, input_noise))
+                                 level, snr_db, seed, fs, f0, input_noise, sig_own[c0:c0 + _CHUNK], own_shape))
     return cases
 
 
 def _make_chunk(children: list, c0: int, sos: np.ndarray, gain: float, m: int, k: int, h: float,
                 n_skip: int, n_samp: int, n_int: int, level: int | None, snr_db: float | None, seed: int,
-                fs: float, f0: float, input_noise: bool) -> list[SyntheticCase]:
+                fs: float, f0: float, input_noise: bool, sig_own: np.ndarray,
+                own_shape: str) -> list[SyntheticCase]:
     """Simulate and post-process one chunk of :func:`make_cases` (cases c0, c0 + 1, ...)."""
     n = len(children)
     truths, nets, rows, x0s, vl0s, noise_rngs = [], [], [], [], [], []
-    forcing = np.zeros((n, 2, n_int + 1))
+    with_own = bool(np.any(sig_own > 0.0))
+    forcing = np.zeros((n, 4 if with_own else 2, n_int + 1))
     for i, ss in enumerate(children):
-        s_truth, s_net, s_noise = ss.spawn(3)
+        # A fourth child for the own process: the first three are the same as ss.spawn(3)'s.
+        s_truth, s_net, s_noise, s_own = ss.spawn(4)
         tr = random_truth(np.random.default_rng(s_truth))
         rng_net = np.random.default_rng(s_net)
         net = draw_network(rng_net, tr, f0)
@@ -150,6 +168,11 @@ def _make_chunk(children: list, c0: int, sos: np.ndarray, gain: float, m: int, k
         # Zero first value: the system starts at its steady state with no fluctuation.
         forcing[i, 0, 1:] = net["sigma_P"] * net["P_N"] * gain * signal.sosfilt(sos, w[0])
         forcing[i, 1, 1:] = net["sigma_Q"] * net["P_N"] * gain * signal.sosfilt(sos, w[1])
+        if sig_own[i] > 0.0:
+            own = sig_own[i] * tr.power(1.0)[0] * own_process(np.random.default_rng(s_own), own_shape, n_int,
+                                                               fs * m, sos, gain)
+            forcing[i, 2, 1:] = own
+            forcing[i, 3, 1:] = OWN_Q_PER_P * own
         truths.append(tr)
         nets.append(net)
         rows.append(p)
@@ -163,6 +186,8 @@ def _make_chunk(children: list, c0: int, sos: np.ndarray, gain: float, m: int, k
         par, np.array(x0s).reshape(n, NX), np.array(vl0s, dtype=complex), forcing,
         h, k, m, n_skip, n_samp, faults, parallel=n >= _PARALLEL_MIN_CASES,
     )
+    # The own ΔP, ΔQ at the samples (sample r is forcing-grid point (n_skip + r)·m), before the arrays go.
+    own_at_samples = forcing[:, 2:, (n_skip + np.arange(n_samp)) * m].copy() if with_own else None
     del forcing
     t = np.arange(n_samp) / fs
     cases = []
@@ -179,8 +204,12 @@ def _make_chunk(children: list, c0: int, sos: np.ndarray, gain: float, m: int, k
             "network": _plain(net),
             "step_s": h,
         }
+        if with_own:
+            meta.update({"own_sigma": float(sig_own[i]), "own_shape": own_shape})
         clean = Window(t=t, V=v, theta=th, P=pc, Q=qc, f=fr, f0=f0, bus=f"syn{c0 + i:04d}", meta=meta)
         states = motor_and_static(tr, out_v[i], out_x[i])
+        if own_at_samples is not None:
+            states["P_own"], states["Q_own"] = own_at_samples[i]
         if target is None:
             noisy, achieved, per = clean, float("inf"), {}
         else:

@@ -13,7 +13,9 @@ Each case is a small network simulated in the time domain::
   turn into constant impedance, as in PSAT; irrelevant to ambient data).
 * The generator is classical (E' behind X'd, swing equation with inertia and damping), so the angle
   and frequency of the hub move; the infinite bus holds the average frequency at f0.
-* Ambient excitation comes ONLY from bus N (paper §VI.A): low-pass filtered (2 Hz, 4th-order
+* Ambient excitation comes from bus N (paper §VI.A) and, optionally, from the load at L itself (its
+  constant-power part fluctuating, :mod:`aslm_sim.own`: rows 2–3 of the forcing), which then moves V and θ
+  through the network like the identifier's unknown disturbance would.  Bus N's forcing: low-pass filtered (2 Hz, 4th-order
   Butterworth) white noise in its conductance and susceptance, generated on the fine-step grid
   (1 kHz) so that V, θ, P, Q are smooth between the PMU samples, as band-limited real signals are.
 * RK4 with a fine step (≤ 1 ms by default), started from the steady state of the whole system;
@@ -192,8 +194,10 @@ def _thevenin(p, c, dpn, dqn, fault):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _network(p, c, yh, kth, yth, x, vl):  # pragma: no cover - numba
+def _network(p, c, yh, kth, yth, x, vl, dpp, dqp):  # pragma: no cover - numba
     """Algebraic network at one instant, given its Thevenin part (:func:`_thevenin`) and the states.
+
+    ``dpp``, ``dqp``: the load's own fluctuation, added to its constant-power part [pu].
 
     Returns V_L, V_H, the feeder current I_line flowing from H into L (all complex, sync frame) and
     the generator EMF E'g.  The ZIP I and P parts make the L node nonlinear: Newton on V_L (a 2-D
@@ -205,7 +209,7 @@ def _network(p, c, yh, kth, yth, x, vl):  # pragma: no cover - numba
     num = ih * kth + complex(x[State.ED], x[State.EQ]) * c[_Const.YM]
     den = yth + c[_Const.YLD]
     v = vl
-    pi, pp, qi, qp = p[Par.PI], p[Par.PP], p[Par.QI], p[Par.QP]
+    pi, pp, qi, qp = p[Par.PI], p[Par.PP] + dpp, p[Par.QI], p[Par.QP] + dqp
     for _ in range(30):
         m = abs(v)
         if m >= _LOW_V:
@@ -230,12 +234,12 @@ def _network(p, c, yh, kth, yth, x, vl):  # pragma: no cover - numba
 
 
 @nb.njit(cache=True, error_model="numpy")
-def _rhs(p, c, yh, kth, yth, x, vl, dx):  # pragma: no cover - numba
+def _rhs(p, c, yh, kth, yth, x, vl, dx, dpp=0.0, dqp=0.0):  # pragma: no cover - numba
     """State derivatives (filled into dx); returns V_L, V_H, I_line as :func:`_network`.
 
     Motor in the original form, eq. 1–2; classical generator swing equation.
     """
-    v, vh, il, eg = _network(p, c, yh, kth, yth, x, vl)
+    v, vh, il, eg = _network(p, c, yh, kth, yth, x, vl, dpp, dqp)
     w0 = p[Par.W0]
     bm = p[Par.BM]
     cm = p[Par.CM]
@@ -302,25 +306,32 @@ def _integrate_case(c, par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_
     off_step = fault_steps[c, 1]
     prev_fault = False
     tb = _thevenin(p, cst, forcing[c, 0, 0], forcing[c, 1, 0], False)
+    own = forcing.shape[1] >= 4  # rows 2, 3: the load's own ΔP, ΔQ of its constant-power part
+    op0 = oq0 = dop = doq = 0.0
     for j in range(n_int):
         fp0 = forcing[c, 0, j]
         fq0 = forcing[c, 1, j]
         dfp = forcing[c, 0, j + 1] - fp0
         dfq = forcing[c, 1, j + 1] - fq0
+        if own:
+            op0 = forcing[c, 2, j]
+            oq0 = forcing[c, 3, j]
+            dop = forcing[c, 2, j + 1] - op0
+            doq = forcing[c, 3, j + 1] - oq0
         for k in range(k_sub):
             fault = step >= on_step and step < off_step
+            wa = k / k_sub
             wm = (k + 0.5) / k_sub
             wb = (k + 1.0) / k_sub
             # The forcing is continuous, so the end of a step is the start of the next one.
             if fault != prev_fault:
-                wa = k / k_sub
                 ta = _thevenin(p, cst, fp0 + wa * dfp, fq0 + wa * dfq, fault)
             else:
                 ta = tb
             tm_ = _thevenin(p, cst, fp0 + wm * dfp, fq0 + wm * dfq, fault)
             tb = _thevenin(p, cst, fp0 + wb * dfp, fq0 + wb * dfq, fault)
             prev_fault = fault
-            vl, vh, il = _rhs(p, cst, ta[0], ta[1], ta[2], x, vl, k1)
+            vl, vh, il = _rhs(p, cst, ta[0], ta[1], ta[2], x, vl, k1, op0 + wa * dop, oq0 + wa * doq)
             if k == 0 and j % m_per_sample == 0:
                 r = j // m_per_sample - n_skip
                 if r >= 0:
@@ -330,13 +341,13 @@ def _integrate_case(c, par, x0, vl0, forcing, h, k_sub, m_per_sample, n_skip, n_
                         out_x[c, i, r] = x[i]
             for i in range(NX):
                 xt[i] = x[i] + 0.5 * h * k1[i]
-            v2, _, _ = _rhs(p, cst, tm_[0], tm_[1], tm_[2], xt, vl, k2)
+            v2, _, _ = _rhs(p, cst, tm_[0], tm_[1], tm_[2], xt, vl, k2, op0 + wm * dop, oq0 + wm * doq)
             for i in range(NX):
                 xt[i] = x[i] + 0.5 * h * k2[i]
-            v3, _, _ = _rhs(p, cst, tm_[0], tm_[1], tm_[2], xt, v2, k3)
+            v3, _, _ = _rhs(p, cst, tm_[0], tm_[1], tm_[2], xt, v2, k3, op0 + wm * dop, oq0 + wm * doq)
             for i in range(NX):
                 xt[i] = x[i] + h * k3[i]
-            v4, _, _ = _rhs(p, cst, tb[0], tb[1], tb[2], xt, v3, k4)
+            v4, _, _ = _rhs(p, cst, tb[0], tb[1], tb[2], xt, v3, k4, op0 + wb * dop, oq0 + wb * doq)
             for i in range(NX):
                 x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
             vl = v4
@@ -379,7 +390,8 @@ def simulate(par: np.ndarray, x0: np.ndarray, vl0: np.ndarray, forcing: np.ndarr
         (nc,) complex V_L guess at the start [pu].
     forcing : ndarray
         (nc, 2, n_int + 1) ΔG, ΔB of bus N on the forcing grid (linear in between) [pu], with
-        n_int = (n_skip + n_rec)·m_per_sample.
+        n_int = (n_skip + n_rec)·m_per_sample; or (nc, 4, n_int + 1) with, in rows 2 and 3, the load's
+        own fluctuation ΔP, ΔQ of its constant-power part at L [pu].
     h : float
         Fine step [s].
     k_sub : int

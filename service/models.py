@@ -28,8 +28,19 @@ class Identified(BaseModel):
     objective: float | None = Field(description="Objective value at the optimum")
     fit: dict[str, float | None] = Field(description="Fit degree of P and Q (paper eq. 9): {fd_p, fd_q}")
     stderr: dict[str, float | None] = Field(default_factory=dict, description="Standard errors of D (null: not available)")
-    quality: dict[str, float | None] = Field(default_factory=dict, description="SNR [dB], excitation, margins")
-    flags: list[str] = Field(default_factory=list, description="Quality flags, e.g. at_bound:H2")
+    quality: dict[str, float | None] = Field(
+        default_factory=dict,
+        description="SNR [dB], excitation, margins; noise floors noise_v|theta|p|q; static_cond; "
+                    "excitation_share_p|q (the share of the ambient P/Q variance V and θ explain) [-], "
+                    "own_std_p|q (the load's own fluctuation: the residual's coloured part) [pu], own_ratio_p|q [-]")
+    flags: list[str] = Field(default_factory=list,
+                             description="Quality flags, e.g. at_bound:H2, static_split_unidentifiable")
+    static_stderr: dict[str, float | None] = Field(
+        default_factory=dict, description="Standard errors of the static coefficients (same keys as static)")
+    static_local: dict[str, float | None] = Field(
+        default_factory=dict,
+        description="What ambient data identify of the static part: V0 (mean V) [pu], P0, Q0 at V0 [pu], "
+                    "dPdV, dQdV [pu/pu], kpv, kqv (local exponents) [-], each with *_se")
     elapsed_s: float = Field(0.0, description="Identification time in the worker [s]")
 
 

@@ -22,13 +22,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--static", choices=["zip", "exponential"], default="zip")
     p.add_argument("--lowpass", type=float, default=None, metavar="HZ", help="causal low-pass cut-off [Hz]")
     p.add_argument("--starts", type=int, default=3, help="random feasible starts")
+    p.add_argument("--disturbance", choices=["none", "ar"], default="none",
+                   help="noise model of P and Q: none (white) or ar (the load's own fluctuation, docs/numerics.md)")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     config = IdentifyConfig(
         integrator=args.integrator, objective=args.objective, static=args.static,
-        lowpass_hz=args.lowpass, n_starts=args.starts,
+        lowpass_hz=args.lowpass, n_starts=args.starts, disturbance=args.disturbance,
     )
     warmup()  # load the compiled kernels first so elapsed_s measures the identification alone
     status = 0
@@ -56,8 +58,10 @@ def _human(path: str, result) -> str:
     dyn = "  ".join(f"{k}={v:.4g}±{se.get(k, float('nan')):.2g}" for k, v in d.items())
     sta = "  ".join(f"{k}={v:.4g}" for k, v in s.items())
     flags = ", ".join(result.flags) or "none"
+    loc = result.static_local
+    at_v0 = "  ".join(f"{k}={loc[k]:.4g}±{loc[k + '_se']:.2g}" for k in ("P0", "dPdV", "Q0", "dQdV") if k in loc)
     return (
-        f"{path}\n  dynamic: {dyn}\n  static:  {sta}\n"
+        f"{path}\n  dynamic: {dyn}\n  static:  {sta}\n  static at V0={loc.get('V0', float('nan')):.4g}: {at_v0}\n"
         f"  objective={result.objective:.4g}  FD(P)={result.fit['fd_p']:.4f}  FD(Q)={result.fit['fd_q']:.4f}"
         f"  flags: {flags}  ({result.elapsed_s * 1e3:.1f} ms)"
     )

@@ -61,3 +61,13 @@ def test_f0_flag_overrides_the_file(recordings):
     # ω0 enters eq. 4 only through s·ω0 and ds/dt ∝ 1/H2, so the data fix H2/ω0: H2 scales with f0.
     assert at60["dynamic"]["H2"] == pytest.approx(at50["dynamic"]["H2"] * 60 / 50, rel=1e-3)
     assert at60["dynamic"]["a"] == pytest.approx(at50["dynamic"]["a"], rel=1e-3)
+
+
+def test_human_output_shows_the_identifiable_static_part_and_the_disturbance_flag_works(recordings):
+    d, case = recordings
+    proc = run_cli("identify", str(d / "bus.npz"))
+    assert proc.returncode == 0, proc.stderr
+    assert "static at V0=" in proc.stdout and "dPdV=" in proc.stdout and "static_split_unidentifiable" in proc.stdout
+    out = json.loads(run_cli("identify", "--json", "--disturbance", "ar", str(d / "bus.npz")).stdout)
+    assert out["config"]["disturbance"] == "ar" and "ar_order_p" in out["quality"]
+    assert {"P0", "dPdV", "Q0", "dQdV"} <= set(out["static_local"])

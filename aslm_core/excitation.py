@@ -1,0 +1,62 @@
+"""How much of a window's P and Q the bus voltage explains, and how much is the load's own fluctuation.
+
+Ambient P and Q at a load bus move for two reasons: the voltage the grid imposes (what the identifier
+models) and the load's own switching, which is not a function of V and θ and, through the network
+impedance, moves V and θ as well.  After the fit, the measured variance splits into the model's part,
+a white measurement floor and a coloured remainder: the remainder is the own fluctuation as this window
+shows it.  A window whose P and Q are mostly own fluctuation carries little information about D.
+"""
+
+from __future__ import annotations
+
+import math
+
+# Equivalent noise bandwidth of the preprocessing's 2nd-order Butterworth low-pass, × its cut-off:
+# (π/4)/sin(π/4).
+_LOWPASS_ENBW = (math.pi / 4.0) / math.sin(math.pi / 4.0)
+
+
+def white_variance(noise_std: float, fs: float, lowpass_hz: float = 0.0) -> float:
+    """Variance the white measurement floor leaves in a channel after the optional causal low-pass [unit²].
+
+    Parameters
+    ----------
+    noise_std : float
+        White-noise std of the raw channel (its floor above 5 Hz) [unit].
+    fs : float
+        Sample rate [Hz].
+    lowpass_hz : float
+        Cut-off of the 2nd-order Butterworth low-pass applied (0: none) [Hz].
+    """
+    if lowpass_hz <= 0.0:
+        return noise_std * noise_std
+    return noise_std * noise_std * min(1.0, 2.0 * _LOWPASS_ENBW * lowpass_hz / fs)
+
+
+def split(var_meas: float, var_resid: float, white_var: float) -> tuple[float, float, float]:
+    """Excitation share and own-fluctuation level of one channel.
+
+    Parameters
+    ----------
+    var_meas : float
+        Variance of the measured channel over the regression samples [pu²].
+    var_resid : float
+        Variance of the fit's residual over the same samples [pu²].
+    white_var : float
+        Variance of the white measurement floor in the channel [pu²] (:func:`white_variance`).
+
+    Returns
+    -------
+    share : float
+        The share of the measured ambient variance (white floor removed) that the model explains, i.e.
+        not left in the residual's coloured part, in [0, 1]: near 1 when V and θ drive the channel, small
+        when the load's own fluctuation does.
+    own_std : float
+        Std of the residual's coloured part, the own fluctuation not explained by V and θ [pu].
+    own_ratio : float
+        own_std over the std of the measured ambient part [-] (0 without own fluctuation, → 1 when it
+        dominates).
+    """
+    amb = max(var_meas - white_var, 1e-300)
+    own_var = min(max(var_resid - white_var, 0.0), amb)
+    return 1.0 - own_var / amb, math.sqrt(own_var), math.sqrt(own_var / amb)

@@ -1,0 +1,73 @@
+"""The identified load's own fluctuation: processes that move its P and Q whatever its voltage does.
+
+At a real load bus much of the ambient variation of P and Q is the load's own switching, and it moves V
+and θ through the network impedance (a closed loop: the identifier's input is correlated with the
+disturbance).  These generators give unit-variance processes on the simulator's forcing grid; the case
+builder scales them by σ·P and adds them to the constant-power part of the load at L, so the network
+simulation carries their effect on V and θ.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import signal
+
+__all__ = ["OWN_SHAPES", "OWN_Q_PER_P", "own_process"]
+
+#: Shapes of the own process: ``lowpass`` (2 Hz low-passed white noise, as bus N's forcing), ``switching``
+#: (many small loads switching on and off: steps), ``pink`` (1/f spectrum from 0.05 to 5 Hz).
+OWN_SHAPES = ("lowpass", "switching", "pink")
+#: ΔQ of the own fluctuation per ΔP: small loads at power factor 0.95 [-].
+OWN_Q_PER_P = math.tan(math.acos(0.95))
+#: Small loads in the switching process, and the mean time each stays in a state [s].
+_N_SMALL_LOADS = 200
+_SWITCH_MEAN_S = 1.0
+#: Band of the pink process [Hz].
+_PINK_BAND_HZ = (0.05, 5.0)
+
+
+def own_process(rng: np.random.Generator, shape: str, n: int, fs: float, sos: np.ndarray, gain: float) -> np.ndarray:
+    """A zero-mean, unit-variance own-fluctuation process of n samples on a grid at fs [-].
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of the draws.
+    shape : str
+        One of :data:`OWN_SHAPES`.
+    n : int
+        Samples (the forcing grid of the whole simulation, warm-up included).
+    fs : float
+        Rate of the grid [Hz].
+    sos, gain : ndarray, float
+        The 2 Hz forcing filter and its unit-variance gain (:func:`aslm_sim.network.forcing_filter`), for
+        ``lowpass``.
+    """
+    if shape == "lowpass":
+        x = gain * signal.sosfilt(sos, rng.standard_normal(n))
+    elif shape == "switching":
+        # Two-state Markov loads, updated every 10 ms (a switching instant within 10 ms is a step at
+        # the next update): the aggregate count is a birth–death process, its steps are the switchings.
+        m = max(1, int(round(fs * 0.01)))
+        k = -(-n // m)
+        p_sw = 1.0 - math.exp(-0.01 / _SWITCH_MEAN_S)
+        on = rng.random(_N_SMALL_LOADS) < 0.5
+        count = np.empty(k)
+        for i in range(k):
+            on ^= rng.random(_N_SMALL_LOADS) < p_sw
+            count[i] = on.sum()
+        x = np.repeat(count, m)[:n]
+        x = (x - x.mean()) / max(float(x.std()), 1e-12)
+        return x
+    elif shape == "pink":
+        f = np.fft.rfftfreq(n, 1.0 / fs)
+        amp = np.zeros_like(f)
+        band = (f >= _PINK_BAND_HZ[0]) & (f <= _PINK_BAND_HZ[1])
+        amp[band] = 1.0 / np.sqrt(f[band])
+        spec = amp * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
+        x = np.fft.irfft(spec, n)
+    else:
+        raise ValueError(f"unknown own-fluctuation shape {shape!r} (use one of {OWN_SHAPES})")
+    return (x - x.mean()) / max(float(x.std()), 1e-300)

@@ -1,0 +1,151 @@
+"""Identification when the load's own fluctuation drives P and Q too (closed loop): estimators compared.
+
+Windows of the synthetic generator (P and Q noise at DL 2, i.e. ~25 dB) with the load's own constant-power part
+fluctuating (:mod:`aslm_sim.own`) so that std(own ΔP) / std(clean P) hits a target ratio per window (0, 0.5,
+0.9): each case is first simulated without it, its std of P sets the case's own σ, and the case is simulated
+again with it (same load, network, grid-side forcing and noise streams).  At the lowpass shape, white noise on V
+and θ at the two PMU classes is added as in ``benchmarks.input_noise``.  Every candidate runs on the same
+windows, one after the other (interleaved), 3 random starts each.  Per candidate: median and worst |error|,
+bias μ − 1 and σ of D_opt/D_real, coverage of ±1.96 SE, windows off by more than 20 % and how many of them
+carry no flag, median time per identification (wall clock inside the pool, so with ``--workers 2`` on a shared
+machine it is an upper bound).
+
+    .venv/bin/python -m benchmarks.own_fluctuation [--quick] [--n 50] [--workers 2]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import math  # noqa: E402
+import time  # noqa: E402
+from concurrent.futures import ThreadPoolExecutor  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from aslm_core import IdentifyConfig, WindowError, identify  # noqa: E402
+from aslm_sim.cases import make_cases  # noqa: E402
+from benchmarks import common  # noqa: E402
+from benchmarks.input_noise import INPUT_NOISE, with_input_noise  # noqa: E402
+
+SEED = 43
+LEVEL = 2
+#: Target std(own ΔP) / std(clean P) of the windows.
+RATIOS = (0.0, 0.5, 0.9)
+CANDIDATES = {
+    "output error": IdentifyConfig(),
+    "low-pass 2 Hz": IdentifyConfig(lowpass_hz=2.0),
+    "Wiener V/θ + adaptive low-pass": IdentifyConfig(input_smoother="wiener_lowpass"),
+    "AR disturbance (PEM)": IdentifyConfig(disturbance="ar"),
+    "Wiener V/θ + AR disturbance": IdentifyConfig(input_smoother="wiener", disturbance="ar"),
+}
+#: Flags that tell the user a window's D is not to be trusted.
+WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts")
+
+
+def own_cases(n: int, ratio: float, shape: str, base: list) -> list:
+    """The n cases of ``base`` again, with an own fluctuation at std ratio ``ratio`` to the clean P."""
+    if ratio <= 0.0:
+        return base
+    # own std = k·p_v with k = r/√(1 − r²) gives own/total = r when the two are uncorrelated.
+    k = ratio / math.sqrt(1.0 - ratio * ratio)
+    sig = [k * float(np.std(c.clean.P)) / c.truth.power(1.0)[0] for c in base]
+    return make_cases(n, level=LEVEL, seed=SEED, input_noise=False, own_sigma=sig, own_shape=shape)
+
+
+def _one(w) -> dict:
+    """Every candidate on one window, in turn, with its wall time [s]."""
+    out = {}
+    for name, cfg in CANDIDATES.items():
+        t0 = time.perf_counter()
+        try:
+            out[name] = (identify(w, config=cfg), time.perf_counter() - t0)
+        except WindowError as exc:
+            out[name] = (exc, time.perf_counter() - t0)
+    return out
+
+
+def stats(cases: list, results: list) -> dict:
+    """Per candidate: the accuracy, calibration and flag statistics of the module docstring."""
+    out = {}
+    for name in CANDIDATES:
+        ratios, cover, times, unflagged, failed = [], [], [], 0, 0
+        for c, res in zip(cases, results, strict=True):
+            r, dt = res[name]
+            times.append(dt)
+            if isinstance(r, WindowError):
+                failed += 1
+                continue
+            ratios.append(r.d / c.truth.d)
+            cover.append(np.abs(r.d - c.truth.d) < 1.96 * np.array([r.stderr[p] for p in common.PARAMS]))
+            if np.abs(ratios[-1] - 1).max() > 0.2 and not any(f.startswith(WARNING_FLAGS) for f in r.flags):
+                unflagged += 1
+        rr = np.array(ratios)
+        st = common.ratio_stats(rr)
+        st.update({
+            "median_abs_err": dict(zip(common.PARAMS, np.median(np.abs(rr - 1), axis=0).tolist(), strict=True)),
+            "coverage_95": dict(zip(common.PARAMS, np.mean(cover, axis=0).tolist(), strict=True)),
+            "off_20pct_unflagged": unflagged, "failed": failed, "median_time_ms": float(np.median(times) * 1e3),
+        })
+        out[name] = st
+    return out
+
+
+HEAD = ["own/clean P std", "input noise", "candidate", "median |err| a / b / H2 / Tm [%]", "worst [%]",
+        "bias μ−1 a / b / H2 / Tm [%]", "σ a / b / H2 / Tm", "±1.96 SE cover [%]", "off > 20 % (unflagged)", "ms"]
+
+
+def rows(label: str, cls: str, per: dict) -> list[list]:
+    p = common.PARAMS
+    return [[label, cls, name, " / ".join(f"{100 * st['median_abs_err'][k]:.1f}" for k in p),
+             f"{100 * max(st['max_abs_err'].values()):.0f}",
+             " / ".join(f"{100 * (st['mu'][k] - 1):+.1f}" for k in p),
+             " / ".join(f"{st['sigma'][k]:.3f}" for k in p),
+             " / ".join(f"{100 * st['coverage_95'][k]:.0f}" for k in p),
+             f"{st['n_off_20pct']} ({st['off_20pct_unflagged']})", f"{st['median_time_ms']:.0f}"]
+            for name, st in per.items()]
+
+
+def main(argv=None) -> dict:
+    ap = common.parser(__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=None, help="windows per ratio (default 50; --quick: 8)")
+    ap.add_argument("--workers", type=int, default=2, help="threads (the machine is shared)")
+    ap.add_argument("--shapes", nargs="+", default=["lowpass", "switching", "pink"],
+                    help="own-fluctuation shapes; input noise on V/θ only with the first")
+    args = ap.parse_args(argv)
+    n = args.n or (8 if args.quick else 50)
+    t_all = time.perf_counter()
+    out = {"machine": common.machine(), "n_per_ratio": n, "seed": SEED, "level": LEVEL, "quick": args.quick,
+           "candidates": {k: v.to_dict() for k, v in CANDIDATES.items()}, "runs": []}
+    base = make_cases(n, level=LEVEL, seed=SEED, input_noise=False)
+    _one(base[0].window)  # numba compilation / cache load outside the timings
+    table = []
+    for si, shape in enumerate(args.shapes):
+        for ratio in RATIOS:
+            if ratio == 0.0 and si > 0:
+                continue  # no own fluctuation: the shape does not matter
+            cs = own_cases(n, ratio, shape, base)
+            achieved = [float(np.std(c.states["P_own"]) / np.std(c.clean.P)) if ratio > 0 else 0.0 for c in cs]
+            label = f"{ratio:g} {shape} (achieved {np.median(achieved):.2f})" if ratio > 0 else "0"
+            for k, (cls, v_rel, th) in enumerate(INPUT_NOISE if si == 0 else INPUT_NOISE[:1]):
+                rng = np.random.default_rng([SEED, int(100 * ratio), k])
+                windows = [with_input_noise(c.window, c.clean, v_rel, th, rng) for c in cs]
+                with ThreadPoolExecutor(max_workers=args.workers) as pool:
+                    results = list(pool.map(_one, windows))
+                per = stats(cs, results)
+                out["runs"].append({"shape": shape, "ratio": ratio, "achieved_ratio": achieved, "input_noise": cls,
+                                    "stats": per})
+                table.extend(rows(label, cls, per))
+                print(f"{shape} {ratio}, {cls}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
+    out["total_s"] = time.perf_counter() - t_all
+    print(common.md_table(HEAD, table))
+    if not args.no_write:
+        common.write_json("own_fluctuation" + ("_quick" if args.quick else ""), out)
+    return out
+
+
+if __name__ == "__main__":
+    main()

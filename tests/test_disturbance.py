@@ -1,0 +1,60 @@
+"""The AR disturbance model (prediction-error fit) against the load's own fluctuation, in closed loop."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from aslm_core import IdentifyConfig, identify
+from aslm_core.disturbance import ar_whitener
+from aslm_sim.cases import make_cases
+
+AR = IdentifyConfig(disturbance="ar")
+
+
+def test_white_residual_gets_no_model_and_an_ar2_is_recovered():
+    rng = np.random.default_rng(3)
+    assert ar_whitener(rng.standard_normal(1000)).size == 1
+    a_true = np.array([1.0, -1.6, 0.8])
+    x = signal.lfilter([1.0], a_true, rng.standard_normal(4000))
+    a = ar_whitener(x)
+    assert a.size == 3
+    np.testing.assert_allclose(a, a_true, atol=0.05)
+
+
+@pytest.fixture(scope="module")
+def own_windows():
+    """Grid-excited windows whose own fluctuation is about 0.6 of P's ambient std (2 Hz low-passed)."""
+    cases = make_cases(12, level=2, seed=21, input_noise=False, own_sigma=0.0015)
+    return cases, [identify(c.window) for c in cases], [identify(c.window, config=AR) for c in cases]
+
+
+def test_ar_model_recovers_d_within_its_stated_error_where_output_error_is_off(own_windows):
+    cases, oe, ar = own_windows
+    off = [i for i, (c, r) in enumerate(zip(cases, oe, strict=True)) if np.abs(r.d / c.truth.d - 1).max() > 0.1]
+    assert len(off) >= 4
+    inside = []
+    for i in off:
+        r, tr = ar[i], cases[i].truth.d
+        z = np.abs(r.d - tr) / np.array([r.stderr[k] for k in ("a", "b", "H2", "Tm")])
+        inside.append(bool(np.all(z < 2.5)))
+        assert r.quality["ar_order_p"] >= 2  # the coloured part is modelled
+    assert np.mean(inside) >= 0.8
+    err_oe = np.median([np.abs(oe[i].d / cases[i].truth.d - 1).max() for i in range(len(cases))])
+    err_ar = np.median([np.abs(ar[i].d / cases[i].truth.d - 1).max() for i in range(len(cases))])
+    assert err_ar < 0.75 * err_oe
+
+
+def test_grid_excited_windows_identify_as_with_output_error():
+    cases = make_cases(8, level=3, seed=12, input_noise=False)
+    for c in cases:
+        ro, ra = identify(c.window), identify(c.window, config=AR)
+        se = np.array([ro.stderr[k] for k in ("a", "b", "H2", "Tm")])
+        assert np.all(np.abs(ra.d - ro.d) < se)
+        assert ra.quality["ar_order_p"] <= 2
+
+
+def test_noise_free_window_is_unchanged(eq_window):
+    ro, ra = identify(eq_window), identify(eq_window, config=AR)
+    np.testing.assert_allclose(ra.d, ro.d, rtol=1e-3)

@@ -1,0 +1,83 @@
+"""The load's own fluctuation in the simulation bench (aslm_sim.own, make_cases(own_sigma=...))."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from aslm_core import identify
+from aslm_sim.cases import make_cases
+from aslm_sim.network import forcing_filter
+from aslm_sim.own import OWN_Q_PER_P, OWN_SHAPES, own_process
+
+# make_cases(3, level=2, seed=5) before the own fluctuation existed (computed with that code): Σ V and Σ P of
+# case 0's noisy window, Σ Q of case 2's clean window.
+PINNED = (996.5719964826169, 652.2773149129437, 459.98860440106836)
+
+
+@pytest.fixture(scope="module")
+def pair():
+    off = make_cases(3, level=2, seed=5, input_noise=False)
+    on = make_cases(3, level=2, seed=5, input_noise=False, own_sigma=0.01)
+    return off, on
+
+
+def test_same_seed_gives_the_cases_of_before_when_off():
+    cs = make_cases(3, level=2, seed=5)
+    got = (float(np.sum(cs[0].window.V)), float(np.sum(cs[0].window.P)), float(np.sum(cs[2].clean.Q)))
+    np.testing.assert_allclose(got, PINNED, rtol=1e-12)
+
+
+def test_off_is_the_default_and_draws_nothing(pair):
+    off, _ = pair
+    again = make_cases(3, level=2, seed=5, input_noise=False, own_sigma=0.0)
+    for a, b in zip(off, again, strict=True):
+        assert np.array_equal(a.window.P, b.window.P) and np.array_equal(a.window.V, b.window.V)
+        assert "P_own" not in b.states and "own_sigma" not in b.window.meta
+
+
+def test_own_fluctuation_moves_p_and_through_the_network_v_with_the_same_load(pair):
+    off, on = pair
+    for a, b in zip(off, on, strict=True):
+        assert a.truth == b.truth
+        p_load = b.truth.power(1.0)[0]
+        assert np.std(b.states["P_own"]) == pytest.approx(0.01 * p_load, rel=0.35)
+        np.testing.assert_allclose(b.states["Q_own"], OWN_Q_PER_P * b.states["P_own"])
+        # The measured P carries it: the clean P minus the own ΔP is close to the grid-driven P.
+        assert np.std(b.clean.P - a.clean.P) > 0.5 * np.std(b.states["P_own"])
+        # Closed loop: V moves with it (a little: the network is stiff against one load).
+        assert not np.allclose(b.clean.V, a.clean.V, rtol=0, atol=1e-7)
+
+
+@pytest.mark.parametrize("shape", OWN_SHAPES)
+def test_every_shape_is_unit_variance_and_shaped_as_named(shape):
+    fs = 1000.0
+    sos, gain = forcing_filter(fs)
+    x = own_process(np.random.default_rng(1), shape, 60_000, fs, sos, gain)
+    assert x.mean() == pytest.approx(0.0, abs=1e-9) and x.std() == pytest.approx(1.0)
+    f, pxx = signal.welch(x, fs, nperseg=8192)
+    if shape == "switching":
+        assert np.mean(np.diff(x) == 0.0) > 0.8  # steps
+    if shape == "pink":
+        sel = (f > 0.2) & (f < 4.0)
+        slope = np.polyfit(np.log(f[sel]), np.log(pxx[sel]), 1)[0]
+        assert slope == pytest.approx(-1.0, abs=0.3)
+    if shape == "lowpass":
+        assert pxx[f > 8.0].max() < 1e-4 * pxx[f < 1.0].max()
+
+
+def test_unknown_shape_is_a_clear_error():
+    with pytest.raises(ValueError, match="own-fluctuation shape"):
+        make_cases(1, own_sigma=0.01, own_shape="square")
+
+
+def test_excitation_share_is_small_when_the_own_fluctuation_dominates(pair):
+    off, on = pair
+    for a, b in zip(off, on, strict=True):
+        ra, rb = identify(a.window), identify(b.window)
+        assert ra.quality["excitation_share_p"] > 0.9
+        assert rb.quality["excitation_share_p"] < 0.4
+        true_ratio = np.std(b.states["P_own"]) / np.std(b.clean.P)
+        assert rb.quality["own_ratio_p"] == pytest.approx(true_ratio, abs=0.15)
+        assert "unexplained_fluctuation" in rb.flags and "unexplained_fluctuation" not in ra.flags
