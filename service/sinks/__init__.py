@@ -7,5 +7,6 @@ and a ``build(ctx)`` factory taking a :class:`service.context.Context`) plus one
 SINKS: dict[str, str] = {
     "storage": "service.sinks.storage:build",
     "zenoh": "service.sinks.zenoh:build",
+    "bus_metrics": "service.sinks.bus_metrics:build",
 }
 """name → ``module:factory`` (imported only when a service uses that sink; see service.registry)."""
