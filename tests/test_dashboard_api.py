@@ -4,6 +4,8 @@ filter/sort/paging, the diagnosis timeline, the model playback and the per-bus P
 from __future__ import annotations
 
 import re
+import shutil
+import subprocess
 import time
 import warnings
 from pathlib import Path
@@ -85,6 +87,13 @@ def test_root_redirects_to_the_pages_and_every_asset_they_name_is_served(dash):
         assert got.status_code == 200 and len(got.content) > 500, asset
     assert "MIT" in (UI_DIR / "vendor" / "uPlot.LICENSE").read_text()
     assert "v1.6.32" in client.get("/ui/vendor/uPlot.iife.min.js").text[:100]
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="node is not installed")
+def test_the_page_script_parses():
+    # The browser test (slow) runs it; this catches a syntax error in a second.
+    check = subprocess.run(["node", "--check", str(UI_DIR / "app.js")], capture_output=True, text=True)
+    assert check.returncode == 0, check.stderr
 
 
 def test_fleet_rows_carry_the_last_known_values_state_and_verdict(dash):
