@@ -72,7 +72,7 @@
     { label: "state", sort: "state", cls: "txt", cell: (r) => el("span", { class: `state ${r.state}`, title: r.reason || "" }, r.state) },
     ...PARAMS.map((k) => ({
       label: `${k} [${UNITS[k]}]`, sort: k,
-      cell: (r) => [fmt(r.dynamic && r.dynamic[k]), el("span", { class: "se" }, ` ±${fmt(r.stderr && r.stderr[k])}`)],
+      cell: (r) => (r.dynamic ? [fmt(r.dynamic[k]), el("span", { class: "se" }, ` ±${fmt(r.stderr && r.stderr[k])}`)] : "–"),
     })),
     { label: "static", cls: "txt", cell: (r) => staticText(r.static) },
     { label: "fd P", sort: "fd_p", cell: (r) => fmt(r.fit && r.fit.fd_p) },
