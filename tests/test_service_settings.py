@@ -46,7 +46,7 @@ def test_precedence_toml_env_cli(tmp_path, monkeypatch):
     ({"storage_url": "postgres://x"}, None),
     ({"no_such_field": 1}, "no_such_field"),
     ({"sources": ["c37118"]}, "unknown sources ['c37118']; known: ['zenoh']"),
-    ({"sinks": ["storage", "kafka"]}, "unknown sinks ['kafka']; known: ['storage', 'zenoh']"),
+    ({"sinks": ["storage", "kafka"]}, "unknown sinks ['kafka']; known: ['bus_metrics', 'storage', 'zenoh']"),
     ({"sinks": ["zenoh", "zenoh"]}, "sinks repeated"),
 ])
 def test_invalid_values_refused_with_clear_message(overrides, needle):
