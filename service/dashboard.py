@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import threading
 import time
 from pathlib import Path
 from typing import Annotated
@@ -25,6 +26,8 @@ UI_DIR = Path(__file__).resolve().parent / "ui"
 
 #: A playback is recomputed at most this often per bus [s]: several open pages cost one worker task.
 PLAYBACK_TTL_S = 2.0
+#: Playbacks in flight at most: the endpoint is unauthenticated, and each one is a worker task.
+PLAYBACK_IN_FLIGHT = 4
 #: Playbacks kept (about 30 kB each).
 PLAYBACK_CACHE = 64
 #: Longest wait for a worker to play a model back [s]; during a period the workers' queues are full.
@@ -73,6 +76,9 @@ def add_dashboard(app: FastAPI, service) -> None:
     The playback needs the service's executor (``service.executor``); a view without one answers 503.
     """
     playbacks: dict[str, tuple[float, float, dict]] = {}  # bus → (monotonic time, model period, payload)
+    # Released when the worker answers, not when the handler stops waiting: a playback abandoned at the
+    # timeout still holds a worker's queue slot.
+    slots = threading.BoundedSemaphore(PLAYBACK_IN_FLIGHT)
 
     @app.get("/", include_in_schema=False)
     def root() -> RedirectResponse:
@@ -120,13 +126,22 @@ def add_dashboard(app: FastAPI, service) -> None:
             raise HTTPException(503, "this service has no workers to play the model back")
         if buf is None or not buf.size:
             raise HTTPException(404, f"no frames held for bus {bus!r}")
+        if not slots.acquire(blocking=False):
+            raise HTTPException(503, "too many playbacks in progress: retry")
         s = service.settings
         newest = buf.newest
         window = buf.cut(newest - s.window_s, newest, f0=s.f0, bus=bus)
         task = WindowTask(window, options={"lowpass_hz": s.lowpass_hz}, fn="service.playback:playback_window",
                           previous={"dynamic": ok.parameters.dynamic, "static": ok.parameters.static})
         try:
-            outcome = await asyncio.wait_for(asyncio.wrap_future(executor.submit(task)), PLAYBACK_TIMEOUT_S)
+            future = executor.submit(task)
+        except BaseException:
+            slots.release()
+            raise
+        future.add_done_callback(lambda _: slots.release())
+        try:
+            # Shielded: a timeout must not cancel the executor's future, which its pool resolves later.
+            outcome = await asyncio.wait_for(asyncio.shield(asyncio.wrap_future(future)), PLAYBACK_TIMEOUT_S)
         except asyncio.TimeoutError:
             raise HTTPException(503, "the workers are busy (a period is running): retry") from None
         if not outcome.ok:

@@ -8,8 +8,10 @@ import shutil
 import subprocess
 import time
 import warnings
+from concurrent.futures import Future
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import D_TRUE, ZIP_P, ZIP_Q, equation_window
 from prometheus_client.parser import text_string_to_metric_families
@@ -20,6 +22,7 @@ from service.api import create_app
 from service.buffers import BufferStore
 from service.context import Context
 from service.dashboard import UI_DIR
+from service.executors.base import TaskOutcome
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
 from service.models import BusResult
@@ -238,3 +241,31 @@ def test_latest_results_restores_last_ok_and_verdicts_from_storage(tmp_path):
     assert latest.results["b1"].status == "failed" and latest.last_ok["b1"].parameters.dynamic["a"] == 44.0
     assert latest.verdicts["b1"] == ("explained", "second_motor", 1000.0)
     storage.close()
+
+
+def test_playbacks_in_flight_are_bounded_until_the_workers_answer(dash, monkeypatch):
+    import service.dashboard as dashboard
+
+    view, chain, client, source = dash
+    monkeypatch.setattr(dashboard, "PLAYBACK_TIMEOUT_S", 0.05)
+    pending: list[Future] = []
+
+    class Stalled:  # a pool busy with a period: nothing comes back until told
+        def submit(self, task):
+            pending.append(Future())
+            return pending[-1]
+
+    view.executor = Stalled()
+    now = time.time()
+    source.push_window("b1", now - 2.0 + np.arange(100) / 50.0, np.ones(100), np.zeros(100),
+                       np.full(100, 0.5), np.full(100, 0.2))
+    chain.write_results([result("b1", 1000.0)])
+    busy = [client.get("/buses/b1/playback") for _ in range(dashboard.PLAYBACK_IN_FLIGHT)]
+    assert all(r.status_code == 503 and "busy" in r.json()["detail"] for r in busy)
+    full = client.get("/buses/b1/playback")
+    assert full.status_code == 503 and "too many" in full.json()["detail"]
+    assert len(pending) == dashboard.PLAYBACK_IN_FLIGHT  # the abandoned ones still hold their slots
+    for fut in pending:  # the workers answer (late): the slots are free again
+        fut.set_result(TaskOutcome(ok=False, reason="window:gaps", message="late"))
+    again = client.get("/buses/b1/playback")
+    assert again.status_code == 503 and "busy" in again.json()["detail"] and len(pending) == 5
