@@ -228,8 +228,9 @@
         continue;
       }
       draw(`chart-${ch}`, [
-        { label: "measured", stroke: "#455a64", points: { show: false } },
-        { label: `model (period ${utc(pb.model_period)})`, stroke: "#e65100", width: 2, points: { show: false } },
+        { label: "measured", stroke: "#455a64", width: 2, points: { show: false } },
+        // Dashed so that measured data a model fits closely stay visible beneath it.
+        { label: `model (period ${utc(pb.model_period)})`, stroke: "#e65100", width: 1.5, dash: [6, 4], points: { show: false } },
       ], [pb.t, pb[ch], pb[`${ch}_model`]]);
     }
   }
