@@ -15,6 +15,7 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
 from service.buffers import BufferStore
+from service.dashboard import add_dashboard
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
 from service.models import BusResult, LatestDiagnosis, PeriodSummary
@@ -294,4 +295,5 @@ def create_app(service: ServiceView) -> FastAPI:
     def metrics() -> Response:
         return Response(service.metrics.render(), media_type="text/plain; version=0.0.4; charset=utf-8")
 
+    add_dashboard(app, service)  # /ui (and / → /ui/), /fleet, /buses/{bus}/diagnoses, /buses/{bus}/playback
     return app

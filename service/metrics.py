@@ -7,6 +7,7 @@ free of metric calls.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram, generate_latest
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily
@@ -75,6 +76,9 @@ class ServiceMetrics:
                                     "backlog while storage failed, by kind", ["kind"], registry=r)
         self.storage_backlog = Gauge("aslm_storage_backlog", "Records kept for a retry while storage fails",
                                      registry=r)
+        # Families whose owners render their own text (the per-bus gauges: prometheus_client takes ~4 s of
+        # GIL to format 130,000 samples, a cached text ~0.05 s); appended to the registry's output.
+        self.exposition: list[Callable[[], bytes]] = []
 
     def results(self, batch: list[BusResult]) -> None:
         """Count a batch of results."""
@@ -112,5 +116,5 @@ class ServiceMetrics:
         """Nothing to release (the registry lives as long as the service object)."""
 
     def render(self) -> bytes:
-        """Prometheus text format."""
-        return generate_latest(self.registry)
+        """Prometheus text format (the registry, then each of :attr:`exposition`)."""
+        return generate_latest(self.registry) + b"".join(part() for part in self.exposition)

@@ -222,6 +222,14 @@ class Storage:
                 "GROUP BY bus) m ON d.bus = m.bus AND d.period = m.p").fetchall()
         return dict(rows)
 
+    def diagnoses(self, bus: str, since: float | None = None, limit: int = 100) -> list[str]:
+        """JSON of the diagnosis reports of ``bus`` with ``period >= since`` [s], newest first."""
+        with self._lock:
+            rows = self._db.execute(
+                "SELECT body FROM diagnoses WHERE bus = ? AND period >= ? ORDER BY period DESC LIMIT ?",
+                (bus, since if since is not None else -1e300, int(limit))).fetchall()
+        return [r[0] for r in rows]
+
     def set_config(self, values: dict[str, Any]) -> None:
         """Persist run-time configuration changes (JSON values)."""
         now = time.time()

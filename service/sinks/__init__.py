@@ -8,5 +8,6 @@ SINKS: dict[str, str] = {
     "storage": "service.sinks.storage:build",
     "zenoh": "service.sinks.zenoh:build",
     "records": "service.sinks.records:build",
+    "bus_metrics": "service.sinks.bus_metrics:build",
 }
 """name → ``module:factory`` (imported only when a service uses that sink; see service.registry)."""
