@@ -11,6 +11,7 @@ from fastapi import Depends, FastAPI, Header, HTTPException, Query, Response
 from pydantic import BaseModel, Field
 
 from service.buffers import BufferStore
+from service.busnames import bus_name_problem
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
 from service.models import BusResult, LatestDiagnosis, PeriodSummary
@@ -112,6 +113,20 @@ class ConfigUpdate(BaseModel):
     period_s: float | None = Field(None, gt=0, description="New period T [s] (>= window_s + late_s)")
 
 
+async def valid_bus(bus: str) -> str:
+    """The ``{bus}`` path parameter, refused with 422 if it breaks :mod:`service.busnames` (``*``, ``a/**``).
+
+    Async so that the pre-serialised ``latest`` handlers stay on the event loop (no thread hop).
+    """
+    problem = bus_name_problem(bus)
+    if problem is not None:
+        raise HTTPException(422, problem)
+    return bus
+
+
+BusPath = Annotated[str, Depends(valid_bus)]
+
+
 def create_app(service: ServiceView) -> FastAPI:
     """FastAPI application bound to one running service (a :class:`ServiceView`)."""
     app = FastAPI(title="ASLM service", version="0.1.0",
@@ -160,7 +175,7 @@ def create_app(service: ServiceView) -> FastAPI:
         return out
 
     @app.get("/buses/{bus:path}/parameters/latest", response_model=BusResult)
-    async def latest(bus: str, ok: Annotated[bool, Query(description="latest successful result only")] = False
+    async def latest(bus: BusPath, ok: Annotated[bool, Query(description="latest successful result only")] = False
                      ) -> Response:
         # Async and pre-serialised: answered on the event loop without a thread hop or re-validation,
         # so it stays fast while a period is being computed.
@@ -174,14 +189,14 @@ def create_app(service: ServiceView) -> FastAPI:
         return Response(js, media_type="application/json")
 
     @app.get("/buses/{bus:path}/parameters", response_model=list[BusResult])
-    def history(bus: str,
+    def history(bus: BusPath,
                 since: Annotated[float | None, Query(description="earliest period, UTC [s]")] = None,
                 until: Annotated[float | None, Query(description="latest period, UTC [s]")] = None,
                 limit: Annotated[int, Query(ge=1, le=10000)] = 100) -> list[BusResult]:
         return service.storage.history(bus, since, until, limit)
 
     @app.get("/buses/{bus:path}/diagnosis/latest", response_model=LatestDiagnosis)
-    async def diagnosis(bus: str) -> Response:
+    async def diagnosis(bus: BusPath) -> Response:
         """The bus's latest discrepancy diagnosis (DESIGN §3: verdict, located, missing_physics, fit).
 
         Served pre-serialised like ``parameters/latest``; the response model documents the payload.

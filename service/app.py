@@ -62,7 +62,7 @@ class Service:
                          settings.storage_path)
             except (TypeError, ValueError) as exc:
                 log.warning("ignoring persisted period_s: %s", exc)
-        self.store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s)
+        self.store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s, settings.max_buses)
         self.metrics = ServiceMetrics(self.store)
         self.metrics.period_s.set(self.period_s)
         self.latest = LatestResults.from_storage(self.storage)
@@ -93,7 +93,8 @@ class Service:
         named = [registry.load(SINKS, name)(self.context) for name in s.sinks]
         self.sinks = SinkChain([self.latest, self.metrics, *named],
                                on_error=lambda where: self.metrics.request_errors.labels(where).inc())
-        inlet = Inlet(self.store, max_future_s=s.max_future_s, f0=s.f0, clock=self.clock)
+        inlet = Inlet(self.store, max_future_s=s.max_future_s, f0=s.f0, clock=self.clock,
+                      max_message_bytes=s.max_message_bytes)
         for name in s.sources:
             source = registry.load(SOURCES, name)(self.context)
             source.start(inlet)
@@ -104,6 +105,7 @@ class Service:
             on_results=self.sinks.write_results, on_period=self._on_period, warm_starts=self.warm_starts,
             options={"n_starts": s.n_starts, "lowpass_hz": s.lowpass_hz, "objective": s.objective}, n_starts_warm=s.n_starts_warm,
             diagnose_every=s.diagnose_every, on_diagnosis=self._on_diagnosis, clock=self.clock,
+            bus_idle_s=s.bus_idle_s, on_evicted=self.latest.forget_skipped,
         )
         self.scheduler.start()
         if self.rest:
