@@ -199,9 +199,10 @@ def power_from_current(V: np.ndarray, theta: np.ndarray, I: np.ndarray, phi: np.
     P, Q : ndarray
         Active and reactive power [pu].
     """
-    s = V * I
-    delta = theta - phi
-    return s * np.cos(delta), s * np.sin(delta)
+    with np.errstate(invalid="ignore", over="ignore"):  # non-finite inputs give non-finite P, Q: rejected later
+        s = V * I
+        delta = theta - phi
+        return s * np.cos(delta), s * np.sin(delta)
 
 
 def encode_json(batch: FrameBatch) -> bytes:

@@ -133,7 +133,7 @@ def test_junk_buses_filling_the_cap_never_lock_out_a_real_bus():
     for k in range(1000):  # one stray message each, then never again
         ingest.message(f"junk{k}", b'{"t": [1]}', "application/json")
         clock.advance(0.001)
-    for k in range(3):
+    for _ in range(3):
         clock.advance(1.0)
         ingest.frames("real", frames_at(second_of(clock.now() - 1)))
     assert store.counts("real").buffered == 150
