@@ -132,7 +132,7 @@ def decode_json(payload: bytes | str) -> FrameBatch:
     n = len(obj["t"]) if isinstance(obj.get("t"), list) else 0
     current = "P" not in obj and "I" in obj
     needed = ("t", "V", "theta", "I", "phi") if current else COLUMNS
-    missing = [k for k in needed if k not in obj]
+    missing = [k for k in needed if obj.get(k) is None]  # null counts as missing (only f, stat are optional)
     if missing:
         raise FrameError("missing_field", f"missing {', '.join(missing)}", n)
     cols: dict[str, np.ndarray] = {}

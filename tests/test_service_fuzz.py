@@ -36,7 +36,7 @@ with warnings.catch_warnings():  # Starlette warns at import that its TestClient
 NOW = 1_700_000_000.0
 MIN_BINARY_FRAME = 40  # bytes of the smallest binary frame (5 float64 columns)
 MIN_JSON_FRAME = 2  # a JSON array element needs at least a digit and a comma
-FUZZ = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 numbers = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True), st.integers(min_value=-(10**40), max_value=10**40),

@@ -213,6 +213,15 @@ def test_the_scheduler_evicts_buses_idle_longer_than_bus_idle_s():
         b.stop()
 
 
+def test_evicted_buses_leave_the_latest_results_only_if_they_were_skips():
+    latest = LatestResults()
+    rows = [BusResult(bus=b, period=10.0, period_s=10.0, status=st, reason=None if st == "ok" else "x",
+                      completed_at=11.0) for b, st in (("junk", "skipped"), ("pmu", "ok"), ("broken", "failed"))]
+    latest.write_results(rows, [r.model_dump_json() for r in rows])
+    latest.forget_skipped(["junk", "pmu", "broken", "unknown"])
+    assert sorted(latest.results) == sorted(latest.results_json) == ["broken", "pmu"]
+
+
 # --- defect 5: blind spots and poisonable counters -----------------------------------------------------
 def test_a_binary_header_claiming_n_0xffffffff_counts_only_the_frames_present():
     ingest, store, _ = inlet()
@@ -287,6 +296,15 @@ def test_a_stat_word_outside_uint16_is_refused_not_wrapped(stat):
     ingest.message("b1", msg.encode(), "application/json")
     c = store.counts("b1")
     assert c.buffered == 0 and sum(c.rejected.values()) == 1 and c.messages_rejected == {"bad_type": 1}
+
+
+def test_a_null_required_column_is_a_missing_field_not_a_key_error():
+    # Found by tests/test_service_fuzz.py: {"V": null} passed the presence check, then raised KeyError.
+    ingest, store, _ = inlet()
+    ingest.message("b1", b'{"t": [1.0, 2.0], "V": null, "theta": [0, 0], "P": [1, 1], "Q": [0, 0]}',
+                   "application/json")
+    c = store.counts("b1")
+    assert c.messages_rejected == {"missing_field": 1} and c.rejected == {"missing_field": 2}
 
 
 def test_a_deeply_nested_json_message_is_a_counted_rejection():
