@@ -285,16 +285,19 @@ class Scheduler:
         return summary
 
     def _evict_idle(self) -> None:
-        """Forget buses not heard from for ``bus_idle_s`` (after their last results were written)."""
-        if self.bus_idle_s is None:
-            return
-        evicted = self.store.evict_idle(self.clock.now() - self.bus_idle_s)
-        for bus in evicted:
-            self._skip_state.pop(bus, None)
+        """Forget buses not heard from for ``bus_idle_s`` (after their last results were written).
+
+        Buses the store evicted to make room at its cap are forgotten here too, so that nothing kept
+        per bus outlives the bus.
+        """
+        evicted = [] if self.bus_idle_s is None else self.store.evict_idle(self.clock.now() - self.bus_idle_s)
         if evicted:
             log.info("evicted %d bus(es) idle for more than %g s", len(evicted), self.bus_idle_s)
-            if self.on_evicted is not None:
-                self.on_evicted(evicted)
+        gone = set(evicted) | {b for b in self._skip_state if self.store.buffer(b, create=False) is None}
+        for bus in gone:
+            self._skip_state.pop(bus, None)
+        if gone and self.on_evicted is not None:
+            self.on_evicted(sorted(gone))
 
     def _submit_diagnoses(self, boundary: float, identified: dict[str, tuple[Window, dict]]) -> None:
         """Queue the discrepancy diagnosis of each bus identified this period (results come back async)."""

@@ -213,6 +213,25 @@ def test_the_scheduler_evicts_buses_idle_longer_than_bus_idle_s():
         b.stop()
 
 
+def test_nothing_kept_per_bus_outlives_a_bus_evicted_at_the_cap():
+    b = Bench(period_s=10.0, start=T0 + 1.0)
+    b.store.max_buses = 3
+    evicted: list[str] = []
+    b.scheduler.on_evicted = evicted.extend
+    b.start()
+    try:
+        half = dict(keep=lambda t: np.arange(t.size) % 2 == 0)
+        for k, names in ((1, "abc"), (2, "def")):
+            b.run_to(T0 + 10 * k)
+            for name in names:
+                b.feed(name, T0 + 10 * k, **half)
+            b.run_to(T0 + 10 * k + LATE_S)
+        assert b.store.buses() == ["d", "e", "f"]
+        assert set(b.scheduler._skip_state) == {"d", "e", "f"} and sorted(evicted) == ["a", "b", "c"]
+    finally:
+        b.stop()
+
+
 def test_evicted_buses_leave_the_latest_results_only_if_they_were_skips():
     latest = LatestResults()
     rows = [BusResult(bus=b, period=10.0, period_s=10.0, status=st, reason=None if st == "ok" else "x",
