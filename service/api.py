@@ -15,6 +15,7 @@ from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
 from service.buffers import BufferStore
+from service.busnames import bus_name_problem
 from service.dashboard import add_dashboard
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
@@ -186,6 +187,20 @@ def _records(results: list, q: RecordQuery, f0: float) -> list[dict]:
         raise HTTPException(422, str(exc)) from None
 
 
+async def valid_bus(bus: str) -> str:
+    """The ``{bus}`` path parameter, refused with 422 if it breaks :mod:`service.busnames` (``*``, ``a/**``).
+
+    Async so that the pre-serialised ``latest`` handlers stay on the event loop (no thread hop).
+    """
+    problem = bus_name_problem(bus)
+    if problem is not None:
+        raise HTTPException(422, problem)
+    return bus
+
+
+BusPath = Annotated[str, Depends(valid_bus)]
+
+
 def create_app(service: ServiceView) -> FastAPI:
     """FastAPI application bound to one running service (a :class:`ServiceView`)."""
     app = FastAPI(title="ASLM service", version="0.1.0",
@@ -236,7 +251,7 @@ def create_app(service: ServiceView) -> FastAPI:
         return out
 
     @app.get("/buses/{bus:path}/parameters/latest", response_model=BusResult)
-    async def latest(bus: str, rq: Annotated[RecordQuery, Depends(record_query)],
+    async def latest(bus: BusPath, rq: Annotated[RecordQuery, Depends(record_query)],
                      ok: Annotated[bool, Query(description="latest successful result only")] = False) -> Response:
         # Async and pre-serialised: answered on the event loop without a thread hop or re-validation,
         # so it stays fast while a period is being computed.
@@ -252,7 +267,7 @@ def create_app(service: ServiceView) -> FastAPI:
         return Response(js, media_type="application/json")
 
     @app.get("/buses/{bus:path}/parameters", response_model=list[BusResult])
-    def history(bus: str, rq: Annotated[RecordQuery, Depends(record_query)],
+    def history(bus: BusPath, rq: Annotated[RecordQuery, Depends(record_query)],
                 since: Annotated[float | None, Query(description="earliest period, UTC [s]")] = None,
                 until: Annotated[float | None, Query(description="latest period, UTC [s]")] = None,
                 limit: Annotated[int, Query(ge=1, le=10000)] = 100) -> list[BusResult]:
@@ -262,7 +277,7 @@ def create_app(service: ServiceView) -> FastAPI:
         return found
 
     @app.get("/buses/{bus:path}/diagnosis/latest", response_model=LatestDiagnosis)
-    async def diagnosis(bus: str) -> Response:
+    async def diagnosis(bus: BusPath) -> Response:
         """The bus's latest discrepancy diagnosis (DESIGN §3: verdict, located, missing_physics, fit).
 
         Served pre-serialised like ``parameters/latest``; the response model documents the payload.

@@ -63,7 +63,7 @@ class Service:
                          settings.storage_path)
             except (TypeError, ValueError) as exc:
                 log.warning("ignoring persisted period_s: %s", exc)
-        self.store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s)
+        self.store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s, settings.max_buses)
         self.metrics = ServiceMetrics(self.store)
         self.metrics.period_s.set(self.period_s)
         self.latest = LatestResults.from_storage(self.storage)
@@ -102,7 +102,8 @@ class Service:
                                on_error=lambda where: self.metrics.request_errors.labels(where).inc())
         self._storage_sink = next((sink for sink in named if sink.name == "storage"), None)
         self._record_interrupted()
-        inlet = Inlet(self.store, max_future_s=s.max_future_s, f0=s.f0, clock=self.clock)
+        inlet = Inlet(self.store, max_future_s=s.max_future_s, f0=s.f0, clock=self.clock,
+                      max_message_bytes=s.max_message_bytes)
         for name in s.sources:
             source = registry.load(SOURCES, name)(self.context)
             source.start(inlet)
@@ -114,6 +115,7 @@ class Service:
             options={"n_starts": s.n_starts, "lowpass_hz": s.lowpass_hz, "objective": s.objective}, n_starts_warm=s.n_starts_warm,
             diagnose_every=s.diagnose_every, on_diagnosis=self._on_diagnosis, clock=self.clock,
             on_start=self._period_started, diagnose_in_flight=max(1, s.workers - 1),
+            bus_idle_s=s.bus_idle_s, on_evicted=self.latest.forget_skipped,
         )
         self.scheduler.start()
         if self.rest:

@@ -13,9 +13,10 @@ encoding says which codec applies:
 ``application/x-aslm-pmu`` (:data:`BINARY_ENCODING`)
     A 16-byte little-endian header then column-major arrays (see :func:`encode_binary`).
 
-Validation flags frames (not whole batches): non-finite values, V outside (0, 3] pu, |P|, |Q| > 100 pu,
-f outside f0 ± 10 Hz, STAT data-error bits (15–14) set.  A message that cannot be decoded at all is
-rejected whole with a reason.
+Validation flags frames (not whole batches): non-finite values, times at or before the epoch, V outside
+(0, 3] pu, |P|, |Q| > 100 pu, f outside f0 ± 10 Hz, STAT data-error bits (15–14) set.  A message that
+cannot be decoded at all is rejected whole with a reason, and the frames it is counted as holding are
+never more than its bytes can hold (a header's claim is not believed).
 """
 
 from __future__ import annotations
@@ -50,7 +51,10 @@ COLUMNS = REQUIRED  # the columns every batch has, in the binary layout's order 
 
 
 class FrameError(ValueError):
-    """A message that cannot be decoded; ``reason`` is the metric label, ``n`` frames it held if known."""
+    """A message that cannot be decoded; ``reason`` is the metric label, ``n`` frames it held if known.
+
+    ``n`` never exceeds what the message's bytes could hold, so a forged count cannot poison counters.
+    """
 
     def __init__(self, reason: str, message: str, n: int = 0) -> None:
         super().__init__(f"{reason}: {message}")
@@ -106,7 +110,7 @@ class Validated:
 
 
 def _as_seconds(t: np.ndarray) -> np.ndarray:
-    if t.size and np.nanmax(np.abs(t)) > NS_THRESHOLD:
+    if t.size and np.fmax.reduce(np.abs(t)) > NS_THRESHOLD:  # NaN-ignoring like nanmax, silent when all NaN
         return t * 1e-9
     return t
 
@@ -121,14 +125,14 @@ def decode_json(payload: bytes | str) -> FrameBatch:
     """
     try:
         obj = json.loads(payload)
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise FrameError("malformed_json", str(exc)) from None
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:  # RecursionError: [[[[...]]]]
+        raise FrameError("malformed_json", str(exc)[:200]) from None
     if not isinstance(obj, dict):
         raise FrameError("malformed_json", "top level must be an object")
     n = len(obj["t"]) if isinstance(obj.get("t"), list) else 0
     current = "P" not in obj and "I" in obj
     needed = ("t", "V", "theta", "I", "phi") if current else COLUMNS
-    missing = [k for k in needed if k not in obj]
+    missing = [k for k in needed if obj.get(k) is None]  # null counts as missing (only f, stat are optional)
     if missing:
         raise FrameError("missing_field", f"missing {', '.join(missing)}", n)
     cols: dict[str, np.ndarray] = {}
@@ -140,8 +144,8 @@ def decode_json(payload: bytes | str) -> FrameBatch:
             raise FrameError("bad_type", f"{key} must be an array", n)
         try:
             # None (JSON null) becomes nan and is rejected per frame by validate().
-            arr = np.array(val, dtype=np.int64 if key == "t" and _all_int(val) else np.float64)
-        except (TypeError, ValueError):
+            arr = _column(val, ns=key == "t" and _all_int(val))
+        except (TypeError, ValueError, OverflowError):
             raise FrameError("bad_type", f"{key} must hold numbers", n) from None
         if arr.ndim != 1:
             raise FrameError("bad_type", f"{key} must be a flat array", n)
@@ -152,6 +156,10 @@ def decode_json(payload: bytes | str) -> FrameBatch:
     t = _as_seconds(cols["t"].astype(np.float64))
     stat = cols.get("stat")
     if stat is not None:
+        with np.errstate(invalid="ignore"):
+            bad = ~((stat >= 0) & (stat <= 0xFFFF) & (stat == np.floor(stat)) | ~np.isfinite(stat))
+        if bad.any():  # a STAT word is 16 bits: 70000 must not wrap into a plausible one
+            raise FrameError("bad_type", "stat must hold integers 0..65535", n)
         stat = np.where(np.isfinite(stat), stat, 0xFFFF).astype(np.uint16)
     P, Q = (power_from_current(cols["V"], cols["theta"], cols["I"], cols["phi"]) if current
             else (cols["P"], cols["Q"]))
@@ -160,6 +168,20 @@ def decode_json(payload: bytes | str) -> FrameBatch:
 
 def _all_int(values: list) -> bool:
     return all(type(v) is int for v in values)
+
+
+def _column(values: list, *, ns: bool) -> np.ndarray:
+    """One JSON column as an array: int64 for integer times (ns), float64 otherwise.
+
+    An integer beyond int64 is no time any PMU sends; as float64 it becomes a far-future (or
+    pre-epoch) time that validate() rejects per frame, so the message is counted like any other.
+    """
+    if ns:
+        try:
+            return np.array(values, dtype=np.int64)
+        except OverflowError:
+            pass
+    return np.array(values, dtype=np.float64)
 
 
 def power_from_current(V: np.ndarray, theta: np.ndarray, I: np.ndarray, phi: np.ndarray):  # noqa: E741
@@ -177,9 +199,10 @@ def power_from_current(V: np.ndarray, theta: np.ndarray, I: np.ndarray, phi: np.
     P, Q : ndarray
         Active and reactive power [pu].
     """
-    s = V * I
-    delta = theta - phi
-    return s * np.cos(delta), s * np.sin(delta)
+    with np.errstate(invalid="ignore", over="ignore"):  # non-finite inputs give non-finite P, Q: rejected later
+        s = V * I
+        delta = theta - phi
+        return s * np.cos(delta), s * np.sin(delta)
 
 
 def encode_json(batch: FrameBatch) -> bytes:
@@ -238,9 +261,12 @@ def decode_binary(payload: bytes) -> FrameBatch:
     if magic != MAGIC or version != VERSION:
         raise FrameError("bad_header", f"magic {magic!r} version {version}")
     ncols = 5 + (1 if flags & FLAG_F else 0)
-    expected = HEADER.size + 8 * n * ncols + (2 * n if flags & FLAG_STAT else 0)
+    per_frame = 8 * ncols + (2 if flags & FLAG_STAT else 0)
+    expected = HEADER.size + per_frame * n
     if len(payload) != expected:
-        raise FrameError("length_mismatch", f"{len(payload)} bytes, header says {expected} for n={n}", n)
+        # Count the frames the bytes could hold, not the header's claim (n = 0xFFFFFFFF in 16 bytes).
+        held = min(n, (len(payload) - HEADER.size) // per_frame)
+        raise FrameError("length_mismatch", f"{len(payload)} bytes, header says {expected} for n={n}", held)
     if not flags & (FLAG_T_NS | FLAG_CURRENT):
         # Common case: the columns after the header are one (ncols, n) float64 block, viewed in place.
         block = np.frombuffer(payload, dtype="<f8", count=n * ncols, offset=HEADER.size).reshape(ncols, n)
@@ -283,7 +309,8 @@ def validate(batch: FrameBatch, *, now: float, max_future_s: float, f0: float = 
     """Flag bad frames vectorised; return the good ones and rejected counts by reason.
 
     Each rejected frame is counted once, under the first reason that applies in the order
-    ``non_finite``, ``pmu_error``, ``out_of_range``, ``future``.
+    ``non_finite``, ``bad_time`` (at or before the epoch: no PMU clock reads that), ``pmu_error``,
+    ``out_of_range``, ``future``.
 
     Parameters
     ----------
@@ -302,7 +329,7 @@ def validate(batch: FrameBatch, *, now: float, max_future_s: float, f0: float = 
     # through min/max and fails every comparison, so any doubt falls through to the per-frame pass.
     cols = batch.block()
     lo, hi = cols.min(axis=1).tolist(), cols.max(axis=1).tolist()
-    ok = (lo[0] > -math.inf and hi[0] <= now + max_future_s and lo[1] > 0 and hi[1] <= V_MAX
+    ok = (lo[0] > 0.0 and hi[0] <= now + max_future_s and lo[1] > 0 and hi[1] <= V_MAX
           and lo[2] > -math.inf and hi[2] < math.inf and lo[3] >= -PQ_MAX and hi[3] <= PQ_MAX
           and lo[4] >= -PQ_MAX and hi[4] <= PQ_MAX
           and (batch.f is None or (lo[5] >= f0 - F_TOL and hi[5] <= f0 + F_TOL)))
@@ -314,13 +341,14 @@ def validate(batch: FrameBatch, *, now: float, max_future_s: float, f0: float = 
         if batch.f is not None:
             in_range &= np.abs(batch.f - f0) <= F_TOL
         future = batch.t > now + max_future_s
+        bad_time = batch.t <= 0.0
     bad_pmu = (batch.stat & STAT_DATA_ERROR) != 0 if batch.stat is not None else None
     if bad_pmu is None:
         bad_pmu = np.zeros(n, bool)
     rejected: dict[str, int] = {}
     remaining = np.ones(n, bool)
-    for reason, bad in (("non_finite", ~finite), ("pmu_error", bad_pmu), ("out_of_range", ~in_range),
-                        ("future", future)):
+    for reason, bad in (("non_finite", ~finite), ("bad_time", bad_time), ("pmu_error", bad_pmu),
+                        ("out_of_range", ~in_range), ("future", future)):
         hit = bad & remaining
         k = int(hit.sum())
         if k:

@@ -85,6 +85,17 @@ class LatestResults:
         self.diagnoses_json[bus] = payload
         self.verdicts[bus] = verdict_of(payload)
 
+    def forget_skipped(self, buses: list[str]) -> None:
+        """Drop evicted buses whose latest result is a skip: a stray key never identified leaves no entry.
+
+        Their rows stay in the history; a bus with an identification (or a failure) stays served.
+        """
+        for bus in buses:
+            res = self.results.get(bus)
+            if res is not None and res.status == "skipped":
+                self.results_json.pop(bus, None)
+                self.results.pop(bus, None)
+
     def write_period(self, summary: PeriodSummary) -> None:
         """Nothing to keep per period (REST reads periods from storage)."""
 

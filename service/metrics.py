@@ -39,7 +39,9 @@ class _FrameCollector:
             mdrop.add_metric([reason], k)
         buses = GaugeMetricFamily("aslm_buses", "Buses known to the ingest")
         buses.add_metric([], tot.buses)
-        yield from (received, buffered, dropped, messages, mdrop, buses)
+        evicted = CounterMetricFamily("aslm_buses_evicted", "Buses forgotten (idle, or to make room at max_buses)")
+        evicted.add_metric([], tot.buses_evicted)
+        yield from (received, buffered, dropped, messages, mdrop, buses, evicted)
 
 
 class ServiceMetrics:

@@ -58,6 +58,9 @@ class BusResult(BaseModel):
     warm_start: bool = Field(False, description="Started from the bus's previous result")
     completed_at: float = Field(description="Wall-clock time the result was recorded [s]")
     parameters: Identified | None = Field(None, description="Identification output when status is ok")
+    clock_offset_s: float | None = Field(
+        None, description="With reason clock_offset: PMU time of the bus's newest frame minus the clock time it "
+        "arrived [s] (negative: the PMU clock is behind; includes transport delay)")
 
 
 class PeriodSummary(BaseModel):

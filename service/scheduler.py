@@ -6,6 +6,13 @@ Timeline of one period with boundary B (a multiple of T since the epoch)::
                                                  -> quality check, submit good ones
                                                  -> results persisted, then published
     latency = time of the last result published - (B + late_s)
+
+A bus that never buffered a valid frame gets no result (its rejections are in the ingest accounting).
+A skipped bus is reported once per change of state: the first period it is skipped for a reason gives
+a result row; the following periods skipped for the same reason give none (the period summary still
+counts them), until it is identified, fails or is skipped for another reason.  A bus whose frames keep
+arriving stamped older than the window (a PMU clock behind) is skipped as ``clock_offset`` with the
+measured offset.  After each period, buses not heard from for ``bus_idle_s`` are evicted.
 """
 
 from __future__ import annotations
@@ -113,6 +120,11 @@ class Scheduler:
         service persists it so that a period a crash interrupts is recorded at the next start.
     diagnose_in_flight : int
         Diagnoses handed to the executor at a time (:class:`~service.diagnosis_queue.DiagnosisQueue`).
+    bus_idle_s : float or None
+        Buses with no message for this long are evicted from the buffers after a period [s] (None:
+        never).
+    on_evicted : callable, optional
+        Called with the buses evicted after a period.
 
     Notes
     -----
@@ -132,7 +144,8 @@ class Scheduler:
                  options: dict | None = None, n_starts_warm: int | None = None, diagnose_every: int = 0,
                  on_diagnosis: Callable[[str, float, TaskOutcome], None] | None = None,
                  clock: Clock = SYSTEM_CLOCK, on_start: Callable[[float, float, list[str]], None] | None = None,
-                 diagnose_in_flight: int = 1) -> None:
+                 diagnose_in_flight: int = 1, bus_idle_s: float | None = None,
+                 on_evicted: Callable[[list[str]], None] | None = None) -> None:
         self.store = store
         self.clock = clock
         self.executor = executor
@@ -161,6 +174,9 @@ class Scheduler:
         self._death: str | None = None  # why the loop last died, until a period completes after it
         self._last = -math.inf  # boundary of the last period run (kept across restarts of the loop)
         self._reported: set[str] = set()  # buses with a result in the period running
+        self.bus_idle_s = bus_idle_s
+        self.on_evicted = on_evicted
+        self._skip_state: dict[str, str] = {}  # bus -> reason of its last reported skip
 
     def start(self) -> None:
         """Start the scheduling thread."""
@@ -273,6 +289,7 @@ class Scheduler:
         skipped: list[BusResult] = []
         identified: dict[str, tuple[Window, dict]] = {}
         group: list[tuple[WindowTask, Window, bool]] = []
+        quiet = 0  # skipped again for the same reason: counted, not written
 
         def submit(group: list[tuple[WindowTask, Window, bool]]) -> None:
             futs = self.executor.submit_many([task for task, _, _ in group])
@@ -282,7 +299,7 @@ class Scheduler:
 
         for bus in self.store.buses():
             buf = self.store.buffer(bus, create=False)
-            if buf is None:
+            if buf is None or buf.buffered == 0:  # unknown, or nothing but rejected frames: no result
                 continue
             newest = buf.newest
             end = min(boundary, newest)  # a PMU running slightly behind still gives its latest window
@@ -290,8 +307,17 @@ class Scheduler:
                    if newest > boundary - self.rules.window_s else None)
             reason = "no_data" if cut is None else check_window(cut, self.rules)
             if reason is not None:
-                skipped.append(self._record(bus, boundary, period_s, "skipped", reason, cut, False))
+                offset = None
+                if cut is None and buf.last_arrival > boundary - self.rules.window_s:
+                    reason, offset = "clock_offset", newest - buf.last_arrival  # frames came, stamped too old
+                if self._skip_state.get(bus) == reason:
+                    quiet += 1
+                    continue
+                self._skip_state[bus] = reason
+                skipped.append(self._record(bus, boundary, period_s, "skipped", reason, cut, False,
+                                            clock_offset_s=offset))
                 continue
+            self._skip_state.pop(bus, None)
             warm = self.warm_starts.get(bus)
             task = WindowTask(cut, warm_start=list(warm) if warm is not None else None,
                               options=self.options if warm is None else self.warm_options)
@@ -336,10 +362,11 @@ class Scheduler:
         summary = PeriodSummary(
             period=boundary, period_s=period_s,
             n_ok=sum(r.status == "ok" for r in done), n_failed=sum(r.status == "failed" for r in done),
-            n_skipped=sum(r.status == "skipped" for r in done),
+            n_skipped=sum(r.status == "skipped" for r in done) + quiet,
             latency_s=finished_at - max(started, boundary + self.late_s), completed_at=finished_at,
         )
         self.on_period(summary)
+        self._evict_idle()
         self.running_period = None
         self._death = None
         self.periods_run += 1
@@ -349,6 +376,21 @@ class Scheduler:
         log.info("period %.0f: %d ok, %d failed, %d skipped in %.2f s", boundary, summary.n_ok, summary.n_failed,
                  summary.n_skipped, summary.latency_s)
         return summary
+
+    def _evict_idle(self) -> None:
+        """Forget buses not heard from for ``bus_idle_s`` (after their last results were written).
+
+        Buses the store evicted to make room at its cap are forgotten here too, so that nothing kept
+        per bus outlives the bus.
+        """
+        evicted = [] if self.bus_idle_s is None else self.store.evict_idle(self.clock.now() - self.bus_idle_s)
+        if evicted:
+            log.info("evicted %d bus(es) idle for more than %g s", len(evicted), self.bus_idle_s)
+        gone = set(evicted) | {b for b in self._skip_state if self.store.buffer(b, create=False) is None}
+        for bus in gone:
+            self._skip_state.pop(bus, None)
+        if gone and self.on_evicted is not None:
+            self.on_evicted(sorted(gone))
 
     def _submit_diagnoses(self, boundary: float, identified: dict[str, tuple[Window, dict]]) -> None:
         """Queue the discrepancy diagnosis of each bus identified this period (results come back async);
@@ -372,7 +414,8 @@ class Scheduler:
         self._reported.update(r.bus for r in batch)
 
     def _record(self, bus: str, boundary: float, period_s: float, status: str, reason: str | None,
-                cut: Window | None, warm: bool, outcome: TaskOutcome | None = None) -> BusResult:
+                cut: Window | None, warm: bool, outcome: TaskOutcome | None = None,
+                clock_offset_s: float | None = None) -> BusResult:
         params = None
         if outcome is not None and outcome.ok:
             # run_task has replaced non-finite floats by None (a non-finite D then fails validation).
@@ -386,5 +429,5 @@ class Scheduler:
             bus=bus, period=boundary, period_s=period_s, status=status, reason=reason,
             window_start=float(cut.t[0]) if has else None, window_end=float(cut.t[-1]) if has else None,
             n_frames=cut.n if cut is not None else 0, warm_start=warm, completed_at=self.clock.now(),
-            parameters=params,
+            parameters=params, clock_offset_s=clock_offset_s,
         )

@@ -108,6 +108,16 @@ class ServiceSettings(BaseSettings):
     # --- storage -------------------------------------------------------------------------------
     storage_url: str = Field("aslm.sqlite", description="SQLite file path or sqlite:///path URL")
     retention_days: float = Field(90.0, description="Results and periods older than this are deleted [days]")
+    # --- ingest limits (hostile input) -----------------------------------------------------------
+    max_message_bytes: int = Field(
+        1 << 20, description="Largest PMU message accepted [bytes]; larger ones are refused (too_large) undecoded",
+    )
+    max_buses: int = Field(
+        100_000, description="Bus buffers kept at most; a new bus beyond it evicts those longest without a valid frame",
+    )
+    bus_idle_s: float = Field(
+        3600.0, description="A bus with no message for this long is forgotten after the next period [s]",
+    )
     # --- zenoh ---------------------------------------------------------------------------------
     zenoh_mode: Literal["peer", "client", "router"] = Field("peer", description="Zenoh session mode")
     zenoh_connect: list[str] = Field(default_factory=list, description="Zenoh endpoints to connect to")
@@ -158,6 +168,14 @@ class ServiceSettings(BaseSettings):
     def _non_negative(cls, v: float, info) -> float:
         if not v >= 0:
             raise ValueError(f"{info.field_name} must be >= 0 (got {v})")
+        return v
+
+    @field_validator("max_message_bytes", "max_buses", "bus_idle_s")
+    @classmethod
+    def _ingest_limit(cls, v: float, info) -> float:
+        floor = {"max_message_bytes": 1024, "max_buses": 1, "bus_idle_s": 1.0}[info.field_name]
+        if not (v >= floor and math.isfinite(v)):
+            raise ValueError(f"{info.field_name} must be a finite number >= {floor:g} (got {v})")
         return v
 
     @field_validator("lowpass_hz")

@@ -16,6 +16,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from service.busnames import bus_name_problem
 from service.models import BusResult, PeriodSummary
 
 _SCHEMA = """
@@ -100,7 +101,14 @@ class Storage:
 
     # --- results -----------------------------------------------------------------------------------
     def save_results(self, results: list[BusResult], bodies: list[str] | None = None) -> None:
-        """Append results in one transaction; ``bodies`` are their JSON if the caller has it already."""
+        """Append results in one transaction; ``bodies`` are their JSON if the caller has it already.
+
+        Raises
+        ------
+        ValueError
+            A result's bus name breaks :mod:`service.busnames` (nothing of the batch is written).
+        """
+        _check_buses(r.bus for r in results)
         bodies = bodies if bodies is not None else [r.model_dump_json() for r in results]
         rows = [(r.bus, r.period, r.status, r.completed_at, b) for r, b in zip(results, bodies, strict=True)]
         with self._transaction() as db:
@@ -209,7 +217,14 @@ class Storage:
     # --- configuration -------------------------------------------------------------------------------
     # --- diagnoses -------------------------------------------------------------------------------
     def save_diagnosis(self, bus: str, period: float, report_json: str) -> None:
-        """Store one diagnosis report (JSON) of a bus for a period (replacing an earlier one)."""
+        """Store one diagnosis report (JSON) of a bus for a period (replacing an earlier one).
+
+        Raises
+        ------
+        ValueError
+            ``bus`` breaks :mod:`service.busnames`.
+        """
+        _check_buses((bus,))
         with self._lock:
             self._db.execute("INSERT OR REPLACE INTO diagnoses (bus, period, body) VALUES (?, ?, ?)",
                              (bus, period, report_json))
@@ -242,3 +257,10 @@ class Storage:
         with self._lock:
             rows = self._db.execute("SELECT key, value FROM config").fetchall()
         return {k: json.loads(v) for k, v in rows}
+
+
+def _check_buses(buses) -> None:
+    """Refuse names the ingest would never have made (a wildcard row would answer for other buses)."""
+    bad = {b: p for b in buses if (p := bus_name_problem(b)) is not None}
+    if bad:
+        raise ValueError(f"refusing to store {len(bad)} result(s) of invalid bus names: {next(iter(bad.values()))}")

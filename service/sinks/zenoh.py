@@ -8,6 +8,7 @@ from collections.abc import Callable
 
 import zenoh
 
+from service.busnames import check_bus_name
 from service.context import Context
 from service.models import BusResult, PeriodSummary
 
@@ -57,7 +58,7 @@ class ZenohSink:
 
         ``payload`` is the result's JSON if the caller has it already.
         """
-        self._put(f"{self.prefix}/params/{result.bus}",
+        self._put(f"{self.prefix}/params/{check_bus_name(result.bus)}",
                   payload if payload is not None else result.model_dump_json())
         self.published += 1
 
@@ -73,7 +74,7 @@ class ZenohSink:
     def write_diagnosis(self, bus: str, period: float, payload: str) -> None:  # noqa: ARG002 - Sink signature
         """Put one diagnosis report (JSON) on ``{prefix}/diagnosis/{bus}`` (never dropped)."""
         try:
-            self._put(f"{self.prefix}/diagnosis/{bus}", payload)
+            self._put(f"{self.prefix}/diagnosis/{check_bus_name(bus)}", payload)
         except Exception:  # noqa: BLE001 - publication trouble is logged, never fatal
             self._on_error()
             log.exception("publishing the diagnosis of %s failed", bus)

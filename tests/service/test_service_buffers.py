@@ -100,14 +100,15 @@ def test_one_bus_bad_input_leaves_others_untouched():
     assert store.counts("good").buffered == 100
 
 
-def test_too_many_buses_refused_with_reason():
+def test_a_new_bus_beyond_the_cap_evicts_the_one_longest_without_frames():
+    # Before issue 17 the new bus was refused (too_many_buses): junk names could keep real buses out.
     store = BufferStore(window_s=10, frame_rate=FS, late_s=2.0, max_buses=2)
-    for bus in ("a", "b", "c"):
-        store.add(bus, batch(frames_at(0, 10)))
-    assert store.buses() == ["a", "b"]
-    assert store.counts("c") is None
-    assert store.totals().frames_rejected == {"too_many_buses": 10}
-    assert store.totals().frames_received == 30
+    for k, bus in enumerate(("a", "b", "c")):
+        store.add(bus, batch(frames_at(0, 10)), arrival=T0 + k)
+    assert store.buses() == ["b", "c"]
+    assert store.counts("a") is None
+    tot = store.totals()
+    assert (tot.frames_rejected, tot.frames_buffered, tot.frames_received, tot.buses_evicted) == ({}, 30, 30, 1)
 
 
 def test_validation_and_message_rejects_are_accounted_per_bus():

@@ -149,13 +149,13 @@ def test_skipped_windows_carry_the_exact_reason(bench):
     end = T0 + 10
     b.run_to(end)
     b.feed("ok", end)
-    b.feed("stale", end - 5.0)  # newest frame older than the window: nothing to cut
+    b.feed("stale", end - 5.0)  # arriving now, stamped older than the window: a PMU clock 5 s behind
     b.feed("coverage", end, keep=lambda t: np.arange(t.size) % 2 == 0)  # half the frames, 40 ms apart
     b.feed("gap", end, keep=lambda t: (t <= end - 1.3) | (t > end - 1.0))  # 85 % of the frames, one 0.32 s gap
     b.feed("flat", end, v_std=0.0)  # V constant: no ambient excitation
     b.run_to(end + LATE_S)
     got = {r.bus: (r.status, r.reason) for r in b.sink.results}
-    assert got == {"ok": ("ok", None), "stale": ("skipped", "no_data"), "coverage": ("skipped", "coverage"),
+    assert got == {"ok": ("ok", None), "stale": ("skipped", "clock_offset"), "coverage": ("skipped", "coverage"),
                    "gap": ("skipped", "gap"), "flat": ("skipped", "no_excitation")}
     summary = b.sink.periods[0]
     assert (summary.n_ok, summary.n_failed, summary.n_skipped) == (1, 0, 4)
