@@ -13,6 +13,7 @@ import pytest
 from service_helpers import settings_for
 
 from service.api import RunStatus, create_app
+from service.audit import AuditLog, token_identity
 from service.buffers import BufferStore
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
@@ -39,6 +40,7 @@ class View:
     latest: LatestResults
     metrics: ServiceMetrics
     period_s: float
+    audit: AuditLog
 
     def status(self) -> RunStatus:
         return RunStatus(next_period=1020.0, running_period=None, workers_replaced=2)
@@ -61,7 +63,8 @@ def rest(tmp_path):
     settings = settings_for(tmp_path, 7447, period_s=10.0, window_s=2.0, late_s=0.5)
     store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s)
     storage = Storage(settings.storage_path)
-    view = View(settings, store, storage, LatestResults(), ServiceMetrics(store), settings.period_s)
+    view = View(settings, store, storage, LatestResults(), ServiceMetrics(store), settings.period_s,
+                AuditLog(settings.storage_path))
     chain = SinkChain([StorageSink(storage, 1e9), view.latest, view.metrics], on_error=pytest.fail)
     with TestClient(create_app(view)) as client:
         yield view, chain, client
@@ -119,3 +122,36 @@ def test_put_config_changes_the_period_through_the_view(rest):
     ok = client.put("/config", json={"period_s": 20.0}, headers={"X-Operator-Token": "op-secret"})
     assert ok.status_code == 200 and ok.json()["period_s"] == 20.0 and view.period_s == 20.0
     assert client.get("/config").json()["settings"]["operator_token"] == "***"
+
+
+def test_config_shows_the_startup_period_next_to_the_one_in_force(rest):
+    view, _, client = rest
+    before = client.get("/config").json()
+    assert (before["period_s"], before["startup_period_s"], before["period_source"]) == (10.0, 10.0, "settings")
+    client.put("/config", json={"period_s": 30.0}, headers={"X-Operator-Token": "op-secret"})
+    after = client.get("/config").json()
+    assert (after["period_s"], after["startup_period_s"], after["period_source"]) == (30.0, 10.0, "run-time")
+
+
+def test_config_changes_are_audited_with_who_when_old_and_new(rest, tmp_path):
+    view, _, client = rest
+    assert client.get("/config/audit").json() == []
+    # Refused changes (no token, wrong token, invalid value) leave no entry and change nothing.
+    client.put("/config", json={"period_s": 20.0})
+    client.put("/config", json={"period_s": 20.0}, headers={"X-Operator-Token": "wrong"})
+    client.put("/config", json={"period_s": 1.0}, headers={"X-Operator-Token": "op-secret"})
+    assert client.get("/config/audit").json() == []
+    client.put("/config", json={"period_s": 20.0}, headers={"Authorization": "Bearer op-secret"})
+    client.put("/config", json={"period_s": 40.0}, headers={"X-Operator-Token": "op-secret"})
+    entries = client.get("/config/audit").json()
+    assert [(e["field"], e["old"], e["new"]) for e in entries] == [("period_s", 20.0, 40.0),
+                                                                     ("period_s", 10.0, 20.0)]
+    newest = entries[0]
+    assert newest["token"] == token_identity("op-secret") and "op-secret" not in str(entries)
+    assert newest["address"].startswith("testclient:")  # the TestClient's peer; a real client's IP:port
+    assert newest["at_utc"].endswith("Z") and newest["at"] > 1.7e9
+    assert client.get("/config/audit", params={"limit": 1}).json() == entries[:1]
+    # Stored in the service's SQLite file: a restarted service shows the same log.
+    view.audit.close()
+    view.audit = AuditLog(view.settings.storage_path)
+    assert client.get("/config/audit").json() == entries
