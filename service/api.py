@@ -13,6 +13,7 @@ from pydantic import BaseModel, Field
 
 from service.audit import AuditEntry, AuditLog, token_identity
 from service.buffers import BufferStore
+from service.docs_assets import mount_docs
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
 from service.models import BusResult, LatestDiagnosis, PeriodSummary
@@ -126,8 +127,9 @@ class ConfigUpdate(BaseModel):
 
 def create_app(service: ServiceView) -> FastAPI:
     """FastAPI application bound to one running service (a :class:`ServiceView`)."""
-    app = FastAPI(title="ASLM service", version="0.1.0",
+    app = FastAPI(title="ASLM service", version="0.1.0", docs_url=None, redoc_url=None,
                   description="Ambient-signal load model identification from PMU streams.")
+    mount_docs(app)  # Swagger UI from installed files: /docs works offline
     started = time.time()
 
     def operator(request: Request, authorization: Annotated[str | None, Header()] = None,

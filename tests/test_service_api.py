@@ -6,6 +6,7 @@ these tests also check that REST answers with what the sinks wrote.
 
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import dataclass
 
@@ -155,3 +156,18 @@ def test_config_changes_are_audited_with_who_when_old_and_new(rest, tmp_path):
     view.audit.close()
     view.audit = AuditLog(view.settings.storage_path)
     assert client.get("/config/audit").json() == entries
+
+
+def test_docs_page_loads_swagger_ui_from_the_service_itself(rest):
+    _, _, client = rest
+    page = client.get("/docs")
+    assert page.status_code == 200 and "SwaggerUIBundle" in page.text
+    # Every script, stylesheet and icon is a path on this server: nothing from a CDN, so it works offline.
+    refs = re.findall(r'(?:src|href)="([^"]+)"', page.text)
+    assert refs and all(r.startswith("/docs/assets/") for r in refs), refs
+    assert "http://" not in page.text and "https://" not in page.text
+    for ref in refs:
+        asset = client.get(ref)
+        assert asset.status_code == 200 and len(asset.content) > 500, ref
+    assert client.get("/openapi.json").json()["paths"]["/config/audit"]
+    assert client.get("/redoc").status_code == 404  # ReDoc would need a CDN: off rather than blank

@@ -1,0 +1,42 @@
+"""``/docs``: Swagger UI from files installed with the service, so the page works without the internet.
+
+FastAPI's default page loads Swagger UI from a CDN and is blank offline (a control-room network, a
+laptop on a plane).  The ``swagger-ui-bundle`` package ships Swagger UI's dist files; they are served
+under ``/docs/assets`` and the page refers only to them (FastAPI, "Custom Docs UI Static Assets").
+ReDoc has no such package and is off rather than half-working.
+"""
+
+from __future__ import annotations
+
+from fastapi import FastAPI
+from fastapi.openapi.docs import get_swagger_ui_html, get_swagger_ui_oauth2_redirect_html
+from fastapi.responses import HTMLResponse
+from starlette.staticfiles import StaticFiles
+
+ASSETS = "/docs/assets"
+
+
+def mount_docs(app: FastAPI, path: str = "/docs") -> None:
+    """Serve Swagger UI at ``path`` from the installed ``swagger_ui_bundle`` files.
+
+    The app must be created with ``docs_url=None`` (and ``redoc_url=None``) so this page replaces
+    FastAPI's CDN one.
+    """
+    from swagger_ui_bundle import swagger_ui_path
+
+    app.mount(ASSETS, StaticFiles(directory=swagger_ui_path), name="docs-assets")
+    redirect = f"{path}/oauth2-redirect"
+
+    @app.get(path, include_in_schema=False)
+    async def swagger_ui() -> HTMLResponse:
+        return get_swagger_ui_html(
+            openapi_url=app.openapi_url, title=f"{app.title} - API", oauth2_redirect_url=redirect,
+            swagger_js_url=f"{ASSETS}/swagger-ui-bundle.js", swagger_css_url=f"{ASSETS}/swagger-ui.css",
+            swagger_favicon_url=f"{ASSETS}/favicon-32x32.png")
+
+    @app.get(redirect, include_in_schema=False)
+    async def swagger_ui_redirect() -> HTMLResponse:
+        return get_swagger_ui_oauth2_redirect_html()
+
+
+__all__ = ["ASSETS", "mount_docs"]
