@@ -14,11 +14,24 @@ from service.commands import serve as serve_cmd
 COMMANDS = (identify_cmd, serve_cmd, replay_cmd, demo_cmd, diagnose_cmd)
 
 
+class DefaultsHelpFormatter(argparse.HelpFormatter):
+    """Appends ``(default: X)`` to an option's help unless it says its default already or has none."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        help_ = action.help or ""
+        if ("default" in help_ or action.default in (None, False, argparse.SUPPRESS)
+                or not action.option_strings):
+            return help_
+        return f"{help_} (default: %(default)s)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="aslm", description="Ambient-signal load modelling from PMU data.")
     sub = parser.add_subparsers(dest="command", required=True)
     for module in COMMANDS:
         module.add_parser(sub)
+    for command in sub.choices.values():  # every command's --help shows its defaults
+        command.formatter_class = DefaultsHelpFormatter
     return parser
 
 
