@@ -19,8 +19,8 @@ class DefaultsHelpFormatter(argparse.HelpFormatter):
 
     def _get_help_string(self, action: argparse.Action) -> str:
         help_ = action.help or ""
-        if ("default" in help_ or action.default in (None, False, argparse.SUPPRESS)
-                or not action.option_strings):
+        if ("default" in help_ or action.default is None or action.default is False
+                or action.default == argparse.SUPPRESS or not action.option_strings):
             return help_
         return f"{help_} (default: %(default)s)"
 

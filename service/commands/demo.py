@@ -31,15 +31,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rate", type=float, default=50.0, help="frames/s per bus (default 50)")
     p.add_argument("--workers", type=int, default=2, help="worker processes (default 2)")
     p.add_argument("--level", type=int, default=2, help="measurement-noise level (default 2)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the synthetic fleet")
     p.add_argument("--periods", type=int, default=None, help="exit after N periods with results")
     p.add_argument("--diagnose-every", type=int, default=4,
                    help="discrepancy diagnosis of every bus each k-th period (default 4; 0: off)")
     p.add_argument("--duration", type=float, default=None, help="exit after this many seconds")
     p.add_argument("--port", type=int, default=8080, help="REST port (default 8080; any free port if taken)")
     p.add_argument("--out", default=None, help="directory for the SQLite file (default: a temporary one)")
-    p.add_argument("--encoding", choices=["binary", "json"], default="binary")
-    p.add_argument("--log-level", default="WARNING")
+    p.add_argument("--encoding", choices=["binary", "json"], default="binary", help="frame encoding on Zenoh")
+    p.add_argument("--log-level", default="WARNING", help="logging level")
     p.set_defaults(func=run)
 
 

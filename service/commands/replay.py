@@ -19,19 +19,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--buses", type=int, default=10, help="synthetic buses (default 10)")
     p.add_argument("--rate", type=float, default=50.0, help="frames/s per bus (default 50)")
     p.add_argument("--batch", type=float, default=0.2, help="seconds of frames per message (default 0.2)")
-    p.add_argument("--encoding", choices=["binary", "json"], default="binary")
+    p.add_argument("--encoding", choices=["binary", "json"], default="binary", help="frame encoding")
     p.add_argument("--level", type=int, default=2, help="measurement-noise level of the fleet (default 2)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0, help="seed of the synthetic fleet")
     p.add_argument("--f0", type=float, default=50.0, help="nominal frequency [Hz]")
     p.add_argument("--truth", metavar="FILE", help="write the true parameters (JSON) here")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds")
     p.add_argument("--loop", action="store_true", help="repeat recordings")
-    p.add_argument("--prefix", default="aslm")
+    p.add_argument("--prefix", default="aslm", help="Zenoh key prefix")
     p.add_argument("--mode", default="peer", choices=["peer", "client"], help="Zenoh mode")
     p.add_argument("--connect", action="append", metavar="ENDPOINT",
                    help="Zenoh endpoint (default tcp/127.0.0.1:7447; repeatable)")
     p.add_argument("--listen", action="append", metavar="ENDPOINT", help="Zenoh endpoint to listen on")
-    p.add_argument("--log-level", default="INFO")
+    p.add_argument("--log-level", default="INFO", help="logging level")
     p.set_defaults(func=run)
 
 
