@@ -10,8 +10,9 @@ from service.commands import diagnose as diagnose_cmd
 from service.commands import identify as identify_cmd
 from service.commands import replay as replay_cmd
 from service.commands import serve as serve_cmd
+from service.commands import simulate as simulate_cmd
 
-COMMANDS = (identify_cmd, serve_cmd, replay_cmd, demo_cmd, diagnose_cmd)
+COMMANDS = (identify_cmd, serve_cmd, replay_cmd, demo_cmd, diagnose_cmd, simulate_cmd)
 
 
 class DefaultsHelpFormatter(argparse.HelpFormatter):
