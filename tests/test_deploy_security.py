@@ -65,7 +65,6 @@ def _client(d: Path, role: str, endpoint: str) -> zenoh.Session:
     conf.insert_json5("mode", '"client"')
     conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
     conf.insert_json5("scouting/multicast/enabled", "false")
-    # The whole tls object at once: set key by key, the client certificate is not sent (Zenoh 1.x).
     conf.insert_json5("transport/link/tls", json.dumps({
         "root_ca_certificate": str(d / "ca.pem"), "enable_mtls": True,
         "connect_certificate": str(d / f"{role}.pem"), "connect_private_key": str(d / f"{role}.key")}))
