@@ -25,23 +25,32 @@ def _plt():
     return plt
 
 
-def _overlay(plt, s: dict, path: Path) -> None:
+def _time_figure(plt, s: dict, path: Path, ylabel: str, draw) -> None:
+    """P and Q panels over time, the held-out part shaded; ``draw(ax, ch)`` adds the curves."""
     fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
     t = s["t"]
-    k0, ks, ke = s["k0"], s["ks"], s["ke"]
     for ax, ch in zip(axes, ("P", "Q"), strict=True):
-        ax.plot(t[k0:], s[ch][k0:], color="0.55", lw=0.8, label="measured")
-        ax.plot(t[k0:], s[f"{ch}_before"][k0:], color="C0", lw=1.1, label="model before")
-        if s[f"{ch}_after"] is not None:
-            ax.plot(t[k0:], s[f"{ch}_after"][k0:], color="C3", lw=1.1, ls="--", label="model after")
-        ax.axvspan(t[ks], t[ke - 1], color="C2", alpha=0.08, label="held out")
-        ax.set_ylabel(f"{ch} [pu]")
+        draw(ax, ch)
+        ax.axvspan(t[s["ks"]], t[s["ke"] - 1], color="C2", alpha=0.08, label="held out")
+        ax.set_ylabel(ylabel.format(ch=ch))
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize=8, ncol=4)
     axes[-1].set_xlabel("t [s]")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _overlay(plt, s: dict, path: Path) -> None:
+    t, k0 = s["t"], s["k0"]
+
+    def draw(ax, ch: str) -> None:
+        ax.plot(t[k0:], s[ch][k0:], color="0.55", lw=0.8, label="measured")
+        ax.plot(t[k0:], s[f"{ch}_before"][k0:], color="C0", lw=1.1, label="model before")
+        if s[f"{ch}_after"] is not None:
+            ax.plot(t[k0:], s[f"{ch}_after"][k0:], color="C3", lw=1.1, ls="--", label="model after")
+
+    _time_figure(plt, s, path, "{ch} [pu]", draw)
 
 
 def _merged(bands: list) -> list[tuple[float, float]]:
@@ -57,26 +66,19 @@ def _merged(bands: list) -> list[tuple[float, float]]:
 
 def _residual(plt, s: dict, report: DiagnosisReport, path: Path) -> None:
     """Measured − model over time, before and after, the held-out part and the located segments shaded."""
-    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
-    t = s["t"]
-    k0, ks, ke = s["k0"], s["ks"], s["ke"]
+    t, k0 = s["t"], s["k0"]
     segments = report.located.time_segments
-    for ax, ch in zip(axes, ("P", "Q"), strict=True):
+
+    def draw(ax, ch: str) -> None:
         ax.plot(t[k0:], s[ch][k0:] - s[f"{ch}_before"][k0:], color="C0", lw=0.8, label="residual before")
         if s[f"{ch}_after"] is not None:
             ax.plot(t[k0:], s[ch][k0:] - s[f"{ch}_after"][k0:], color="C3", lw=0.8, alpha=0.8,
                     label="residual after")
         ax.axhline(0.0, color="k", lw=0.6)
-        ax.axvspan(t[ks], t[ke - 1], color="C2", alpha=0.08, label="held out")
         for i, seg in enumerate(segments.get(ch, [])):
             ax.axvspan(seg[-2], seg[-1], color="C1", alpha=0.18, lw=0, label="located segment" if i == 0 else None)
-        ax.set_ylabel(f"{ch} residual [pu]")
-        ax.grid(alpha=0.3)
-    axes[0].legend(loc="upper right", fontsize=8, ncol=4)
-    axes[-1].set_xlabel("t [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+
+    _time_figure(plt, s, path, "{ch} residual [pu]", draw)
 
 
 def _spectrum(plt, s: dict, report: DiagnosisReport, floors: dict, path: Path) -> None:
