@@ -1,9 +1,10 @@
 """``/docs``: Swagger UI from files installed with the service, so the page works without the internet.
 
 FastAPI's default page loads Swagger UI from a CDN and is blank offline (a control-room network, a
-laptop on a plane).  The ``swagger-ui-bundle`` package ships Swagger UI's dist files; they are served
-under ``/docs/assets`` and the page refers only to them (FastAPI, "Custom Docs UI Static Assets").
-ReDoc has no such package and is off rather than half-working.
+laptop on a plane).  The ``swagger-ui-bundle-v2`` package (module ``swagger_ui_bundle``) ships Swagger
+UI 5's dist files (Swagger UI 4 cannot read FastAPI's OpenAPI 3.1); they are served under
+``/docs/assets`` and the page refers only to them (FastAPI, "Custom Docs UI Static Assets").  ReDoc is
+off: its page would load from a CDN too, and one documentation page is enough.
 """
 
 from __future__ import annotations
