@@ -9,10 +9,15 @@ off: its page would load from a CDN too, and one documentation page is enough.
 
 from __future__ import annotations
 
+import logging
+from pathlib import Path
+
 from fastapi import FastAPI
 from fastapi.openapi.docs import get_swagger_ui_html, get_swagger_ui_oauth2_redirect_html
 from fastapi.responses import HTMLResponse
 from starlette.staticfiles import StaticFiles
+
+log = logging.getLogger(__name__)
 
 ASSETS = "/docs/assets"
 
@@ -23,7 +28,19 @@ def mount_docs(app: FastAPI, path: str = "/docs") -> None:
     The app must be created with ``docs_url=None`` (and ``redoc_url=None``) so this page replaces
     FastAPI's CDN one.
     """
-    from swagger_ui_bundle import swagger_ui_path
+    try:
+        from swagger_ui_bundle import swagger_ui_path
+    except ImportError:
+        swagger_ui_path = None
+    if swagger_ui_path is None or not Path(swagger_ui_path).is_dir():
+        # A broken install must not take REST down with it: say where the API description is instead.
+        log.warning("Swagger UI files not installed (swagger-ui-bundle-v2): /docs links to /openapi.json")
+
+        @app.get(path, include_in_schema=False)
+        async def no_swagger_ui() -> HTMLResponse:
+            return HTMLResponse(f'<p>Swagger UI is not installed (pip install swagger-ui-bundle-v2). '
+                                f'The API description is at <a href="{app.openapi_url}">{app.openapi_url}</a>.</p>')
+        return
 
     app.mount(ASSETS, StaticFiles(directory=swagger_ui_path), name="docs-assets")
     redirect = f"{path}/oauth2-redirect"

@@ -177,3 +177,17 @@ def test_docs_page_loads_swagger_ui_from_the_service_itself(rest):
     major = int(re.search(r"swagger-ui-(\d+)\.", str(swagger_ui_path)).group(1))
     assert spec["openapi"].startswith("3.1") and major >= 5
     assert client.get("/redoc").status_code == 404  # ReDoc would need a CDN: off rather than blank
+
+
+def test_docs_without_swagger_ui_files_still_serves_rest(monkeypatch):
+    import swagger_ui_bundle
+    from fastapi import FastAPI
+
+    from service.docs_assets import mount_docs
+
+    monkeypatch.setattr(swagger_ui_bundle, "swagger_ui_path", "/nonexistent/swagger-ui")
+    app = FastAPI(docs_url=None, redoc_url=None)
+    mount_docs(app)
+    with TestClient(app) as client:
+        page = client.get("/docs")
+    assert page.status_code == 200 and 'href="/openapi.json"' in page.text

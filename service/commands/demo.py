@@ -173,8 +173,8 @@ def run(args: argparse.Namespace) -> int:
     started = time.time()
     print(f"aslm demo: {args.buses} synthetic buses at {args.rate:g} frames/s, period {args.period:g} s, "
           f"window {args.window:g} s", flush=True)
-    kept = "deleted on exit (--temp)" if tmp is not None else "kept after exit; --temp for a throw-away one"
-    print(f"history: {settings.storage_path} ({kept})", flush=True)
+    kept = "deleted on exit (--temp)" if tmp is not None else "kept after exit (--temp for a throw-away one)"
+    print(f"history: {settings.storage_path}, {kept}", flush=True)
     print(f"starting {args.workers} worker processes: they load the compiled numerical kernels (numba). "
           "The first run after an install compiles them, 1-2 min (scripts/setup does it ahead); "
           "later starts take seconds.", flush=True)
