@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hmac
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -14,14 +15,18 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, ConfigDict, Field
 
+from service.audit import AuditEntry, AuditLog, token_identity
 from service.buffers import BufferStore
 from service.busnames import bus_name_problem
 from service.dashboard import add_dashboard
+from service.docs_assets import mount_docs
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
 from service.models import BusResult, LatestDiagnosis, PeriodSummary
 from service.settings import PERIOD_MAX_S, ServiceSettings
 from service.storage import Storage
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -62,6 +67,8 @@ class ServiceView(Protocol):
     metrics : ServiceMetrics
     period_s : float
         Period T in force [s].
+    audit : AuditLog
+        Run-time configuration changes: who, when, old → new.
     """
 
     settings: ServiceSettings
@@ -70,6 +77,7 @@ class ServiceView(Protocol):
     latest: LatestResults
     metrics: ServiceMetrics
     period_s: float
+    audit: AuditLog
 
     def status(self) -> RunStatus:
         """Scheduling and worker state."""
@@ -116,6 +124,11 @@ class ConfigView(BaseModel):
 
     settings: dict
     period_s: float = Field(description="Effective period T [s] (settings or the persisted run-time change)")
+    startup_period_s: float = Field(
+        description="T [s] from the settings (file < environment < flags), before any run-time change")
+    period_source: str = Field(
+        description="Where period_s comes from: settings, or run-time (a PUT /config change, persisted in "
+                    "the SQLite file; it overrides the settings at every start)")
 
 
 class ConfigUpdate(BaseModel):
@@ -203,23 +216,35 @@ BusPath = Annotated[str, Depends(valid_bus)]
 
 def create_app(service: ServiceView) -> FastAPI:
     """FastAPI application bound to one running service (a :class:`ServiceView`)."""
-    app = FastAPI(title="ASLM service", version="0.1.0",
+    app = FastAPI(title="ASLM service", version="0.1.0", docs_url=None, redoc_url=None,
                   description="Ambient-signal load model identification from PMU streams.")
     app.add_exception_handler(RequestValidationError, _validation_error)
+    mount_docs(app)  # Swagger UI from installed files: /docs works offline
     started = time.time()
 
-    def operator(authorization: Annotated[str | None, Header()] = None,
-                 x_operator_token: Annotated[str | None, Header()] = None) -> None:
-        """Require ``Authorization: Bearer <token>`` (or ``X-Operator-Token``)."""
+    def operator(request: Request, authorization: Annotated[str | None, Header()] = None,
+                 x_operator_token: Annotated[str | None, Header()] = None) -> str | None:
+        """Require ``Authorization: Bearer <token>`` (or ``X-Operator-Token``); the token's fingerprint."""
         expected = service.settings.operator_token
         given = x_operator_token
         if authorization and authorization.lower().startswith("bearer "):
             given = authorization[7:].strip()
         if expected is None:
+            log.warning("refused %s %s from %s: no operator token configured", request.method, request.url.path,
+                        _address(request))
             raise HTTPException(401, "no operator token is configured (ASLM_OPERATOR_TOKEN): changes refused",
                                 headers={"WWW-Authenticate": "Bearer"})
         if not given or not hmac.compare_digest(given.encode(), expected.get_secret_value().encode()):
+            log.warning("refused %s %s from %s: missing or wrong operator token", request.method,
+                        request.url.path, _address(request))
             raise HTTPException(401, "operator token required", headers={"WWW-Authenticate": "Bearer"})
+        return token_identity(given)
+
+    def config_view() -> ConfigView:
+        startup = service.settings.period_s
+        return ConfigView(settings=service.settings.public_dict(), period_s=service.period_s,
+                          startup_period_s=startup,
+                          period_source="settings" if service.period_s == startup else "run-time")
 
     @app.get("/health", response_model=Health)
     def health() -> Health:
@@ -295,16 +320,29 @@ def create_app(service: ServiceView) -> FastAPI:
 
     @app.get("/config", response_model=ConfigView)
     def get_config() -> ConfigView:
-        return ConfigView(settings=service.settings.public_dict(), period_s=service.period_s)
+        return config_view()
 
-    @app.put("/config", response_model=ConfigView, dependencies=[Depends(operator)])
-    def put_config(update: ConfigUpdate) -> ConfigView:
+    @app.put("/config", response_model=ConfigView)
+    def put_config(update: ConfigUpdate, request: Request,
+                   token: str | None = Depends(operator)) -> ConfigView:  # noqa: B008 - FastAPI's idiom
+        # Depends as a default, not in Annotated: with postponed annotations FastAPI cannot resolve the
+        # local name `operator` from a string and would take `token` for a query parameter.
         if update.period_s is not None:
+            old = service.period_s
             try:
                 service.set_period(update.period_s)
             except ValueError as exc:
                 raise HTTPException(422, str(exc)) from None
-        return ConfigView(settings=service.settings.public_dict(), period_s=service.period_s)
+            entry = service.audit.record("period_s", old, service.period_s, token=token,
+                                         address=_address(request))
+            log.info("configuration: period_s %g -> %g s by token %s from %s", old, service.period_s,
+                     entry.token, entry.address)
+        return config_view()
+
+    @app.get("/config/audit", response_model=list[AuditEntry])
+    def config_audit(limit: Annotated[int, Query(ge=1, le=10000)] = 100) -> list[AuditEntry]:
+        """Run-time configuration changes, newest first: who (token fingerprint, client address), when, old → new."""
+        return service.audit.entries(limit)
 
     @app.get("/metrics", response_class=Response)
     def metrics() -> Response:
@@ -312,3 +350,9 @@ def create_app(service: ServiceView) -> FastAPI:
 
     add_dashboard(app, service)  # /ui (and / → /ui/), /fleet, /buses/{bus}/diagnoses, /buses/{bus}/playback
     return app
+
+
+def _address(request: Request) -> str | None:
+    """``host:port`` of the client (the direct peer: a reverse proxy in front shows as itself)."""
+    client = request.client
+    return f"{client.host}:{client.port}" if client else None

@@ -8,6 +8,7 @@ import logging
 from aslm_core.params import DYNAMIC_NAMES
 from service import registry
 from service.api import RunStatus, create_app
+from service.audit import AuditLog
 from service.buffers import BufferStore
 from service.clock import SYSTEM_CLOCK, Clock
 from service.context import Context
@@ -53,6 +54,7 @@ class Service:
         self.rest = rest
         self.clock = clock
         self.storage = Storage(settings.storage_path)
+        self.audit = AuditLog(settings.storage_path)
         persisted = self.storage.get_config()
         self.period_s = settings.period_s
         if "period_s" in persisted:
@@ -145,6 +147,7 @@ class Service:
             self.executor.close()
         self.context.close()
         self.storage.close()
+        self.audit.close()
         self.gc.stop()
 
     def __enter__(self) -> Service:

@@ -12,8 +12,20 @@ from service.commands import export as export_cmd
 from service.commands import identify as identify_cmd
 from service.commands import replay as replay_cmd
 from service.commands import serve as serve_cmd
+from service.commands import simulate as simulate_cmd
 
-COMMANDS = (identify_cmd, serve_cmd, replay_cmd, demo_cmd, diagnose_cmd, export_cmd, bridge_cmd)
+COMMANDS = (identify_cmd, serve_cmd, replay_cmd, demo_cmd, diagnose_cmd, export_cmd, bridge_cmd, simulate_cmd)
+
+
+class DefaultsHelpFormatter(argparse.HelpFormatter):
+    """Appends ``(default: X)`` to an option's help unless it says its default already or has none."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        help_ = action.help or ""
+        if ("default" in help_ or action.default is None or action.default is False
+                or action.default == argparse.SUPPRESS or not action.option_strings):
+            return help_
+        return f"{help_} (default: %(default)s)"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -21,6 +33,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     for module in COMMANDS:
         module.add_parser(sub)
+    for command in sub.choices.values():  # every command's --help shows its defaults
+        command.formatter_class = DefaultsHelpFormatter
     return parser
 
 

@@ -1,7 +1,9 @@
 """Human report of a diagnosis: Markdown with PNG figures (matplotlib, Agg backend).
 
-Figures: measured vs model over time before/after (held-out part shaded), residual spectrum against the
-noise floor before/after, and the residual's coherence with V, dV/dt and the bus frequency deviation.
+Figures: measured vs model over time before/after (held-out part shaded); the residual (measured − model)
+over time before/after, with the located time segments; the residual spectrum against the noise floor
+before/after, with the located bands; and the residual's coherence with V, dV/dt and the bus frequency
+deviation, with the level independent signals exceed with probability 0.01 (the locator's threshold).
 """
 
 from __future__ import annotations
@@ -9,6 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from aslm_core.diagnosis.locate import coherence as coherence_stats
 from aslm_core.diagnosis.locate import periodogram
 from aslm_core.diagnosis.report import DiagnosisReport
 
@@ -22,23 +25,60 @@ def _plt():
     return plt
 
 
-def _overlay(plt, s: dict, path: Path) -> None:
+def _time_figure(plt, s: dict, path: Path, ylabel: str, draw) -> None:
+    """P and Q panels over time, the held-out part shaded; ``draw(ax, ch)`` adds the curves."""
     fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
     t = s["t"]
-    k0, ks, ke = s["k0"], s["ks"], s["ke"]
     for ax, ch in zip(axes, ("P", "Q"), strict=True):
-        ax.plot(t[k0:], s[ch][k0:], color="0.55", lw=0.8, label="measured")
-        ax.plot(t[k0:], s[f"{ch}_before"][k0:], color="C0", lw=1.1, label="model before")
-        if s[f"{ch}_after"] is not None:
-            ax.plot(t[k0:], s[f"{ch}_after"][k0:], color="C3", lw=1.1, ls="--", label="model after")
-        ax.axvspan(t[ks], t[ke - 1], color="C2", alpha=0.08, label="held out")
-        ax.set_ylabel(f"{ch} [pu]")
+        draw(ax, ch)
+        ax.axvspan(t[s["ks"]], t[s["ke"] - 1], color="C2", alpha=0.08, label="held out")
+        ax.set_ylabel(ylabel.format(ch=ch))
         ax.grid(alpha=0.3)
     axes[0].legend(loc="upper right", fontsize=8, ncol=4)
     axes[-1].set_xlabel("t [s]")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _overlay(plt, s: dict, path: Path) -> None:
+    t, k0 = s["t"], s["k0"]
+
+    def draw(ax, ch: str) -> None:
+        ax.plot(t[k0:], s[ch][k0:], color="0.55", lw=0.8, label="measured")
+        ax.plot(t[k0:], s[f"{ch}_before"][k0:], color="C0", lw=1.1, label="model before")
+        if s[f"{ch}_after"] is not None:
+            ax.plot(t[k0:], s[f"{ch}_after"][k0:], color="C3", lw=1.1, ls="--", label="model after")
+
+    _time_figure(plt, s, path, "{ch} [pu]", draw)
+
+
+def _merged(bands: list) -> list[tuple[float, float]]:
+    """Located bands [Hz] with touching or overlapping ones joined, to shade each stretch once."""
+    out: list[tuple[float, float]] = []
+    for lo, hi in sorted((float(b[0]), float(b[1])) for b in bands):
+        if out and lo <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], hi))
+        else:
+            out.append((lo, hi))
+    return out
+
+
+def _residual(plt, s: dict, report: DiagnosisReport, path: Path) -> None:
+    """Measured − model over time, before and after, the held-out part and the located segments shaded."""
+    t, k0 = s["t"], s["k0"]
+    segments = report.located.time_segments
+
+    def draw(ax, ch: str) -> None:
+        ax.plot(t[k0:], s[ch][k0:] - s[f"{ch}_before"][k0:], color="C0", lw=0.8, label="residual before")
+        if s[f"{ch}_after"] is not None:
+            ax.plot(t[k0:], s[ch][k0:] - s[f"{ch}_after"][k0:], color="C3", lw=0.8, alpha=0.8,
+                    label="residual after")
+        ax.axhline(0.0, color="k", lw=0.6)
+        for i, seg in enumerate(segments.get(ch, [])):
+            ax.axvspan(seg[-2], seg[-1], color="C1", alpha=0.18, lw=0, label="located segment" if i == 0 else None)
+
+    _time_figure(plt, s, path, "{ch} residual [pu]", draw)
 
 
 def _spectrum(plt, s: dict, report: DiagnosisReport, floors: dict, path: Path) -> None:
@@ -56,17 +96,20 @@ def _spectrum(plt, s: dict, report: DiagnosisReport, floors: dict, path: Path) -
             ax.semilogy(expected["f"][1:], expected[ch][1:], color="k", ls=":", label="expected noise")
         else:
             ax.axhline(floors[ch].psd, color="k", ls=":", label="noise floor")
+        for i, (lo, hi) in enumerate(_merged(report.located.bands.get(ch, []))):
+            ax.axvspan(lo, hi, color="C1", alpha=0.18, lw=0, label="located band" if i == 0 else None)
         ax.set_xscale("log")
         ax.set_xlabel("f [Hz]")
         ax.set_ylabel(f"PSD of {ch} residual [pu²/Hz]")
         ax.grid(alpha=0.3, which="both")
-    axes[0].legend(fontsize=8)
+    for ax in axes:  # each channel's legend: its own located bands
+        ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
 
-def _coherence(plt, s: dict, path: Path) -> None:
+def _coherence(plt, s: dict, report: DiagnosisReport, path: Path) -> None:
     from scipy import signal
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
@@ -78,12 +121,18 @@ def _coherence(plt, s: dict, path: Path) -> None:
         for name, x in s["drivers"].items():
             f, c = signal.coherence(r, x[k0:ke], fs=fs, nperseg=nperseg)
             ax.plot(f, c, lw=1.0, label=name)
+        # The locator's threshold for this span (same segments): independent signals exceed it in one
+        # bin with probability 0.01.
+        threshold = coherence_stats(r, {}, fs)["threshold"]
+        ax.axhline(threshold, color="k", ls="--", lw=0.9, label=f"threshold {threshold:.2f} (p = 0.01)")
+        for i, (lo, hi) in enumerate(_merged(report.located.bands.get(ch, []))):
+            ax.axvspan(lo, hi, color="C1", alpha=0.18, lw=0, label="located band" if i == 0 else None)
         ax.set_xlim(0, min(5.0, fs / 2))
+        ax.legend(fontsize=8)
         ax.set_xlabel("f [Hz]")
         ax.set_title(f"coherence of the {ch} residual (before)")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("magnitude-squared coherence [-]")
-    axes[0].legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -101,10 +150,12 @@ def write_report(report: DiagnosisReport, directory: str | Path, *, title: str =
     figs = []
     for i, s in enumerate(report.series):
         suffix = f"_{i}" if len(report.series) > 1 else ""
-        names = (f"overlay{suffix}.png", f"spectrum{suffix}.png", f"coherence{suffix}.png")
+        names = (f"overlay{suffix}.png", f"residual{suffix}.png", f"spectrum{suffix}.png",
+                 f"coherence{suffix}.png")
         _overlay(plt, s, out / names[0])
-        _spectrum(plt, s, report, floors, out / names[1])
-        _coherence(plt, s, out / names[2])
+        _residual(plt, s, report, out / names[1])
+        _spectrum(plt, s, report, floors, out / names[2])
+        _coherence(plt, s, report, out / names[3])
         figs.append(names)
     fb, fa = report.fit_before, report.fit_after
     lines = [f"# Discrepancy diagnosis — {title}", "",
@@ -135,8 +186,8 @@ def write_report(report: DiagnosisReport, directory: str | Path, *, title: str =
                      f"{100 * e.improvement.p:.1f} % | {100 * e.improvement.q:.1f} % | {pars} |")
     lines += ["", "## Figures", ""]
     for names in figs:
-        lines += [f"![measured vs model]({names[0]})", "", f"![residual spectrum]({names[1]})", "",
-                  f"![coherence]({names[2]})", ""]
+        lines += [f"![measured vs model]({names[0]})", "", f"![residual over time]({names[1]})", "",
+                  f"![residual spectrum]({names[2]})", "", f"![coherence]({names[3]})", ""]
     md = out / "report.md"
     md.write_text("\n".join(lines))
     return md

@@ -33,6 +33,7 @@ from service.clock import SYSTEM_CLOCK, Clock
 from service.diagnosis_queue import DiagnosisQueue
 from service.executors.base import Executor, TaskOutcome, WindowTask
 from service.models import BusResult, Identified, PeriodSummary
+from service.timefmt import utc_text
 
 log = logging.getLogger(__name__)
 
@@ -237,7 +238,7 @@ class Scheduler:
             try:
                 self.run_period(boundary, period_s)
             except Exception:  # noqa: BLE001 - one bad period must not end the service
-                log.exception("period %s failed", boundary)
+                log.exception("period %s failed", utc_text(boundary))
                 self._missed(boundary, period_s, "interrupted", sorted(set(self.store.buses()) - self._reported))
             finally:
                 self.running_period = None
@@ -373,7 +374,7 @@ class Scheduler:
         if self.diagnose_every > 0 and self.on_diagnosis is not None and self.periods_run % self.diagnose_every == 0:
             self._submit_diagnoses(boundary, identified)
         self.diagnoses.resume()
-        log.info("period %.0f: %d ok, %d failed, %d skipped in %.2f s", boundary, summary.n_ok, summary.n_failed,
+        log.info("period %s: %d ok, %d failed, %d skipped in %.2f s", utc_text(boundary), summary.n_ok, summary.n_failed,
                  summary.n_skipped, summary.latency_s)
         return summary
 

@@ -26,17 +26,29 @@ SETTING_FLAGS: tuple[tuple[str, str, type, str], ...] = (
 )
 
 
+def _setting_default(field: str) -> str:
+    """`` (default: X; $ASLM_FIELD)``: the settings field's default, shown although the flag's is None."""
+    from service.settings import ServiceSettings
+
+    info = ServiceSettings.model_fields[field]
+    value = info.default if info.default_factory is None else info.default_factory()
+    shown = "none" if value is None else (" ".join(value) or "none") if isinstance(value, list) else value
+    return f" (default: {shown}, unless the settings file or ${'ASLM_' + field.upper()} sets it)"
+
+
 def add_setting_flags(p: argparse.ArgumentParser, skip: tuple[str, ...] = ()) -> None:
-    """Add the settings flags (all default None: not given)."""
+    """Add the settings flags.  Each defaults to None (not given: the file/environment value stands);
+    the help shows the settings field's own default."""
     p.add_argument("--config", metavar="FILE", help="TOML settings file (default $ASLM_CONFIG)")
     for flag, field, typ, help_ in SETTING_FLAGS:
         if field not in skip:
-            p.add_argument(flag, dest=field, type=typ, default=None, help=help_)
+            p.add_argument(flag, dest=field, type=typ, default=None, help=help_ + _setting_default(field))
     if "zenoh_connect" not in skip:
         p.add_argument("--connect", dest="zenoh_connect", action="append", metavar="ENDPOINT",
-                       help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)")
+                       help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable)"
+                       + _setting_default("zenoh_connect"))
         p.add_argument("--listen", dest="zenoh_listen", action="append", metavar="ENDPOINT",
-                       help="Zenoh endpoint to listen on (repeatable)")
+                       help="Zenoh endpoint to listen on (repeatable)" + _setting_default("zenoh_listen"))
     p.add_argument("--log-level", default="INFO", help="logging level (default INFO)")
 
 

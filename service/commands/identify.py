@@ -17,9 +17,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="one JSON object per line per FILE")
     p.add_argument("--f0", type=float, default=None, help="nominal frequency [Hz] (default: file's, else 50)")
     add_mapping_flags(p)
-    p.add_argument("--integrator", choices=["rk4", "euler"], default="rk4")
-    p.add_argument("--objective", choices=["paper", "ml", "ssq"], default="paper")
-    p.add_argument("--static", choices=["zip", "exponential"], default="zip")
+    p.add_argument("--integrator", choices=["rk4", "euler"], default="rk4", help="motor model integrator")
+    p.add_argument("--objective", choices=["paper", "ml", "ssq"], default="paper",
+                   help="objective: the paper's eq. 7, Gaussian likelihood or sum of squares")
+    p.add_argument("--static", choices=["zip", "exponential"], default="zip", help="static load model")
     p.add_argument("--lowpass", type=float, default=None, metavar="HZ", help="causal low-pass cut-off [Hz]")
     p.add_argument("--starts", type=int, default=3, help="random feasible starts")
     p.add_argument("--disturbance", choices=["none", "ar"], default="none",

@@ -6,6 +6,7 @@ these tests also check that REST answers with what the sinks wrote.
 
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import dataclass
 
@@ -13,6 +14,7 @@ import pytest
 from service_helpers import settings_for
 
 from service.api import RunStatus, create_app
+from service.audit import AuditLog, token_identity
 from service.buffers import BufferStore
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
@@ -39,6 +41,7 @@ class View:
     latest: LatestResults
     metrics: ServiceMetrics
     period_s: float
+    audit: AuditLog
 
     def status(self) -> RunStatus:
         return RunStatus(next_period=1020.0, running_period=None, workers_replaced=2)
@@ -61,7 +64,8 @@ def rest(tmp_path):
     settings = settings_for(tmp_path, 7447, period_s=10.0, window_s=2.0, late_s=0.5)
     store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s)
     storage = Storage(settings.storage_path)
-    view = View(settings, store, storage, LatestResults(), ServiceMetrics(store), settings.period_s)
+    view = View(settings, store, storage, LatestResults(), ServiceMetrics(store), settings.period_s,
+                AuditLog(settings.storage_path))
     chain = SinkChain([StorageSink(storage, 1e9), view.latest, view.metrics], on_error=pytest.fail)
     with TestClient(create_app(view)) as client:
         yield view, chain, client
@@ -131,3 +135,71 @@ def test_put_config_refuses_non_finite_huge_and_unknown_values_with_422(rest, bo
                                                     "Content-Type": "application/json"})
     assert r.status_code == 422, (body, r.status_code, r.text)
     assert view.period_s == 10.0  # nothing changed
+
+
+def test_config_shows_the_startup_period_next_to_the_one_in_force(rest):
+    view, _, client = rest
+    before = client.get("/config").json()
+    assert (before["period_s"], before["startup_period_s"], before["period_source"]) == (10.0, 10.0, "settings")
+    client.put("/config", json={"period_s": 30.0}, headers={"X-Operator-Token": "op-secret"})
+    after = client.get("/config").json()
+    assert (after["period_s"], after["startup_period_s"], after["period_source"]) == (30.0, 10.0, "run-time")
+
+
+def test_config_changes_are_audited_with_who_when_old_and_new(rest, tmp_path):
+    view, _, client = rest
+    assert client.get("/config/audit").json() == []
+    # Refused changes (no token, wrong token, invalid value) leave no entry and change nothing.
+    client.put("/config", json={"period_s": 20.0})
+    client.put("/config", json={"period_s": 20.0}, headers={"X-Operator-Token": "wrong"})
+    client.put("/config", json={"period_s": 1.0}, headers={"X-Operator-Token": "op-secret"})
+    assert client.get("/config/audit").json() == []
+    client.put("/config", json={"period_s": 20.0}, headers={"Authorization": "Bearer op-secret"})
+    client.put("/config", json={"period_s": 40.0}, headers={"X-Operator-Token": "op-secret"})
+    entries = client.get("/config/audit").json()
+    assert [(e["field"], e["old"], e["new"]) for e in entries] == [("period_s", 20.0, 40.0),
+                                                                     ("period_s", 10.0, 20.0)]
+    newest = entries[0]
+    assert newest["token"] == token_identity("op-secret") and "op-secret" not in str(entries)
+    assert newest["address"].startswith("testclient:")  # the TestClient's peer; a real client's IP:port
+    assert newest["at_utc"].endswith("Z") and newest["at"] > 1.7e9
+    assert client.get("/config/audit", params={"limit": 1}).json() == entries[:1]
+    # Stored in the service's SQLite file: a restarted service shows the same log.
+    view.audit.close()
+    view.audit = AuditLog(view.settings.storage_path)
+    assert client.get("/config/audit").json() == entries
+
+
+def test_docs_page_loads_swagger_ui_from_the_service_itself(rest):
+    _, _, client = rest
+    page = client.get("/docs")
+    assert page.status_code == 200 and "SwaggerUIBundle" in page.text
+    # Every script, stylesheet and icon is a path on this server: nothing from a CDN, so it works offline.
+    refs = re.findall(r'(?:src|href)="([^"]+)"', page.text)
+    assert refs and all(r.startswith("/docs/assets/") for r in refs), refs
+    assert "http://" not in page.text and "https://" not in page.text
+    for ref in refs:
+        asset = client.get(ref)
+        assert asset.status_code == 200 and len(asset.content) > 500, ref
+    spec = client.get("/openapi.json").json()
+    assert spec["paths"]["/config/audit"]
+    # Swagger UI 4 shows "Unable to render this definition" for OpenAPI 3.1: the shipped one must be 5+.
+    from swagger_ui_bundle import swagger_ui_path
+
+    major = int(re.search(r"swagger-ui-(\d+)\.", str(swagger_ui_path)).group(1))
+    assert spec["openapi"].startswith("3.1") and major >= 5
+    assert client.get("/redoc").status_code == 404  # ReDoc would need a CDN: off rather than blank
+
+
+def test_docs_without_swagger_ui_files_still_serves_rest(monkeypatch):
+    import swagger_ui_bundle
+    from fastapi import FastAPI
+
+    from service.docs_assets import mount_docs
+
+    monkeypatch.setattr(swagger_ui_bundle, "swagger_ui_path", "/nonexistent/swagger-ui")
+    app = FastAPI(docs_url=None, redoc_url=None)
+    mount_docs(app)
+    with TestClient(app) as client:
+        page = client.get("/docs")
+    assert page.status_code == 200 and 'href="/openapi.json"' in page.text

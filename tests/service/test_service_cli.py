@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import re
+import sqlite3
 import subprocess
 import sys
 from pathlib import Path
@@ -25,14 +27,24 @@ def test_serve_refuses_invalid_settings_with_clear_message():
     assert r.returncode == 2 and "workers" in r.stderr
 
 
-def test_demo_runs_one_period_and_exits():
+def test_demo_runs_one_period_exits_and_keeps_its_history(tmp_path):
+    out = tmp_path / "demo"
     r = aslm("demo", "--periods", "1", "--period", "12", "--buses", "4", "--port", "0", "--duration", "200",
-             timeout=260)
+             "--out", str(out), timeout=260)
     assert r.returncode == 0, r.stderr
     assert "REST: http://127.0.0.1:" in r.stdout
     assert "ok=4 failed=0" in r.stdout
     assert r.stdout.count(" ok ") + r.stdout.count(" ok* ") >= 4
     assert "aslm demo: stopped" in r.stdout
+    # The first hour: it says what the start waits for, times are readable, nothing prints "()".
+    assert "load the compiled numerical kernels" in r.stdout and "workers ready after" in r.stdout
+    assert "()" not in r.stdout and not re.search(r"period \d{9,}", r.stdout)
+    assert re.search(r"period \d{4}-\d\d-\d\d \d\d:\d\d:\d\d UTC", r.stdout)
+    # The history stays where it said, and a second run would add to it.
+    db = out / "aslm-demo.sqlite"
+    assert f"history kept in {db}" in r.stdout
+    with sqlite3.connect(db) as con:
+        assert con.execute("SELECT COUNT(*) FROM results WHERE status = 'ok'").fetchone()[0] >= 4
 
 
 def test_serve_refuses_an_unusable_storage_path_with_one_line(tmp_path):

@@ -25,6 +25,16 @@ def resolve(value: str) -> str:
     return _INTERP.sub(lambda m: m.group(2) or "", str(value))
 
 
+def published(service: dict) -> list[tuple[str, str, str]]:
+    """(host address, host port, container port) of each short-syntax ``ports`` entry; "" = all interfaces."""
+    out = []
+    for entry in service.get("ports", []):
+        parts = str(entry).rsplit(":", 2)
+        host_ip, host_port, container = parts if len(parts) == 3 else ("", *parts)
+        out.append((host_ip, host_port, container))
+    return out
+
+
 def test_router_is_official_image_with_existing_config():
     router = SERVICES["zenoh-router"]
     assert router["image"].startswith("eclipse/zenoh:")
@@ -36,7 +46,7 @@ def test_router_is_official_image_with_existing_config():
     assert json.loads(conf.get_json("mode")) == "router"
     listen = json.loads(conf.get_json("listen/endpoints"))
     ports = {p.split(":")[-1] for p in listen}
-    assert {p.split(":")[1] for p in router["ports"]} <= {*ports}
+    assert {container for _, _, container in published(router)} <= {*ports}
 
 
 def test_service_env_names_exist_and_values_are_valid(monkeypatch, tmp_path):
@@ -55,8 +65,8 @@ def test_service_env_names_exist_and_values_are_valid(monkeypatch, tmp_path):
     monkeypatch.setenv("ASLM_STORAGE_URL", str(tmp_path / "x.sqlite"))
     s = load_settings()
     # REST port published, Zenoh endpoint pointing at the router's service name and port.
-    assert f"{s.http_port}:{s.http_port}" in svc["ports"] and s.http_host == "0.0.0.0"
-    router_port = SERVICES["zenoh-router"]["ports"][0].split(":")[1]
+    assert ("127.0.0.1", str(s.http_port), str(s.http_port)) in published(svc) and s.http_host == "0.0.0.0"
+    router_port = published(SERVICES["zenoh-router"])[0][2]
     assert s.zenoh_connect == [f"tcp/zenoh-router:{router_port}"] and s.zenoh_mode == "client"
     assert any(v.split(":")[1] == "/data" for v in svc["volumes"]) and s.storage_path.parent == tmp_path
     assert svc["command"][0] in build_parser()._subparsers._group_actions[0].choices
@@ -67,8 +77,18 @@ def test_dask_profile_matches_executor_setting():
     sched, worker = SERVICES["dask-scheduler"], SERVICES["dask-worker"]
     assert sched["profiles"] == worker["profiles"] == ["dask"]
     address = "tcp://dask-scheduler:8786"
-    assert address in worker["entrypoint"] and "8786:8786" in sched["ports"]
+    assert address in worker["entrypoint"]
     assert load_settings(executor=address, storage_url=":memory:").executor == address
+
+
+def test_published_ports_bind_loopback_only_and_never_the_dask_scheduler():
+    # Issue 17, defect 7: "7447:7447" published the plain-TCP router (no access control) and "8786:8786"
+    # the Dask scheduler (runs any code it is sent) on every host interface.
+    for name, svc in SERVICES.items():
+        for host_ip, host_port, _ in published(svc):
+            assert host_ip == "127.0.0.1", f"{name} publishes {host_port} on all interfaces"
+    assert "ports" not in SERVICES["dask-scheduler"] and "ports" not in SERVICES["dask-worker"]
+    assert "network_mode" not in SERVICES["dask-scheduler"]  # host networking would expose it as well
 
 
 def test_replayer_command_parses_and_targets_the_router():
