@@ -167,4 +167,6 @@ def test_a_period_on_the_cluster_gives_the_local_pools_parameters(pool_of):
     for bus, res in on_dask.items():
         other = on_local[bus]
         assert (res.status, res.warm_start) == (other.status, other.warm_start) == ("ok", bus in warm)
-        assert res.parameters.model_dump() == other.parameters.model_dump(), bus
+        mine, theirs = res.parameters.model_dump(), other.parameters.model_dump()
+        mine.pop("elapsed_s"), theirs.pop("elapsed_s")  # wall time of the identification
+        assert mine == theirs, bus
