@@ -274,6 +274,11 @@ class BufferStore:
         """Buses that have sent anything, sorted."""
         return sorted(self._buses)
 
+    def discard(self, bus: str) -> None:
+        """Forget ``bus`` and its frames (another instance of a sharded fleet owns it now)."""
+        with self._lock:
+            self._buses.pop(bus, None)
+
     def reject_message(self, bus: str, reason: str, n_frames: int = 0) -> None:
         """Record an undecodable message and the frames it announced, if known."""
         buf = self.buffer(bus)
