@@ -65,10 +65,26 @@ def test_service_env_names_exist_and_values_are_valid(monkeypatch, tmp_path):
 
 def test_dask_profile_matches_executor_setting():
     sched, worker = SERVICES["dask-scheduler"], SERVICES["dask-worker"]
-    assert sched["profiles"] == worker["profiles"] == ["dask"]
+    assert sched["profiles"] == worker["profiles"] == ["dask", "cluster"]
     address = "tcp://dask-scheduler:8786"
-    assert address in worker["entrypoint"] and "8786:8786" in sched["ports"]
+    assert address in worker["entrypoint"] and "8786" in sched["expose"]
+    assert "ports" not in sched  # the scheduler runs what it is sent: never published on the host
+    assert sched["environment"]["DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES"] == "1"
     assert load_settings(executor=address, storage_url=":memory:").executor == address
+
+
+def test_cluster_profile_runs_two_sharded_instances_on_the_dask_cluster(tmp_path):
+    first, second = SERVICES["aslm"], SERVICES["aslm-2"]
+    assert second["profiles"] == ["cluster"] and "dask-scheduler" in second["depends_on"]
+    env = {k: resolve(v) for k, v in second["environment"].items()}
+    s = load_settings(**{k[5:].lower(): json.loads(v) if v.startswith("[") else v
+                         for k, v in env.items() if k not in ("ASLM_CONFIG", "ASLM_OPERATOR_TOKEN")}
+                      | {"storage_url": str(tmp_path / "x.sqlite")})
+    assert s.sources == ["zenoh-sharded"] and s.executor == "tcp://dask-scheduler:8786" and "zenoh" in s.sinks
+    # Distinct, fixed instance names and host ports; the first instance is sharded through its environment.
+    assert first["environment"]["ASLM_INSTANCE"] != s.instance
+    assert {p.split(":")[0] for p in first["ports"]}.isdisjoint(p.split(":")[0] for p in second["ports"])
+    assert "ASLM_SOURCES" in first["environment"]
 
 
 def test_replayer_command_parses_and_targets_the_router():
