@@ -17,9 +17,22 @@ from collections.abc import Callable, Iterable
 log = logging.getLogger(__name__)
 
 
-def _weight(instance: str, bus: str) -> int:
-    # blake2b rather than hash(): the same on every host and interpreter (str hashes are salted).
-    return int.from_bytes(hashlib.blake2b(f"{instance}\0{bus}".encode(), digest_size=8).digest(), "big")
+def _seeds(instances: Iterable[str]) -> list[tuple[str, object]]:
+    # blake2b rather than hash(): the same on every host and interpreter (str hashes are salted).  Each
+    # instance's hash state is prepared once and copied per bus (half the cost of hashing both).
+    return [(inst, hashlib.blake2b(f"{inst}\0".encode(), digest_size=8)) for inst in sorted(set(instances))]
+
+
+def _owner(bus: str, seeds: list[tuple[str, object]]) -> str | None:
+    key = bus.encode()
+    best, best_w = None, b""
+    for inst, seed in seeds:  # sorted by name: a tie (never seen with 64 bits) goes to the first
+        h = seed.copy()
+        h.update(key)
+        w = h.digest()
+        if best is None or w > best_w:
+            best, best_w = inst, w
+    return best
 
 
 def owner(bus: str, instances: Iterable[str]) -> str | None:
@@ -32,18 +45,13 @@ def owner(bus: str, instances: Iterable[str]) -> str | None:
     instances : iterable of str
         Names of the live instances.
     """
-    best, best_w = None, -1
-    for inst in instances:
-        w = _weight(inst, bus)
-        if w > best_w or (w == best_w and inst < best):
-            best, best_w = inst, w
-    return best
+    return _owner(bus, _seeds(instances))
 
 
 def owned(buses: Iterable[str], instances: Iterable[str], instance: str) -> set[str]:
     """The buses among ``buses`` that ``instance`` owns when ``instances`` are live."""
-    live = sorted(set(instances) | {instance})
-    return {bus for bus in buses if owner(bus, live) == instance}
+    seeds = _seeds([*instances, instance])
+    return {bus for bus in buses if _owner(bus, seeds) == instance}
 
 
 class Membership:
