@@ -87,7 +87,8 @@ class ServiceSettings(BaseSettings):
     sources: list[str] = Field(
         default_factory=lambda: ["zenoh"],
         description="Sources of PMU frames started by the service (service/sources/): 'zenoh' subscribes to "
-                    "{prefix}/pmu/{pmu_keys}",
+                    "{prefix}/pmu/{pmu_keys}; 'zenoh-sharded' only to the buses this instance owns among the "
+                    "live instances (docs/cluster.md)",
     )
     sinks: list[str] = Field(
         default_factory=lambda: ["storage", "zenoh"],
