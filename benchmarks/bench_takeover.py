@@ -21,10 +21,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
-from service_helpers import NoiseStreamer, free_port  # noqa: E402
+from service_helpers import NoiseStreamer  # noqa: E402
 
 from service.sharding import owner  # noqa: E402
-from service.testing_fleet import Instance, ResultLog, client, router, wait_until  # noqa: E402
+from service.testing_fleet import Fleet, ResultLog, wait_until  # noqa: E402
 
 NAMES = ["shard-a", "shard-b", "shard-c"]
 
@@ -53,13 +53,8 @@ def main() -> None:
     settings = {"period_s": T, "window_s": T / 2, "late_s": 0.5, "frame_rate": 50.0, "workers": 1,
                 "identify_fn": "service_helpers:fake_identify", "diagnose_every": 0, "n_starts": 1}
     tmp = Path(tempfile.mkdtemp(prefix="aslm-takeover-"))
-    rport = free_port()
-    hub = router(rport)
-    sessions = [client(rport), client(rport)]
-    log = ResultLog(sessions[0])
-    streamer = NoiseStreamer(sessions[1], buses).start()
-    start = lambda name: Instance(name, rport, tmp, free_port(), settings, pythonpath=[str(ROOT / "tests")])  # noqa: E731
-    fleet = {name: start(name) for name in NAMES}
+    cluster = Fleet(NAMES, buses, tmp, settings, NoiseStreamer, pythonpath=[str(ROOT / "tests")])
+    fleet, log = cluster.instances, cluster.log
     mine = [b for b in buses if owner(b, NAMES) == "shard-c"]
     try:
         t0 = time.time()
@@ -72,7 +67,7 @@ def main() -> None:
         fleet["shard-c"].kill()
         wait_until(killed + 5 * T)
         back = time.time()  # its buses are identified by the others until its token appears
-        fleet["shard-c"] = start("shard-c")
+        cluster.start("shard-c")
         while (tmp / "shard-c.log").read_text().count("serving") < 2:  # the log is appended to
             assert time.time() - back < 300, "shard-c did not come back in 300 s"
             time.sleep(0.5)
@@ -88,12 +83,7 @@ def main() -> None:
         print(f"(bus, period) identified more than once: {dup}; load average {os.getloadavg()[0]:.1f} "
               f"on {os.cpu_count()} cores")
     finally:
-        for inst in fleet.values():
-            inst.stop()
-        streamer.stop()
-        log.close()
-        for s in [*sessions, hub]:
-            s.close()
+        cluster.close()
 
 
 if __name__ == "__main__":

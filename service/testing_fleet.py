@@ -11,11 +11,13 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 
 import zenoh
@@ -124,3 +126,61 @@ def wait_until(t: float) -> None:
     """Sleep until wall time ``t`` [s]."""
     while (d := t - time.time()) > 0:
         time.sleep(min(d, 0.5))
+
+
+def free_port() -> int:
+    """A TCP port free on 127.0.0.1 now."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+class Fleet:
+    """A router, a stream of frames, a :class:`ResultLog` and named :class:`Instance` s (a context manager).
+
+    Parameters
+    ----------
+    names : list of str
+        Instances started at once.
+    buses : list of str
+    workdir : Path
+    settings : dict
+        ``ASLM_*`` settings of every instance (see :class:`Instance`).
+    streamer : callable
+        ``streamer(session, buses)`` returns an object with ``start()`` (returning itself) and
+        ``stop()`` that publishes the buses' frames.
+    pythonpath : list of str
+    """
+
+    def __init__(self, names: list[str], buses: list[str], workdir: Path, settings: dict,
+                 streamer: Callable, pythonpath: list[str] = ()) -> None:
+        self.workdir, self.settings, self.pythonpath = workdir, settings, list(pythonpath)
+        self.router_port = free_port()
+        self.hub = router(self.router_port)
+        self.sessions = [client(self.router_port), client(self.router_port)]
+        self.log = ResultLog(self.sessions[0])
+        self.streamer = streamer(self.sessions[1], buses).start()
+        self.instances: dict[str, Instance] = {}
+        for name in names:
+            self.start(name)
+
+    def start(self, name: str) -> Instance:
+        """Start (or start again) the instance ``name``."""
+        self.instances[name] = Instance(name, self.router_port, self.workdir, free_port(), self.settings,
+                                        pythonpath=self.pythonpath)
+        return self.instances[name]
+
+    def close(self) -> None:
+        """Stop every instance, the stream, the log and the sessions."""
+        for inst in self.instances.values():
+            inst.stop()
+        self.streamer.stop()
+        self.log.close()
+        for session in [*self.sessions, self.hub]:
+            session.close()
+
+    def __enter__(self) -> Fleet:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -12,10 +12,10 @@ import time
 
 import httpx
 import pytest
-from service_helpers import HERE, NoiseStreamer, free_port, wait_for
+from service_helpers import HERE, NoiseStreamer, wait_for
 
 from service.sharding import owner
-from service.testing_fleet import Instance, ResultLog, client, router, wait_until
+from service.testing_fleet import Fleet, Instance, ResultLog, wait_until
 
 pytestmark = pytest.mark.slow
 
@@ -51,14 +51,8 @@ def settled(log: ResultLog, period: float) -> bool:
 
 
 def test_three_instances_share_the_buses_and_take_over_from_each_other(tmp_path):
-    rport = free_port()
-    hub = router(rport)
-    sessions = [client(rport), client(rport)]
-    log = ResultLog(sessions[0])
-    streamer = NoiseStreamer(sessions[1], BUSES).start()
-    start = lambda name: Instance(name, rport, tmp_path, free_port(), SETTINGS, pythonpath=[str(HERE)])  # noqa: E731
-    fleet = {name: start(name) for name in NAMES}
-    try:
+    with Fleet(NAMES, BUSES, tmp_path, SETTINGS, NoiseStreamer, pythonpath=[str(HERE)]) as cluster:
+        fleet, log = cluster.instances, cluster.log
         for inst in fleet.values():
             wait_for(lambda inst=inst: up(inst), 180)
         # 1. Steady state: exactly once per period, two periods running.
@@ -78,7 +72,7 @@ def test_three_instances_share_the_buses_and_take_over_from_each_other(tmp_path)
             assert settled(log, period), (period - killed, log.identified(period))
 
         # 3. Bring it back (same name): the buses it owned return to it, again within two periods.
-        fleet["shard-c"] = start("shard-c")
+        cluster.start("shard-c")
         wait_for(lambda: up(fleet["shard-c"]), 180)
         back = boundary_after(time.time())
         for period in (back + T, back + 2 * T):
@@ -88,10 +82,3 @@ def test_three_instances_share_the_buses_and_take_over_from_each_other(tmp_path)
         # The returned instance identifies its own buses again.
         r = httpx.get(f"{fleet['shard-c'].url}/buses", timeout=5).json()
         assert {b["bus"] for b in r if b["frames_buffered"] > 0} == set(owned_by_c)
-    finally:
-        for inst in fleet.values():
-            inst.stop()
-        streamer.stop()
-        log.close()
-        for s in [*sessions, hub]:
-            s.close()

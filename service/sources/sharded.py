@@ -126,16 +126,21 @@ class ShardedZenohSource:
             self._dirty.clear()
             try:
                 self.reassign()
-            except Exception:  # noqa: BLE001 - a failed (un)declaration is retried on the next change
+            except Exception:  # noqa: BLE001 - a failed (un)declaration is tried again a second later
                 log.exception("reassigning buses failed")
+                self._stop.wait(1.0)
+                self._dirty.set()
 
     def reassign(self) -> None:
         """Subscribe to the buses this instance owns among the live instances; drop the others."""
         live = self.membership.live() if self.membership is not None else [self.instance]
         with self._lock:
-            want = owned(self.known, live, self.instance)
-            lost, gained = self._owned - want, want - self._owned
+            known = list(self.known)
+        want = owned(known, live, self.instance)  # ~2.5 µs a bus and instance: outside the lock
+        with self._lock:
             self._owned = frozenset(want)  # the per-bus callbacks check this before buffering
+        # Against the subscribers that exist: a declaration that failed last time is tried again.
+        lost, gained = self.subscribers.keys() - want, want - self.subscribers.keys()
         for bus in sorted(lost):
             _undeclare(self.subscribers.pop(bus, None))
             self._inlet.store.discard(bus)  # otherwise its stale window is cut at the next boundary
