@@ -53,6 +53,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--buses", type=int, default=10_000)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--batch-s", type=float, default=None, help="work per batch [s] (executor default)")
+    ap.add_argument("--inflight", type=int, default=None, help="batches in flight per worker thread (default)")
     args = ap.parse_args()
 
     import dask
@@ -74,12 +76,13 @@ def main() -> None:
     with dask.config.set({"distributed.scheduler.allowed-failures": 1}), distributed.LocalCluster(
             n_workers=args.workers, threads_per_worker=1, processes=True, host="127.0.0.1", scheduler_port=0,
             dashboard_address=None, silence_logs=40) as cluster:
-        dpool = DaskPool(cluster.scheduler_address, FN, timeout_s=120)
+        tuning = {k: v for k, v in (("batch_s", args.batch_s), ("inflight_per_thread", args.inflight)) if v}
+        dpool = DaskPool(cluster.scheduler_address, FN, timeout_s=120, **tuning)
         try:
             wait_workers(dpool, args.workers, 300)
             rows["dask"] = run_periods(dpool, args.buses, options, starts_warm)
-            print(f"dask: per-window cost estimate {1e3 * dpool.cost_s:.2f} ms, "
-                  f"batch of {dpool.batch_size(args.buses)} windows")
+            print(f"dask: per-window cost estimate {1e3 * dpool.cost_s:.2f} ms, batch of "
+                  f"{dpool.batch_size(args.buses)} windows, {dpool.inflight_per_thread} in flight per thread")
         finally:
             dpool.close()
     for name, periods in rows.items():

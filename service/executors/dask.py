@@ -143,6 +143,8 @@ class DaskPool:
         Target work per batch [s] (:data:`BATCH_S`).
     cache_root : str, optional
         Root of the per-worker numba cache directories (:class:`WarmupPlugin`).
+    inflight_per_thread : int
+        Batches handed to the scheduler per worker thread (:data:`INFLIGHT_PER_THREAD`).
 
     Attributes
     ----------
@@ -151,7 +153,7 @@ class DaskPool:
     """
 
     def __init__(self, address: str, fn_path: str, timeout_s: float, *, batch_s: float = BATCH_S,
-                 cache_root: str | None = None) -> None:
+                 cache_root: str | None = None, inflight_per_thread: int = INFLIGHT_PER_THREAD) -> None:
         try:
             from distributed import Client
         except ImportError as exc:  # optional extra
@@ -161,6 +163,7 @@ class DaskPool:
         self.fn_path = fn_path
         self.timeout_s = timeout_s
         self.batch_s = batch_s
+        self.inflight_per_thread = max(1, int(inflight_per_thread))
         self.cost_s = COST_S
         self.replaced = 0  # the Executor attribute /health reports; Dask's nannies replace workers
         self._lock = threading.Lock()
@@ -212,8 +215,8 @@ class DaskPool:
 
     # --- internals ----------------------------------------------------------------------------------
     def _pump(self) -> None:
-        """Hand waiting batches to the scheduler up to :data:`INFLIGHT_PER_THREAD` per worker thread."""
-        limit = INFLIGHT_PER_THREAD * self.threads()
+        """Hand waiting batches to the scheduler, up to ``inflight_per_thread`` per worker thread."""
+        limit = self.inflight_per_thread * self.threads()
         while True:
             with self._lock:
                 if self._closed or not self._waiting or self._inflight >= limit:
