@@ -45,7 +45,7 @@ def test_precedence_toml_env_cli(tmp_path, monkeypatch):
     ({"http_port": 70000}, "http_port"),
     ({"storage_url": "postgres://x"}, None),
     ({"no_such_field": 1}, "no_such_field"),
-    ({"sources": ["c37118"]}, "unknown sources ['c37118']; known: ['zenoh']"),
+    ({"sources": ["c37118"]}, "unknown sources ['c37118']; known: ['zenoh', 'zenoh-sharded']"),
     ({"sinks": ["storage", "kafka"]}, "unknown sinks ['kafka']; known: ['storage', 'zenoh']"),
     ({"sinks": ["zenoh", "zenoh"]}, "sinks repeated"),
 ])
