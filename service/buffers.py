@@ -315,6 +315,11 @@ class BufferStore:
         """Buses that have sent anything and are not evicted, sorted."""
         return sorted(self._buses)
 
+    def discard(self, bus: str) -> None:
+        """Forget ``bus`` and its frames (another instance of a sharded fleet owns it now); its counts stay
+        in :meth:`totals`."""
+        self.evict([bus])
+
     def reject_message(self, bus: str, reason: str, n_frames: int = 0, arrival: float | None = None) -> None:
         """Record an undecodable message and the frames it held, if known."""
         while True:

@@ -94,7 +94,8 @@ class ServiceSettings(BaseSettings):
     sources: list[str] = Field(
         default_factory=lambda: ["zenoh"],
         description="Sources of PMU frames started by the service (service/sources/): 'zenoh' subscribes to "
-                    "{prefix}/pmu/{pmu_keys}",
+                    "{prefix}/pmu/{pmu_keys}; 'zenoh-sharded' only to the buses this instance owns among the "
+                    "live instances (docs/cluster.md)",
     )
     pmu_mapping: Path | None = Field(
         None, description="TOML file of the grid-protocol sources ('c37118'): where the stream is and which "

@@ -75,9 +75,11 @@ def test_service_env_names_exist_and_values_are_valid(monkeypatch, tmp_path):
 
 def test_dask_profile_matches_executor_setting():
     sched, worker = SERVICES["dask-scheduler"], SERVICES["dask-worker"]
-    assert sched["profiles"] == worker["profiles"] == ["dask"]
+    assert sched["profiles"] == worker["profiles"] == ["dask", "cluster"]
     address = "tcp://dask-scheduler:8786"
-    assert address in worker["entrypoint"]
+    assert address in worker["entrypoint"] and "8786" in sched["expose"]
+    assert "ports" not in sched  # the scheduler runs what it is sent: never published on the host
+    assert sched["environment"]["DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES"] == "1"
     assert load_settings(executor=address, storage_url=":memory:").executor == address
 
 
@@ -89,6 +91,20 @@ def test_published_ports_bind_loopback_only_and_never_the_dask_scheduler():
             assert host_ip == "127.0.0.1", f"{name} publishes {host_port} on all interfaces"
     assert "ports" not in SERVICES["dask-scheduler"] and "ports" not in SERVICES["dask-worker"]
     assert "network_mode" not in SERVICES["dask-scheduler"]  # host networking would expose it as well
+
+
+def test_cluster_profile_runs_two_sharded_instances_on_the_dask_cluster(tmp_path):
+    first, second = SERVICES["aslm"], SERVICES["aslm-2"]
+    assert second["profiles"] == ["cluster"] and "dask-scheduler" in second["depends_on"]
+    env = {k: resolve(v) for k, v in second["environment"].items()}
+    s = load_settings(**{k[5:].lower(): json.loads(v) if v.startswith("[") else v
+                         for k, v in env.items() if k not in ("ASLM_CONFIG", "ASLM_OPERATOR_TOKEN")}
+                      | {"storage_url": str(tmp_path / "x.sqlite")})
+    assert s.sources == ["zenoh-sharded"] and s.executor == "tcp://dask-scheduler:8786" and "zenoh" in s.sinks
+    # Distinct, fixed instance names and host ports; the first instance is sharded through its environment.
+    assert first["environment"]["ASLM_INSTANCE"] != s.instance
+    assert {p[1] for p in published(first)}.isdisjoint(p[1] for p in published(second))
+    assert "ASLM_SOURCES" in first["environment"]
 
 
 def test_replayer_command_parses_and_targets_the_router():
