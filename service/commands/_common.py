@@ -54,12 +54,12 @@ def add_setting_flags(p: argparse.ArgumentParser, skip: tuple[str, ...] = ()) ->
 
 def add_publisher_flags(p: argparse.ArgumentParser) -> None:
     """Flags of a command that publishes frames onto Zenoh: prefix, session mode and endpoints, logging."""
-    p.add_argument("--prefix", default="aslm")
+    p.add_argument("--prefix", default="aslm", help="Zenoh key-expression prefix")
     p.add_argument("--mode", default="peer", choices=["peer", "client"], help="Zenoh mode")
     p.add_argument("--connect", action="append", metavar="ENDPOINT",
                    help="Zenoh endpoint (default tcp/127.0.0.1:7447; repeatable)")
     p.add_argument("--listen", action="append", metavar="ENDPOINT", help="Zenoh endpoint to listen on")
-    p.add_argument("--log-level", default="INFO")
+    p.add_argument("--log-level", default="INFO", help="logging level")
 
 
 def add_mapping_flags(p: argparse.ArgumentParser) -> None:

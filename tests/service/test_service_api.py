@@ -41,7 +41,11 @@ class View:
     latest: LatestResults
     metrics: ServiceMetrics
     period_s: float
-    audit: AuditLog
+    audit: AuditLog | None = None  # None: one in the storage's SQLite file, as the service has
+
+    def __post_init__(self) -> None:
+        if self.audit is None:
+            self.audit = AuditLog(self.settings.storage_path)
 
     def status(self) -> RunStatus:
         return RunStatus(next_period=1020.0, running_period=None, workers_replaced=2)
