@@ -19,6 +19,7 @@ from c37118_peers import A, SynchroPmu, UdpPmu, config2, data_frame, free_port
 from conftest import D_TRUE
 from service_helpers import wait_for
 
+from aslm_core.params import DYNAMIC_NAMES
 from service.buffers import BufferStore
 from service.clock import ManualClock
 from service.frames import decode_binary
@@ -268,7 +269,8 @@ def test_the_service_identifies_the_load_the_phasors_encode(eq_window):
         t = w.t - w.t[-1] + end
         for k in range(t.size):
             peer.send(data_frame(cfg2, t[k], phasors_of(w.V[k], w.theta[k], w.P[k], w.Q[k]))[0])
-        wait_for(lambda: store.counts("eq").buffered >= t.size, 60, 0.1)  # the peer sends ~80 frames/s
+        # The bus exists from its first buffered frame on (None before): the peer sends ~80 frames/s.
+        wait_for(lambda: (c := store.counts("eq")) is not None and c.buffered >= t.size, 60, 0.1)
         peer.close()  # its connection handler polls without sleeping: stop it before the identifier runs
         clock.advance_to(end + 0.5)
         wait_for(lambda: sink.results, 600, 0.5)  # the identifier runs inline (numba compiles on first use)
@@ -277,7 +279,7 @@ def test_the_service_identifies_the_load_the_phasors_encode(eq_window):
         source.close()
         peer.close()
     res = sink.results[0]
-    d = np.array([res.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")])
+    d = np.array([res.parameters.dynamic[k] for k in DYNAMIC_NAMES])
     assert res.status == "ok" and np.all(np.abs(d / D_TRUE - 1) < 0.05), d
 
 
