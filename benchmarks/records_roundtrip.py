@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
 import math
@@ -108,20 +109,28 @@ def fd(y: np.ndarray, model: np.ndarray) -> float:
     return fit_degree(y, model)
 
 
+@contextlib.contextmanager
+def _solved(case: dict):
+    """The ANDES system of a JSON case, set up and its power flow solved (inside a temporary folder, where
+    ANDES may also write its outputs)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "case.json")
+        with open(path, "w") as fh:
+            fh.write(ra.dumps(case))
+        ss = _load(path)
+        ss.setup()
+        _pflow(ss)
+        yield ss
+
+
 def exported_two_bus(identified: dict, asm: Assumptions, events: list[dict], iterations: int = 4) -> tuple[MotorRecord, dict]:
     """The record at the power-flow voltage of its bus: export, solve, re-export at the solved voltage."""
     v0 = asm.v0
     for _ in range(iterations):
         rec = invert(identified["dynamic"], identified["static"], replace(asm, v0=v0))
         case = ra.two_bus_case(rec, x_line=X_LINE, faults=events)
-        with tempfile.TemporaryDirectory() as tmp:
-            path = os.path.join(tmp, "case.json")
-            with open(path, "w") as fh:
-                fh.write(ra.dumps(case))
-            ss = _load(path)
-            ss.setup()
-            _pflow(ss)
-        v_pf = float(ss.Bus.v.v[1])
+        with _solved(case) as ss:
+            v_pf = float(ss.Bus.v.v[1])
         if abs(v_pf - v0) < 1e-10:
             break
         v0 = v_pf
@@ -130,13 +139,7 @@ def exported_two_bus(identified: dict, asm: Assumptions, events: list[dict], ite
 
 def run_case(case: dict, *, tf: float, tstep: float, bus_uid: int = 1) -> dict:
     """Load an ANDES JSON case, solve its power flow and its time domain; the load of bus ``bus_uid``."""
-    with tempfile.TemporaryDirectory() as tmp:
-        path = os.path.join(tmp, "case.json")
-        with open(path, "w") as fh:
-            fh.write(ra.dumps(case))
-        ss = _load(path)
-        ss.setup()
-        _pflow(ss)
+    with _solved(case) as ss:
         _tds(ss, tf, tstep)
         return _bus_load(ss, bus_uid)
 
