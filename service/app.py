@@ -134,17 +134,21 @@ class Service:
         self._stopped = True
         if self._server is not None:
             self._server.stop()
-        if self.scheduler is not None:
-            self.scheduler.stop()
         for source in reversed(self.sources):
             try:
                 source.close()
             except Exception:  # noqa: BLE001 - the rest must still stop
                 log.exception("closing source %s failed", source.name)
-        if self.sinks is not None:
-            self.sinks.close()
+        if self.scheduler is not None:
+            self.scheduler.stop()
+        # The executor closes before the sinks: its pending tasks resolve (`shutdown`), so a period or a
+        # diagnosis still running writes its last results while the sinks and the database are open.
         if self.executor is not None:
             self.executor.close()
+        if self.scheduler is not None:
+            self.scheduler.stop()
+        if self.sinks is not None:
+            self.sinks.close()
         self.context.close()
         self.storage.close()
         self.audit.close()
