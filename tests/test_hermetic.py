@@ -25,3 +25,12 @@ def test_every_slow_module_exists():
 
     stems = {p.stem for p in (ROOT / "tests").rglob("test_*.py")}
     assert SLOW_MODULES <= stems, sorted(SLOW_MODULES - stems)
+
+
+def test_the_pytest_command_imports_the_real_packages_not_the_mirroring_test_folders():
+    # `pytest` (the console script) does not put the working directory on sys.path as `python -m pytest`
+    # does; tests/aslm_core etc. would then shadow the packages (pyproject's pythonpath prevents it).
+    exe = Path(sys.executable).with_name("pytest")
+    r = subprocess.run([str(exe), "-q", "--co", "-p", "no:cacheprovider", "tests/aslm_core/test_public_api.py"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
