@@ -69,6 +69,26 @@ def lowpass_noise(n: int, dt: float, fc: float, rng: np.random.Generator, burn: 
     return x / x.std()
 
 
+def solve_power_flow(ss) -> None:
+    """ANDES power flow started from the motors' low-slip equilibrium (:func:`_init_motor_guess`).
+
+    Raises
+    ------
+    RuntimeError
+        The power flow did not converge.
+    """
+    orig_init = ss.PFlow.init
+
+    def pf_init():
+        out = orig_init()
+        _init_motor_guess(ss)
+        return out
+
+    ss.PFlow.init = pf_init
+    if not ss.PFlow.run():
+        raise RuntimeError("ANDES power flow did not converge")
+
+
 def _init_motor_guess(ss) -> None:
     """Overwrite ANDES's generic power-flow start of Motor3 (slip 1) with the low-slip equilibrium.
 
@@ -107,16 +127,7 @@ def simulate(scenario: str, *, tf: float, tstep: float, amp: float, seed: int, t
     ss.PQ.set("q0", PQ_AT_BUS, STATIC_PQ[1], base="device")
     for k, v in ZIP_SHARES.items():
         setattr(ss.PQ.config, k, v)
-    orig_init = ss.PFlow.init
-
-    def pf_init():
-        out = orig_init()
-        _init_motor_guess(ss)
-        return out
-
-    ss.PFlow.init = pf_init
-    if not ss.PFlow.run():
-        raise RuntimeError("ANDES power flow did not converge")
+    solve_power_flow(ss)
     m, pq = ss.Motor3, ss.PQ
     x0, x1, t10, M = float(m.x0.v[0]), float(m.x1.v[0]), float(m.T10.v[0]), float(m.M.v[0])
     truth = np.array([(x0 / x1 - 1) / (t10 * x1), x0 / (t10 * x1), M, float(m.tm.v[0])])

@@ -29,6 +29,7 @@ import numpy as np
 
 from aslm_core.records import Assumptions, MotorRecord, admissible, invert
 from aslm_core.records import andes as ra
+from benchmarks.andes_crosscheck import solve_power_flow
 
 # A fault (deep sag, cleared) then a shallow sag (a more distant fault), on the load bus [s, pu].
 EVENTS = [{"tf": 1.0, "tc": 1.1, "xf": 0.02, "rf": 0.0}, {"tf": 2.0, "tc": 2.5, "xf": 0.2, "rf": 0.0}]
@@ -44,20 +45,6 @@ def _load(path: str, **kw):
     return ss
 
 
-def _pflow(ss) -> None:
-    """ANDES power flow from the motors' low-slip equilibrium (benchmarks/andes_crosscheck.py)."""
-    from benchmarks.andes_crosscheck import _init_motor_guess
-
-    orig = ss.PFlow.init
-
-    def pf_init():
-        out = orig()
-        _init_motor_guess(ss)
-        return out
-
-    ss.PFlow.init = pf_init
-    if not ss.PFlow.run():
-        raise RuntimeError("ANDES power flow did not converge")
 
 
 def _bus_load(ss, bus_uid: int) -> dict:
@@ -119,7 +106,7 @@ def _solved(case: dict):
             fh.write(ra.dumps(case))
         ss = _load(path)
         ss.setup()
-        _pflow(ss)
+        solve_power_flow(ss)
         yield ss
 
 
@@ -222,7 +209,7 @@ def truth(*, tstep: float = 0.005, tf_fault: float = 3.0) -> dict:
         else:
             ss.PQ.set("p0", ac.PQ_AT_BUS, with_record.values["P_static"], base="device")
             ss.PQ.set("q0", ac.PQ_AT_BUS, with_record.values["Q_static"], base="device")
-        _pflow(ss)
+        solve_power_flow(ss)
         v_pf = float(ss.Bus.v.v[ss.Bus.idx2uid(ac.BUS)])
         _tds(ss, tf_fault, tstep)
         out = _bus_load(ss, ss.Bus.idx2uid(ac.BUS))
