@@ -412,10 +412,22 @@ class CompiledPaperProblem(PaperProblem):
         return jac, cons_jac
 
 
+class CompiledOFProblem(CompiledPaperProblem):
+    """Only OF compiled; SLSQP differences it itself (scipy's default): the variant (i') improves on."""
+
+    def slsqp_jacobians(self, lo: np.ndarray, span: np.ndarray, f_scale: float):
+        return None, None
+
+
 def compiled_identify(window: Window, *, starts=None, n_starts: int = 3, seed: int = 0,
-                      finite_starts: bool = True, ftol: float = SLSQP_FTOL) -> BaselineResult:
-    """The paper's method compiled (:class:`CompiledPaperProblem`); otherwise as :func:`faithful_identify`."""
-    return _restarts(CompiledPaperProblem, window, starts, n_starts, seed, finite_starts, ftol)
+                      finite_starts: bool = True, ftol: float = SLSQP_FTOL,
+                      scipy_gradients: bool = False) -> BaselineResult:
+    """The paper's method compiled (:class:`CompiledPaperProblem`); otherwise as :func:`faithful_identify`.
+
+    ``scipy_gradients``: let SLSQP difference the compiled OF itself (:class:`CompiledOFProblem`).
+    """
+    cls = CompiledOFProblem if scipy_gradients else CompiledPaperProblem
+    return _restarts(cls, window, starts, n_starts, seed, finite_starts, ftol)
 
 
 # --------------------------------------------------------------------------------------------

@@ -148,6 +148,8 @@ def main(argv=None) -> dict:
         "ours_rk4": run("ours_rk4", lambda i: identify(windows[i], config=replace(cfg, seed=seeds[i]))),
         "ours_euler": run("ours_euler", lambda i: identify(windows[i], config=replace(cfg_euler, seed=seeds[i]))),
         "compiled": run("compiled", lambda i: baselines.compiled_identify(windows[i], starts=starts[i])),
+        "compiled_scipy_fd": run("compiled_scipy_fd", lambda i: baselines.compiled_identify(
+            windows[i], starts=starts[i], scipy_gradients=True)),
         "interpreted": run("interpreted", lambda i: baselines.faithful_identify(windows[i], starts=starts[i])),
     })
     same = {k: summary(v) for k, v in cmp.items()}
@@ -213,7 +215,8 @@ def main(argv=None) -> dict:
 
     rat = {f"{a}_over_{b}": ratios(a, b) for a, b in (("interpreted", "ours_rk4"), ("compiled", "ours_rk4"),
                                                       ("interpreted", "ours_euler"), ("compiled", "ours_euler"),
-                                                      ("interpreted", "compiled"))}
+                                                      ("interpreted", "compiled"),
+                                                      ("interpreted", "compiled_scipy_fd"))}
     med = {"ours_rk4_ms": float(np.median(t_rk4) * 1e3), "ours_euler_ms": float(np.median(t_eul) * 1e3),
            "warm_ms": float(np.median(t_warm) * 1e3), "de_s": float(np.median(de_t)), "batch_2w_s": batch[2],
            "batch_1w_s": batch[1]}
@@ -241,6 +244,8 @@ def main(argv=None) -> dict:
         row("(i) paper's method, interpreted: SLSQP + scipy's FD gradients, plain-Python Euler", "interpreted", "1×"),
         row("(i') paper's method, compiled: the same with numba Euler + eq. 7, compiled FD gradients", "compiled",
             faster("interpreted", "compiled", "(i)")),
+        row("(i') variant: only OF compiled, SLSQP's own finite differences", "compiled_scipy_fd",
+            faster("interpreted", "compiled_scipy_fd", "(i)")),
         row("(iii) ours, RK4 (default)", "ours_rk4",
             faster("interpreted", "ours_rk4", "(i)") + "; " + faster("compiled", "ours_rk4", "(i')")),
         row("(iii) ours, the paper's Euler", "ours_euler",
