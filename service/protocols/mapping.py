@@ -137,14 +137,15 @@ def parse_mapping(obj: dict[str, Any], source: str = "mapping", *, power: bool =
         where = f"{source}: buses.{bus}"
         if not isinstance(spec, dict):
             raise MappingError(f"{where}: must be a table")
-        flow = "power" if power and "power" in spec else "current"
+        if "power" in spec and not power:
+            raise MappingError(f"{where}: power = [P, Q] is read by the STTP source only; this one needs current")
+        flow = "power" if "power" in spec else "current"
         missing = [k for k in ("pmu", "voltage", flow, "base_kv") if k not in spec]
         if missing:
             raise MappingError(f"{where}: missing {', '.join(missing)}")
         unknown = set(spec) - {"pmu", "voltage", flow, "base_kv", "base_mva"}
         if unknown:
-            hint = " (power = [P, Q] is read by the STTP source only)" if "power" in unknown else ""
-            raise MappingError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}{hint}")
+            raise MappingError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}")
         feeders, pq = (), None
         if flow == "power":
             pq = spec["power"]
