@@ -124,7 +124,10 @@ class SttpPeer:
         from sttp.transport.constants import StateFlags
         from sttp.transport.measurement import Measurement
 
-        ts = np.uint64(ticks(t))
+        # int64, not the uint64 of sttp.ticks: sttpapi 0.7.6's TSSC encoder adds its int64 time deltas to the
+        # previous timestamp, which numpy does in float64 for a uint64 (exact only to 128 ticks), so it sends
+        # "same delta as before" for timestamps a few ticks off and the subscriber's times drift, then break.
+        ts = np.int64(ticks(t))
         flags = flags or {}
         self.publisher.publish_measurements([
             Measurement(self.signals[tag].signal_id, np.float64(v), ts, StateFlags(flags.get(tag, 0)))

@@ -9,7 +9,8 @@ and angle measurements openPDC names ``{DEVICE}-PM{i}`` / ``{DEVICE}-PA{i}``, or
 the mapping's devices and assembles, per bus, the measurements of one timestamp into one frame.  A frame is handed on when all
 its measurements have arrived; one still missing some ``lag_s`` after its first arrived is counted as
 ``incomplete``.  Reconnection with exponential backoff is ``sttpapi``'s own (its connector), bounded by
-``backoff_s``; each new connection asks for metadata again and re-subscribes.
+``backoff_s``; each new connection asks for metadata again and re-subscribes.  A connection that stays
+open but brings no measurement for ``timeout_s`` is dropped for a new one (``disconnects["silent"]``).
 
 Frames go to the service's ``Inlet`` (``sources = ["sttp"]`` with ``pmu_mapping`` naming the mapping file)
 or to Zenoh by ``aslm bridge sttp``, every ``batch_s`` seconds, like the C37.118 source.
@@ -59,15 +60,17 @@ class SttpSettings:
     port: int = 7165  # openPDC's default STTP data publisher port
     batch_s: float = 0.2  # frames gathered per bus before they are handed on [s]
     lag_s: float = 2.0  # a frame still missing measurements this long after its first one is incomplete [s]
+    timeout_s: float = 10.0  # connected but no measurement for this long: the connection is renewed [s]
     backoff_s: tuple[float, float] = (0.5, 30.0)  # first and longest wait before reconnecting [s]
     angle_unit: str = "deg"  # of phasor angles: openPDC sends degrees; "rad" for publishers that do not
+    compress: bool = True  # TSSC-compressed data (openPDC's default); false asks for compact measurements
     filter: str | None = None  # subscription filter expression; default: the mapping's devices (filter_expression)
     phasors: dict[str, tuple[str, str]] = field(default_factory=dict)  # name → (magnitude, angle) tags or IDs
 
     @classmethod
     def from_table(cls, table: dict) -> SttpSettings:
         """From the ``[sttp]`` table; unknown keys are an error naming them."""
-        known = {"host", "port", "batch_s", "lag_s", "backoff_s", "angle_unit", "filter", "phasors"}
+        known = {"host", "port", "batch_s", "lag_s", "timeout_s", "backoff_s", "angle_unit", "compress", "filter", "phasors"}
         unknown = set(table) - known
         if unknown:
             raise MappingError(f"[sttp]: unknown key(s) {', '.join(sorted(unknown))}")
@@ -363,7 +366,7 @@ class SttpClient:
         self.assembler: FrameAssembler | None = None
         self._retired: list[dict] = []  # counters of the assemblers of earlier metadata
         self.connects = 0
-        self.disconnects = 0
+        self.disconnects: dict[str, int] = {}  # reason → count: "terminated" (by the socket), "silent"
         self.configs = 0
         self.config_errors: list[str] = []
         self.no_config = 0  # measurements received while the mapping did not resolve against the metadata
@@ -373,38 +376,50 @@ class SttpClient:
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._sub = None
+        self._last_data = time.monotonic()  # of the newest measurement or connection [s, monotonic]
 
     # --- life cycle -------------------------------------------------------------------------------
 
     def start_thread(self) -> None:
         """Connect (retrying with backoff) and keep handing frames on, in daemon threads, until :meth:`close`."""
+        self._open()
+        thread = threading.Thread(target=self._tick, name="sttp-batches", daemon=True)
+        thread.start()
+        self._threads.append(thread)
+
+    def _open(self) -> None:
+        """A new subscriber, connecting in a thread of its own; callbacks of earlier ones are ignored."""
         from sttp.subscriber import Subscriber
 
         sub = Subscriber()
-        sub.statusmessage_logger = lambda msg: log.debug("STTP: %s", msg)
-        sub.errormessage_logger = lambda msg: log.warning("STTP %s:%d: %s", self.settings.host, self.settings.port,
-                                                          msg.strip())
-        sub.connectionestablished_receiver = self._on_connected
-        sub.connectionterminated_receiver = self._on_terminated
-        sub.metadatanotification_receiver = self._on_metadata
-        sub.newmeasurements_receiver = self._on_measurements
-        self._sub = sub
-        for target, name in ((self._connect, "sttp-connect"), (self._tick, "sttp-batches")):
-            thread = threading.Thread(target=target, name=name, daemon=True)
-            thread.start()
-            self._threads.append(thread)
 
-    def _connect(self) -> None:
+        def current(callback):
+            return lambda *args: callback(*args) if sub is self._sub else None
+
+        sub.statusmessage_logger = lambda msg: log.debug("STTP: %s", msg)
+        sub.errormessage_logger = current(lambda msg: log.warning("STTP %s:%d: %s", self.settings.host,
+                                                                  self.settings.port, msg.strip()))
+        sub.connectionestablished_receiver = current(self._on_connected)
+        sub.connectionterminated_receiver = current(self._on_terminated)
+        sub.metadatanotification_receiver = current(self._on_metadata)
+        sub.newmeasurements_receiver = current(self._on_measurements)
+        self._sub = sub
+        self._last_data = time.monotonic()
+        thread = threading.Thread(target=self._connect, args=(sub,), name="sttp-connect", daemon=True)
+        thread.start()
+        self._threads.append(thread)
+
+    def _connect(self, sub: Any) -> None:
         from sttp.config import Config
 
         first, longest = self.settings.backoff_s
-        # Subscription waits for the metadata: the signals to ask for are known only once it is resolved.
-        # Metadata first, then the subscription (sttpapi subscribes once the metadata callback returned,
-        # on every connection); a subscription sent from within that callback delivered no data in trials.
+        # Metadata first, then the subscription: sttpapi subscribes once the metadata callback has returned, on
+        # every connection.  (A subscription sent from within that callback delivered no data in trials, so
+        # the filter is one known before any metadata.)
         config = Config(maxretries=-1, retryinterval=first, maxretryinterval=longest, autoreconnect=True,
-                        autorequestmetadata=True, autosubscribe=True)
-        self._sub.subscribe(self.settings.filter or filter_expression(self.mapping, self.settings))
-        err = self._sub.connect(f"{self.settings.host}:{self.settings.port}", config)
+                        autorequestmetadata=True, autosubscribe=True, compress_payloaddata=self.settings.compress)
+        sub.subscribe(self.settings.filter or filter_expression(self.mapping, self.settings))
+        err = sub.connect(f"{self.settings.host}:{self.settings.port}", config)
         if err is not None and not self._stop.is_set():
             log.error("STTP %s:%d: %s", self.settings.host, self.settings.port, err)
 
@@ -415,6 +430,19 @@ class SttpClient:
                     self.assembler.expire()
                 if self.gather.due():
                     self.gather.flush()
+            if self.connected.is_set() and time.monotonic() - self._last_data > self.settings.timeout_s:
+                self._reopen("silent")
+
+    def _reopen(self, reason: str) -> None:
+        """Drop the connection for a new subscriber (sttpapi reconnects only when the socket reports an end)."""
+        log.warning("STTP %s:%d: %s for %.1f s; reconnecting", self.settings.host, self.settings.port, reason,
+                    self.settings.timeout_s)
+        self.disconnects[reason] = self.disconnects.get(reason, 0) + 1
+        self.connected.clear()
+        self.resolved.clear()
+        old = self._sub
+        self._open()
+        threading.Thread(target=old.dispose, name="sttp-dispose", daemon=True).start()  # takes ~2 s
 
     def close(self) -> None:
         """Disconnect, drop the frames still incomplete (counted) and hand on what is held (idempotent)."""
@@ -446,16 +474,17 @@ class SttpClient:
             out["measurements"] += self.no_config
             out["bad_measurements"]["no_config"] = self.no_config
         return {**out, "configs": self.configs, "config_errors": list(self.config_errors),
-                "connects": self.connects, "disconnects": self.disconnects, "frames_out": self.gather.frames_out}
+                "connects": self.connects, "disconnects": dict(self.disconnects), "frames_out": self.gather.frames_out}
 
     # --- subscriber callbacks ---------------------------------------------------------------------
 
     def _on_connected(self) -> None:
         self.connects += 1
+        self._last_data = time.monotonic()
         self.connected.set()
 
     def _on_terminated(self) -> None:
-        self.disconnects += 1
+        self.disconnects["terminated"] = self.disconnects.get("terminated", 0) + 1
         self.connected.clear()
         self.resolved.clear()
 
@@ -493,6 +522,7 @@ class SttpClient:
             self.assembler = None
 
     def _on_measurements(self, measurements: list) -> None:
+        self._last_data = time.monotonic()
         with self._lock:
             if self.assembler is not None:
                 self.assembler.add(measurements)
