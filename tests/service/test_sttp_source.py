@@ -222,5 +222,5 @@ def test_the_source_of_aslm_serve_fills_the_bus_buffers(peer):
     finally:
         source.close()
     buf = store.buffer("f7", create=False)
-    w = buf.cut(buf.newest() - 1.9, buf.newest() + 0.01, f0=50.0, bus="f7")
+    w = buf.cut(buf.newest - 1.9, buf.newest + 0.01, f0=50.0, bus="f7")
     assert np.all(np.abs(w.V - 1) < 0.05) and np.all(np.abs(w.f - 50) < 0.1) and store.counts("f7").rejected == {}
