@@ -217,17 +217,8 @@ def power_batch(bm: BusMap, t: np.ndarray, voltage: np.ndarray, p_mw: np.ndarray
                 f: np.ndarray | None, stat: np.ndarray | None) -> FrameBatch:
     """Frames of a bus whose publisher measures its power (``bm.power``): V, θ from the voltage phasor(s).
 
-    Parameters
-    ----------
-    bm : BusMap
-    t : ndarray
-        Frame times, UTC since the epoch [s].
-    voltage : ndarray of complex, (n,) or (n, 3)
-        Line-to-neutral voltage phasor(s) [V RMS].
-    p_mw, q_mvar : ndarray
-        Three-phase active [MW] and reactive [Mvar] power into the load.
-    f, stat : ndarray or None
-        As in :func:`bus_batch`.
+    ``p_mw`` and ``q_mvar`` are the three-phase active [MW] and reactive [Mvar] power into the load; the
+    other parameters are those of :func:`bus_batch`.
     """
     v1 = _v1(voltage)
     return FrameBatch(t=np.asarray(t, np.float64), V=np.abs(v1) / bm.v_base, theta=np.angle(v1),

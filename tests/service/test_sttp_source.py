@@ -11,6 +11,7 @@ import json
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -80,7 +81,9 @@ def peer():
     p.stop()
 
 
-def zenoh_client(tap: ZenohTap, settings: SttpSettings, buses=BUSES):
+@contextmanager
+def zenoh_client(tap: ZenohTap, peer: SttpPeer, settings: SttpSettings, buses=BUSES):
+    """An STTP client publishing onto ``tap``, started and subscribed to ``peer``; closed on exit."""
     import zenoh
 
     from service.replay import FramePublisher
@@ -89,22 +92,22 @@ def zenoh_client(tap: ZenohTap, settings: SttpSettings, buses=BUSES):
     session = zenoh.open(zenoh_config("peer", connect=[f"tcp/127.0.0.1:{tap.port}"], listen=[]))
     pub = FramePublisher(session, "aslm")
     client = SttpClient(settings, parse_mapping({"buses": buses}, power=True), pub.send)
-    return client, pub, session
-
-
-def test_values_arrive_in_zenoh_unchanged(tap, peer):
-    client, pub, session = zenoh_client(tap, SttpSettings(port=peer.port, batch_s=0.1))
     try:
         client.start_thread()
         wait_for(lambda: client.resolved.is_set() and peer.subscribers(), 10, 0.05)
         time.sleep(0.3)  # the subscription's signal index cache on its way
-        t, sent = publish(peer, round(time.time()) - 2.0, 100)
-        wait_for(lambda: tap.frames() >= 200, 15, 0.1)
-        time.sleep(0.3)
+        yield client
     finally:
         client.close()
         pub.close()
         session.close()
+
+
+def test_values_arrive_in_zenoh_unchanged(tap, peer):
+    with zenoh_client(tap, peer, SttpSettings(port=peer.port, batch_s=0.1)) as client:
+        t, sent = publish(peer, round(time.time()) - 2.0, 100)
+        wait_for(lambda: tap.frames() >= 200, 15, 0.1)
+        time.sleep(0.3)
     t_sttp = (np.array([ticks(x) for x in t]) - UNIX_TICKS) / 1e7
     for bus in ("f7", "f9"):
         got = tap.columns(f"aslm/pmu/{bus}")
@@ -122,11 +125,7 @@ def test_a_dropped_publisher_is_reconnected(tap, peer):
     # sttpapi reconnects at once, while the stopping publisher still accepts: that connection is never served
     # and stays silent, which timeout_s ends.
     settings = SttpSettings(port=peer.port, batch_s=0.1, backoff_s=(0.2, 1.0), timeout_s=1.5)
-    client, pub, session = zenoh_client(tap, settings)
-    try:
-        client.start_thread()
-        wait_for(lambda: client.resolved.is_set() and peer.subscribers(), 10, 0.05)
-        time.sleep(0.3)
+    with zenoh_client(tap, peer, settings) as client:
         publish(peer, time.time() - 4, 50)
         wait_for(lambda: tap.frames() >= 100, 15, 0.1)
         peer.stop()
@@ -137,10 +136,6 @@ def test_a_dropped_publisher_is_reconnected(tap, peer):
         t, sent = publish(peer, time.time() - 2, 50, seed=2)
         wait_for(lambda: tap.frames() >= 200, 15, 0.1)
         time.sleep(0.3)
-    finally:
-        client.close()
-        pub.close()
-        session.close()
     c = client.counts()
     assert c["connects"] >= 2 and c["disconnects"]["terminated"] >= 1
     assert c["delivered"] == 200 and c["rejected"] == {}
@@ -152,11 +147,7 @@ def test_what_cannot_be_used_is_counted_and_the_rest_goes_on(tap, peer):
     # FEEDER7:MW is subscribed (a measurement of a mapped device) but no bus uses it.  Time flags (BADTIME
     # 0x10000 and up) are left to test_sttp_assembly.py: sttpapi 0.7.6's TSSC encoder writes state flags of
     # 256 and more through np.uint8(value | 128), which numpy 2 refuses, and the packet goes out broken.
-    client, pub, session = zenoh_client(tap, SttpSettings(port=peer.port, batch_s=0.1, lag_s=0.5))
-    try:
-        client.start_thread()
-        wait_for(lambda: client.resolved.is_set() and peer.subscribers(), 10, 0.05)
-        time.sleep(0.3)
+    with zenoh_client(tap, peer, SttpSettings(port=peer.port, batch_s=0.1, lag_s=0.5)) as client:
         t0 = time.time() - 4
         publish(peer, t0, 20, extra={"FEEDER7:MW": 75.0},
                 flags={"FEEDER7:I1.ANG": BADDATA, "FEEDER9:Q": SUSPECTDATA})
@@ -165,10 +156,6 @@ def test_what_cannot_be_used_is_counted_and_the_rest_goes_on(tap, peer):
         t, sent = publish(peer, t0 + 2.0, 20, seed=3)
         wait_for(lambda: client.counts()["rejected"].get("incomplete"), 10, 0.1)
         wait_for(lambda: tap.frames() >= 81, 10, 0.1)
-    finally:
-        client.close()
-        pub.close()
-        session.close()
     c = client.counts()
     assert c["bad_measurements"] == {"unmapped": 20}
     assert (c["frames"], c["delivered"], c["rejected"]) == (82, 81, {"incomplete": 1})
