@@ -193,8 +193,9 @@ class _Frame:
     __slots__ = ("values", "have", "n", "flags", "first")
 
     def __init__(self, size: int, first: float) -> None:
-        self.values = np.full(size, np.nan)
-        self.have = np.zeros(size, dtype=bool)  # a NaN value has arrived all the same
+        # Lists, not arrays: they are written one scalar at a time, which numpy does several times slower.
+        self.values = [math.nan] * size
+        self.have = [False] * size  # a NaN value has arrived all the same
         self.n = 0
         self.flags = 0
         self.first = first  # arrival of its first measurement [s, monotonic]
@@ -206,8 +207,6 @@ class FrameAssembler:
     Parameters
     ----------
     plans : list of BusSignals
-    emit : callable
-        ``emit({bus: FrameBatch})`` with the frames completed by one call of :meth:`add`.
     lag_s : float
         A frame still missing measurements this long after its first one arrived is dropped [s].
     angle_unit : str
@@ -222,10 +221,9 @@ class FrameAssembler:
     filled slot); ``frames`` started = ``delivered`` + Σ ``rejected`` (``incomplete``) + pending.
     """
 
-    def __init__(self, plans: list[BusSignals], emit: Callable[[dict[str, FrameBatch]], None], *, lag_s: float,
-                 angle_unit: str = "deg", adjust: dict[uuid.UUID, tuple[float, float]] | None = None) -> None:
+    def __init__(self, plans: list[BusSignals], *, lag_s: float, angle_unit: str = "deg",
+                 adjust: dict[uuid.UUID, tuple[float, float]] | None = None) -> None:
         self.plans = plans
-        self.emit = emit
         self.lag_s = lag_s
         self.angle_scale = math.pi / 180.0 if angle_unit == "deg" else 1.0
         self.adjust = adjust or {}
@@ -234,6 +232,8 @@ class FrameAssembler:
             for k, sid in enumerate(plan.slots):
                 self.targets.setdefault(sid, []).append((b, k))
         self.pending: list[dict[int, _Frame]] = [{} for _ in plans]  # per bus: ticks → frame
+        # Completed frames wait here for take(): one batch per bus and hand-on costs less than one per frame.
+        self.ready: list[list[tuple[int, _Frame]]] = [[] for _ in plans]
         # Per bus, the timestamps lately handed on or dropped: publishers do not keep measurements of
         # successive timestamps in order, so "older than the newest handed on" does not mean late.
         self.closed: list[dict[int, None]] = [{} for _ in plans]
@@ -243,9 +243,10 @@ class FrameAssembler:
         self.flags: Counter[str] = Counter()
 
     def add(self, measurements: Iterable[Any], now: float | None = None) -> None:
-        """Place measurements (``signalid``, ``value``, ``timestamp`` [ticks], ``flags``); hand on completed frames."""
+        """Place measurements (``signalid``, ``value``, ``timestamp`` [ticks], ``flags``); completed frames wait
+        for :meth:`take`."""
         now = time.monotonic() if now is None else now
-        done: list[list[tuple[int, _Frame]]] = [[] for _ in self.plans]
+        done = self.ready
         for m in measurements:
             self.measurements += 1
             targets = self.targets.get(m.signalid)
@@ -274,9 +275,10 @@ class FrameAssembler:
                 outcome = "used"
                 if frame.n == len(frame.values):
                     done[b].append((ticks, frames.pop(ticks)))
+                    self._close(b, ticks)
+                    self.delivered += 1
             if outcome != "used":
                 self.bad_measurements[outcome or "late"] += 1
-        self._hand_on(done)
 
     def expire(self, now: float | None = None, *, everything: bool = False) -> None:
         """Drop frames whose first measurement is older than ``lag_s`` (all pending, with ``everything``)."""
@@ -295,22 +297,19 @@ class FrameAssembler:
         if len(closed) > CLOSED_KEEP:
             del closed[next(iter(closed))]
 
-    def _hand_on(self, done: list[list[tuple[int, _Frame]]]) -> None:
+    def take(self) -> dict[str, FrameBatch]:
+        """The frames completed since the last call, one batch per bus in time order."""
         out = {}
-        for b, rows in enumerate(done):
-            if not rows:
-                continue
-            rows.sort(key=lambda r: r[0])
-            for t, _ in rows:
-                self._close(b, t)
-            out[self.plans[b].bm.bus] = self._batch(self.plans[b], rows)
-            self.delivered += len(rows)
-        if out:
-            self.emit(out)
+        for b, rows in enumerate(self.ready):
+            if rows:
+                rows.sort(key=lambda r: r[0])
+                out[self.plans[b].bm.bus] = self._batch(self.plans[b], rows)
+        self.ready = [[] for _ in self.plans]
+        return out
 
     def _batch(self, plan: BusSignals, rows: list[tuple[int, _Frame]]) -> FrameBatch:
         t = (np.array([r[0] for r in rows], dtype=np.int64) - UNIX_TICKS) / 1e7
-        vals = np.stack([r[1].values for r in rows])
+        vals = np.array([r[1].values for r in rows], dtype=np.float64)
         flags = np.array([r[1].flags for r in rows], dtype=np.int64)
         stat = (np.where(flags & BADDATA, STAT_PMU_ERROR, 0) | np.where(flags & BADTIME, STAT_NOT_SYNC, 0))
         for name, bit in (("bad_data", BADDATA), ("suspect_data", SUSPECTDATA), ("bad_time", BADTIME),
@@ -429,7 +428,7 @@ class SttpClient:
                 if self.assembler is not None:
                     self.assembler.expire()
                 if self.gather.due():
-                    self.gather.flush()
+                    self._hand_on()
             if self.connected.is_set() and time.monotonic() - self._last_data > self.settings.timeout_s:
                 self._reopen("silent")
 
@@ -455,7 +454,13 @@ class SttpClient:
         with self._lock:
             if self.assembler is not None:
                 self.assembler.expire(everything=True)
-            self.gather.flush()
+            self._hand_on()
+
+    def _hand_on(self) -> None:
+        """Everything completed, one batch per bus, to ``emit`` (under the lock)."""
+        if self.assembler is not None:
+            self.gather.add(self.assembler.take())
+        self.gather.flush()
 
     def counts(self) -> dict:
         """Assembly counters (summed over metadata changes), connection counts and frames handed on."""
@@ -507,8 +512,8 @@ class SttpClient:
                     adjust[sid] = (float(rec.multiplier), float(rec.adder))
         with self._lock:
             self._retire()
-            self.assembler = FrameAssembler(plans, self.gather.add, lag_s=self.settings.lag_s,
-                                            angle_unit=self.settings.angle_unit, adjust=adjust)
+            self.assembler = FrameAssembler(plans, lag_s=self.settings.lag_s, angle_unit=self.settings.angle_unit,
+                                            adjust=adjust)
             self.configs += 1
         self.resolved.set()
         log.info("STTP %s:%d: metadata resolved, %d signals for %d bus(es)", self.settings.host,
@@ -518,16 +523,19 @@ class SttpClient:
         """Close the current assembler's pending frames and keep its counters (under the lock)."""
         if self.assembler is not None:
             self.assembler.expire(everything=True)
+            self.gather.add(self.assembler.take())
             self._retired.append(self.assembler.counts())
             self.assembler = None
 
     def _on_measurements(self, measurements: list) -> None:
         self._last_data = time.monotonic()
         with self._lock:
-            if self.assembler is not None:
-                self.assembler.add(measurements)
-            else:
+            if self.assembler is None:
                 self.no_config += len(measurements)
+            else:
+                self.assembler.add(measurements)
+                if self.gather.due():
+                    self._hand_on()
 
 
 class SttpSource:

@@ -52,8 +52,14 @@ def f7_values(k: int) -> dict[str, float]:
 def assembler(buses=BUSES, settings=None, **kw):
     cache, signals = cache_and_signals()
     plans = resolve(cache, parse_mapping({"buses": buses}, power=True).buses, settings or SttpSettings())
-    out: list[dict] = []
-    return FrameAssembler(plans, out.append, lag_s=kw.pop("lag_s", 1.0), **kw), out, signals
+    return FrameAssembler(plans, lag_s=kw.pop("lag_s", 1.0), **kw), [], signals
+
+
+def feed(asm: FrameAssembler, out: list[dict], measurements, now: float | None = None) -> None:
+    """Add measurements; what they completed, if anything, is appended to ``out`` as one hand-on."""
+    asm.add(measurements, now)
+    if taken := asm.take():
+        out.append(taken)
 
 
 def test_power_is_a_mapping_key_of_sttp_only():
@@ -116,9 +122,9 @@ def test_measurements_in_any_order_make_frames_with_the_published_values():
     t0 = 1.7e9
     ms = [measurement(sig, tag, v, t0 + k / 50) for k in range(4) for tag, v in f7_values(k).items()]
     ms = ms[::-1]  # the newest timestamp first, and each frame's measurements reversed
-    asm.add(ms[:7])  # frame 3 whole, two measurements of frame 2
+    feed(asm, out, ms[:7])  # frame 3 whole, two measurements of frame 2
     assert len(out) == 1 and len(out[0]["f7"]) == 1
-    asm.add(ms[7:])
+    feed(asm, out, ms[7:])
     assert len(out) == 2 and set(out[1]) == {"f7"}
     b = out[1]["f7"]  # frames 0, 1, 2 in time order
     np.testing.assert_array_equal(b.t, (np.array([ticks(t0 + k / 50) for k in range(3)]) - UNIX_TICKS) / 1e7)
@@ -137,7 +143,7 @@ def test_measurements_in_any_order_make_frames_with_the_published_values():
 def test_power_buses_take_p_and_q_in_mw_and_mvar():
     asm, out, sig = assembler()
     vals = {"FEEDER9:VA.MAG": 69e3 / np.sqrt(3) * 1.02, "FEEDER9:VA.ANG": 0.0, "FEEDER9:P": 40.0, "FEEDER9:Q": -5.0}
-    asm.add([measurement(sig, tag, v, 1.7e9) for tag, v in vals.items()])
+    feed(asm, out, [measurement(sig, tag, v, 1.7e9) for tag, v in vals.items()])
     b = out[0]["f9"]
     np.testing.assert_allclose([b.V[0], b.P[0], b.Q[0]], [1.02, 40.0 / 50.0, -5.0 / 50.0], rtol=1e-14)
     assert b.f is None
@@ -147,10 +153,10 @@ def test_what_cannot_make_a_frame_is_counted():
     asm, out, sig = assembler(lag_s=1.0)
     t0 = 1.7e9
     full = [measurement(sig, tag, v, t0) for tag, v in f7_values(0).items()]
-    asm.add(full, now=0.0)
-    asm.add([full[0]], now=0.1)  # of a frame already handed on
-    asm.add([measurement(sig, "FEEDER9:P", 1.0, t0)], now=0.1)  # f9's frame stays incomplete
-    asm.add([measurement(sig, "FEEDER7:I1.MAG", 1.0, t0 + 0.02)] * 2, now=0.2)  # twice the same slot
+    feed(asm, out, full, now=0.0)
+    feed(asm, out, [full[0]], now=0.1)  # of a frame already handed on
+    feed(asm, out, [measurement(sig, "FEEDER9:P", 1.0, t0)], now=0.1)  # f9's frame stays incomplete
+    feed(asm, out, [measurement(sig, "FEEDER7:I1.MAG", 1.0, t0 + 0.02)] * 2, now=0.2)  # twice the same slot
     asm.expire(now=1.15)
     assert asm.counts()["pending"] == 1  # the frame at t0 + 0.02 is younger than lag_s
     asm.expire(now=1.25)
@@ -159,7 +165,7 @@ def test_what_cannot_make_a_frame_is_counted():
     assert (c["measurements"], c["frames"], c["delivered"], c["rejected"], c["pending"]) == (
         9, 3, 1, {"incomplete": 2}, 0)
     # Measurements of an expired frame are late too, not the start of a new one.
-    asm.add([measurement(sig, "FEEDER9:Q", 1.0, t0)], now=1.3)
+    feed(asm, out, [measurement(sig, "FEEDER9:Q", 1.0, t0)], now=1.3)
     assert asm.counts()["bad_measurements"]["late"] == 2 and asm.counts()["frames"] == 3
 
 
@@ -167,13 +173,13 @@ def test_unmapped_signals_are_counted_and_flags_become_stat_bits():
     cache, sig = cache_and_signals()
     plans = resolve(cache, parse_mapping({"buses": {"f7": BUSES["f7"]}}).buses, SttpSettings())
     out: list[dict] = []
-    asm = FrameAssembler(plans, out.append, lag_s=1.0)
+    asm = FrameAssembler(plans, lag_s=1.0)
     t0 = 1.7e9
     flags = [0, BADDATA, BADTIME, SUSPECTTIME]
     ms = [measurement(sig, tag, v, t0 + k / 50, flags[k] if tag == "FEEDER7:I1.ANG" else 0)
           for k in range(4) for tag, v in f7_values(k).items()]
     ms.append(measurement(sig, "FEEDER9:P", 3.0, t0))  # a signal no bus of this mapping uses
-    asm.add(ms)
+    feed(asm, out, ms)
     b = out[0]["f7"]
     assert b.stat.tolist() == [0, STAT_PMU_ERROR, STAT_NOT_SYNC, 0]
     c = asm.counts()
@@ -185,14 +191,14 @@ def test_nan_values_complete_a_frame_and_adjustments_apply():
     asm, out, sig = assembler(adjust=None)
     vals = f7_values(0)
     vals["FEEDER7:FREQ"] = float("nan")
-    asm.add([measurement(sig, tag, v, 1.7e9) for tag, v in vals.items()])
+    feed(asm, out, [measurement(sig, tag, v, 1.7e9) for tag, v in vals.items()])
     assert np.isnan(out[0]["f7"].f[0])  # handed on: the service's validation rejects it (non_finite)
     cache, sig2 = cache_and_signals()
     plans = resolve(cache, parse_mapping({"buses": {"f7": BUSES["f7"]}}).buses, SttpSettings(angle_unit="rad"))
-    got: list[dict] = []
-    asm = FrameAssembler(plans, got.append, lag_s=1.0, angle_unit="rad",
+    out = []
+    asm = FrameAssembler(plans, lag_s=1.0, angle_unit="rad",
                          adjust={sig2["FEEDER7:V1.MAG"].signal_id: (1e3, 0.0)})  # a PMU sending kV
     vals = {**f7_values(0), "FEEDER7:V1.MAG": VLN / 1e3, "FEEDER7:V1.ANG": 0.5}
-    asm.add([measurement(sig2, tag, v, 1.7e9) for tag, v in vals.items()])
-    b = got[0]["f7"]
+    feed(asm, out, [measurement(sig2, tag, v, 1.7e9) for tag, v in vals.items()])
+    b = out[0]["f7"]
     np.testing.assert_allclose([b.V[0], b.theta[0]], [1.0, 0.5], rtol=1e-14)
