@@ -202,3 +202,25 @@ def test_nan_values_complete_a_frame_and_adjustments_apply():
     feed(asm, out, [measurement(sig2, tag, v, 1.7e9) for tag, v in vals.items()])
     b = out[0]["f7"]
     np.testing.assert_allclose([b.V[0], b.theta[0]], [1.0, 0.5], rtol=1e-14)
+
+
+def test_the_sttp_source_is_built_from_the_settings_mapping_file(tmp_path):
+    from types import SimpleNamespace
+
+    from service.registry import load
+    from service.settings import SettingsError, load_settings
+    from service.sources import SOURCES
+    from service.sources.sttp import SttpSource
+
+    with pytest.raises(SettingsError, match="pmu_mapping"):
+        load_settings(sources=["sttp"], storage_url=str(tmp_path / "x.sqlite"))
+    path = tmp_path / "openpdc.toml"
+    path.write_text('[sttp]\nhost = "pdc"\nport = 7175\n[buses.f9]\npmu = "FEEDER9"\nvoltage = "VA"\n'
+                    'power = ["FEEDER9:P", "FEEDER9:Q"]\nbase_kv = 69\n')
+    settings = load_settings(sources=["sttp"], pmu_mapping=str(path), storage_url=str(tmp_path / "x.sqlite"))
+    source = load(SOURCES, "sttp")(SimpleNamespace(settings=settings))  # build(ctx) reads ctx.settings only
+    assert isinstance(source, SttpSource) and (source.settings.host, source.settings.port) == ("pdc", 7175)
+    assert source.mapping.buses[0].power == ("FEEDER9:P", "FEEDER9:Q")
+    path.write_text('[c37118]\nport = 1\n[buses.f9]\npmu = "FEEDER9"\nvoltage = "VA"\ncurrent = "I"\nbase_kv = 1\n')
+    with pytest.raises(MappingError, match=r"no \[sttp\] table"):
+        load(SOURCES, "sttp")(SimpleNamespace(settings=settings))
