@@ -105,7 +105,7 @@ def zenoh_client(tap: ZenohTap, peer: SttpPeer, settings: SttpSettings, buses=BU
 
 def test_values_arrive_in_zenoh_unchanged(tap, peer):
     with zenoh_client(tap, peer, SttpSettings(port=peer.port, batch_s=0.1)) as client:
-        t, sent = publish(peer, round(time.time()) - 2.0, 100)
+        t, sent = publish(peer, round(time.time()) - 2.0, 100, extra={"OTHER:V1.MAG": 1.0, "OTHER:V1.ANG": 0.0})
         wait_for(lambda: tap.frames() >= 200, 15, 0.1)
         time.sleep(0.3)
     t_sttp = (np.array([ticks(x) for x in t]) - UNIX_TICKS) / 1e7
@@ -116,7 +116,7 @@ def test_values_arrive_in_zenoh_unchanged(tap, peer):
     got = tap.columns("aslm/pmu/f7")
     np.testing.assert_allclose(got[0], t, atol=1e-6)
     c = client.counts()
-    # 10 measurements a timestamp, 5 for each bus; OTHER's are not subscribed to.
+    # 10 measurements a timestamp, 5 for each bus; OTHER's two are published but not subscribed to.
     assert (c["measurements"], c["frames"], c["delivered"], c["frames_out"], c["rejected"]) == (1000, 200, 200, 200, {})
     assert c["bad_measurements"] == {} and c["connects"] == 1 and c["configs"] == 1
 
