@@ -98,7 +98,7 @@ class ServiceSettings(BaseSettings):
                     "live instances (docs/cluster.md)",
     )
     pmu_mapping: Path | None = Field(
-        None, description="TOML file of the grid-protocol sources ('c37118'): where the stream is and which "
+        None, description="TOML file of the grid-protocol sources ('c37118', 'sttp'): where the stream is and which "
                           "phasors form each bus (docs/protocols.md)",
     )
     sinks: list[str] = Field(
@@ -257,8 +257,9 @@ class ServiceSettings(BaseSettings):
         check_period(self.period_s, self)
         if self.window_s * self.frame_rate < 10:
             raise ValueError("window_s * frame_rate gives fewer than 10 frames per window")
-        if "c37118" in self.sources and self.pmu_mapping is None:
-            raise ValueError("sources has 'c37118': pmu_mapping must name the mapping file (docs/protocols.md)")
+        for name in ("c37118", "sttp"):
+            if name in self.sources and self.pmu_mapping is None:
+                raise ValueError(f"sources has '{name}': pmu_mapping must name the mapping file (docs/protocols.md)")
         return self
 
     # --- derived -----------------------------------------------------------------------------------

@@ -23,6 +23,12 @@ Example (``pdc.toml``)::
                              # a nested ["IA", "IB", "IC"] is one feeder's three phases
     base_kv = 230.0          # line-to-line [kV]
     base_mva = 100.0         # three-phase [MVA] (default: the top-level base_mva, else 100)
+
+    [buses.feeder_9]         # STTP only: a publisher that has the load's power itself
+    pmu = "FEEDER9"
+    voltage = "V1"
+    power = ["FEEDER9:MW", "FEEDER9:MVAR"]   # three-phase P [MW] and Q [Mvar], instead of current
+    base_kv = 69.0
 """
 
 from __future__ import annotations
@@ -67,6 +73,7 @@ class BusMap:
     feeders: tuple[Feeder, ...]
     base_kv: float
     base_mva: float
+    power: tuple[str, str] | None = None  # P [MW] and Q [Mvar] measurements instead of feeders (STTP)
 
     @property
     def v_base(self) -> float:
@@ -103,8 +110,18 @@ def _feeder(value: Any, where: str) -> Feeder:
     return Feeder(names, sign)
 
 
-def parse_mapping(obj: dict[str, Any], source: str = "mapping") -> Mapping:
+def parse_mapping(obj: dict[str, Any], source: str = "mapping", *, power: bool = False) -> Mapping:
     """Check a parsed mapping (see the module docstring) and return its buses.
+
+    Parameters
+    ----------
+    obj : dict
+        The parsed TOML.
+    source : str
+        Named in error messages (the file).
+    power : bool
+        Whether a bus may give ``power = [P, Q]`` instead of ``current`` (sources that carry P and Q as
+        measurements of their own, i.e. STTP; the phasor-only readers leave it False and so refuse it).
 
     Raises
     ------
@@ -120,33 +137,43 @@ def parse_mapping(obj: dict[str, Any], source: str = "mapping") -> Mapping:
         where = f"{source}: buses.{bus}"
         if not isinstance(spec, dict):
             raise MappingError(f"{where}: must be a table")
-        missing = [k for k in ("pmu", "voltage", "current", "base_kv") if k not in spec]
+        if "power" in spec and not power:
+            raise MappingError(f"{where}: power = [P, Q] is read by the STTP source only; this one needs current")
+        flow = "power" if "power" in spec else "current"
+        missing = [k for k in ("pmu", "voltage", flow, "base_kv") if k not in spec]
         if missing:
             raise MappingError(f"{where}: missing {', '.join(missing)}")
-        unknown = set(spec) - {"pmu", "voltage", "current", "base_kv", "base_mva"}
+        unknown = set(spec) - {"pmu", "voltage", flow, "base_kv", "base_mva"}
         if unknown:
             raise MappingError(f"{where}: unknown key(s) {', '.join(sorted(unknown))}")
-        cur = spec["current"]
-        currents = [cur] if isinstance(cur, str) else cur
-        if not isinstance(currents, list) or not currents:
-            raise MappingError(f"{where}.current: a name or a list of feeders, got {cur!r}")
-        feeders = tuple(_feeder(c, f"{where}.current") for c in currents)
+        feeders, pq = (), None
+        if flow == "power":
+            pq = spec["power"]
+            if not (isinstance(pq, list) and len(pq) == 2 and all(isinstance(n, str) for n in pq)):
+                raise MappingError(f"{where}.power: [P, Q] measurement names (MW, Mvar), got {pq!r}")
+            pq = tuple(pq)
+        else:
+            cur = spec["current"]
+            currents = [cur] if isinstance(cur, str) else cur
+            if not isinstance(currents, list) or not currents:
+                raise MappingError(f"{where}.current: a name or a list of feeders, got {cur!r}")
+            feeders = tuple(_feeder(c, f"{where}.current") for c in currents)
         base_kv, base_mva = float(spec["base_kv"]), float(spec.get("base_mva", default_mva))
         if base_kv <= 0 or base_mva <= 0:
             raise MappingError(f"{where}: base_kv and base_mva must be > 0")
         out.append(BusMap(str(bus), spec["pmu"], _names(spec["voltage"], f"{where}.voltage"), feeders,
-                          base_kv, base_mva))
+                          base_kv, base_mva, pq))
     return Mapping(tuple(out), {k: v for k, v in obj.items() if isinstance(v, dict) and k != "buses"})
 
 
-def load_mapping(path: str | Path) -> Mapping:
-    """Read and check a mapping TOML file."""
+def load_mapping(path: str | Path, *, power: bool = False) -> Mapping:
+    """Read and check a mapping TOML file (``power``: see :func:`parse_mapping`)."""
     path = Path(path)
     try:
         obj = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise MappingError(f"{path}: {exc}") from None
-    return parse_mapping(obj, str(path))
+    return parse_mapping(obj, str(path), power=power)
 
 
 def positive_sequence(phases: np.ndarray) -> np.ndarray:
@@ -172,7 +199,7 @@ def bus_batch(bm: BusMap, t: np.ndarray, voltage: np.ndarray, currents: list[np.
     stat : ndarray of uint16 or None
         C37.118 STAT words (data-error bits reject frames in validation).
     """
-    v1 = positive_sequence(voltage) if voltage.ndim == 2 else voltage
+    v1 = _v1(voltage)
     i1 = np.zeros_like(v1)
     for fd, cur in zip(bm.feeders, currents, strict=True):
         i1 = i1 + fd.sign * (positive_sequence(cur) if cur.ndim == 2 else cur)
@@ -180,3 +207,21 @@ def bus_batch(bm: BusMap, t: np.ndarray, voltage: np.ndarray, currents: list[np.
     return FrameBatch(t=np.asarray(t, np.float64), V=np.abs(v1) / bm.v_base, theta=np.angle(v1),
                       P=s.real.copy(), Q=s.imag.copy(), f=None if f is None else np.asarray(f, np.float64),
                       stat=stat)
+
+
+def _v1(voltage: np.ndarray) -> np.ndarray:
+    return positive_sequence(voltage) if voltage.ndim == 2 else voltage
+
+
+def power_batch(bm: BusMap, t: np.ndarray, voltage: np.ndarray, p_mw: np.ndarray, q_mvar: np.ndarray,
+                f: np.ndarray | None, stat: np.ndarray | None) -> FrameBatch:
+    """Frames of a bus whose publisher measures its power (``bm.power``): V, θ from the voltage phasor(s).
+
+    ``p_mw`` and ``q_mvar`` are the three-phase active [MW] and reactive [Mvar] power into the load; the
+    other parameters are those of :func:`bus_batch`.
+    """
+    v1 = _v1(voltage)
+    return FrameBatch(t=np.asarray(t, np.float64), V=np.abs(v1) / bm.v_base, theta=np.angle(v1),
+                      P=np.asarray(p_mw, np.float64) * 1e6 / bm.s_base,
+                      Q=np.asarray(q_mvar, np.float64) * 1e6 / bm.s_base,
+                      f=None if f is None else np.asarray(f, np.float64), stat=stat)

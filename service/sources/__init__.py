@@ -8,6 +8,7 @@ plus one line in :data:`SOURCES`.
 SOURCES: dict[str, str] = {
     "zenoh": "service.sources.zenoh:build",
     "c37118": "service.sources.c37118:build",
+    "sttp": "service.sources.sttp:build",
     "zenoh-sharded": "service.sources.sharded:build",
 }
 """name → ``module:factory`` (imported only when a service starts that source; see service.registry)."""

@@ -18,11 +18,11 @@ import pytest
 from c37118_peers import A, SynchroPmu, UdpPmu, config2, data_frame, free_port
 from conftest import D_TRUE
 from service_helpers import wait_for
+from zenoh_tap import ZenohTap
 
 from aslm_core.params import DYNAMIC_NAMES
 from service.buffers import BufferStore
 from service.clock import ManualClock
-from service.frames import decode_binary
 from service.protocols.mapping import parse_mapping
 from service.scheduler import QualityRules, Scheduler
 from service.sinks.base import SinkChain
@@ -60,28 +60,6 @@ def frames_of(cfg2, t0: float, n: int, rate: float):
                                                       0.8 + 0.01 * rng.standard_normal(), 0.3),
                       freq_dev=0.01) for k in range(n)]
     return [f for f, _ in out], np.array([c for _, c in out])
-
-
-class ZenohTap:
-    """A Zenoh peer listening on a free port, collecting {prefix}/pmu/** batches."""
-
-    def __init__(self) -> None:
-        import zenoh
-
-        from service.zenoh_config import zenoh_config
-
-        self.port = free_port()
-        self.session = zenoh.open(zenoh_config("peer", connect=[], listen=[f"tcp/127.0.0.1:{self.port}"]))
-        self.batches: list = []
-        self.sub = self.session.declare_subscriber(
-            "aslm/pmu/**", lambda s: self.batches.append((str(s.key_expr), decode_binary(s.payload.to_bytes()))))
-
-    def columns(self) -> np.ndarray:
-        return np.concatenate([np.stack([b.t, b.V, b.theta, b.P, b.Q]) for _, b in self.batches], axis=1)
-
-    def close(self) -> None:
-        self.sub.undeclare()
-        self.session.close()
 
 
 @pytest.fixture
