@@ -1,0 +1,144 @@
+"""Where the time goes: the same windows on the local pool and on a 2-worker LocalCluster.
+
+Both executors stay up for the whole run and take turns (interleaved repetitions), each given the same
+cold tasks in groups of 64, as the period scheduler hands them over.  Reported per run: wall time and
+throughput; per window the worker thread's wall and CPU time inside the task (``TaskOutcome``); the
+CPU time of every process group (this process, by thread: the main thread submits, ``IO loop`` are
+the in-process Dask scheduler's and client's event loops; the local pool's workers; the Dask workers;
+their nannies).  The idle executor's processes are counted too: their overhead is real.
+
+On a machine shared through the kernel's autogroups (one CPU share per session, divided among its
+threads), throughput follows CPU per window summed over the whole process tree, which is why the
+groups are reported.
+
+    .venv/bin/python benchmarks/profile_dask.py --buses 1000 --reps 3
+    .venv/bin/python benchmarks/profile_dask.py --config '{"distributed.worker.profile.enabled": false}'
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import threading
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from benchmarks.bench_period import FS, cpu_s, fill  # noqa: E402
+from service.buffers import BufferStore  # noqa: E402
+from service.executors.base import WindowTask  # noqa: E402
+from service.settings import ServiceSettings  # noqa: E402
+
+FN = "service.worker:identify_window"
+GROUP = 64  # the period scheduler's submit group (service/scheduler.py)
+
+
+def thread_cpu() -> dict[str, float]:
+    """CPU time [s] of this process's threads, summed by thread name (Linux /proc)."""
+    tick = os.sysconf("SC_CLK_TCK")
+    out: dict[str, float] = {}
+    for th in threading.enumerate():
+        try:
+            with open(f"/proc/self/task/{th.native_id}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        name = "main" if th is threading.main_thread() else th.name.split("_")[0].split(" (")[0]
+        out[name] = out.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / tick
+    return out
+
+
+def make_tasks(buses: int, options: dict) -> list[WindowTask]:
+    """Cold tasks for ``buses`` windows of the synthetic fleet, cut as the period scheduler cuts them."""
+    period_s = 60.0
+    boundary = (np.floor(time.time() / period_s) - 2) * period_s
+    store = BufferStore(10.0, FS, 1.0)
+    fill(store, buses, boundary)
+    return [WindowTask(store.buffer(bus, create=False).cut(boundary - 10.0, boundary, f0=50.0, bus=bus),
+                       options=options) for bus in store.buses()]
+
+
+def run(executor, tasks: list[WindowTask], groups: dict[str, list[int]]) -> dict:
+    """Submit ``tasks`` in groups of :data:`GROUP` and wait for all; times and CPU of the run.
+
+    ``groups``: name → pids whose CPU time during the run is reported.
+    """
+    th0, t0 = thread_cpu(), time.perf_counter()
+    g0 = {name: cpu_s(pids) for name, pids in groups.items()}
+    b0 = getattr(executor, "batches", 0)
+    futs = []
+    for i in range(0, len(tasks), GROUP):
+        futs += executor.submit_many(tasks[i:i + GROUP])
+    outcomes = [f.result() for f in futs]
+    wall = time.perf_counter() - t0
+    th1 = thread_cpu()
+    g1 = {name: round(cpu_s(pids) - g0[name], 2) for name, pids in groups.items()}
+    ok = [o for o in outcomes if o.ok]
+    return {"n": len(tasks), "ok": len(ok), "wall_s": round(wall, 3), "throughput": len(ok) / wall,
+            "window_wall_ms": 1e3 * statistics.mean(o.elapsed_s for o in ok),
+            "window_cpu_ms": 1e3 * statistics.mean(o.cpu_s for o in ok),
+            "dask_tasks": getattr(executor, "batches", 0) - b0,
+            "threads_cpu_s": {k: round(th1[k] - th0.get(k, 0.0), 2) for k in th1 if th1[k] - th0.get(k, 0.0) >= 0.01},
+            "groups_cpu_s": g1, "load": os.getloadavg()[0]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--buses", type=int, default=1000)
+    ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--config", default="{}", help="Dask config of the LocalCluster and client (JSON)")
+    ap.add_argument("--out", default=None, help="JSON of every run")
+    args = ap.parse_args()
+
+    import dask
+    import distributed
+    import psutil
+
+    from service.executors.dask import DaskPool, wait_workers
+    from service.executors.local import LocalPool
+
+    defaults = ServiceSettings.model_fields
+    options = {"n_starts": defaults["n_starts"].default, "lowpass_hz": defaults["lowpass_hz"].default}
+    tasks = make_tasks(args.buses, options)
+    config = json.loads(args.config)
+    pool = LocalPool(args.workers, FN, timeout_s=120)
+    pool.wait_ready(300)
+    rows: dict[str, list] = {"local": [], "dask": []}
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1} | config), distributed.LocalCluster(
+            n_workers=args.workers, threads_per_worker=1, processes=True, host="127.0.0.1", scheduler_port=0,
+            dashboard_address=None, silence_logs=40) as cluster:
+        dpool = DaskPool(cluster.scheduler_address, FN, timeout_s=120)
+        try:
+            wait_workers(dpool, args.workers, 300)
+            dpids = list(dpool.client.run(os.getpid).values())
+            groups = {"this process": [os.getpid()], "local workers": pool.pids(), "dask workers": dpids,
+                      "dask nannies": [psutil.Process(pid).ppid() for pid in dpids]}
+            run(pool, tasks[:GROUP], groups)  # both executors warmed on these windows before timing
+            run(dpool, tasks[:GROUP], groups)
+            for r in range(args.reps):
+                for name, ex in (("local", pool), ("dask", dpool)):
+                    row = run(ex, tasks, groups)
+                    rows[name].append(row)
+                    print(f"rep {r} {name:5s}: {row['wall_s']:.2f} s, {row['throughput']:.0f} windows/s, window "
+                          f"{row['window_wall_ms']:.2f} ms wall / {row['window_cpu_ms']:.2f} ms cpu, "
+                          f"{row['dask_tasks']} Dask tasks, load {row['load']:.1f}\n"
+                          f"    cpu-s by process: {row['groups_cpu_s']} (sum {sum(row['groups_cpu_s'].values()):.2f}); "
+                          f"this process by thread: {row['threads_cpu_s']}", flush=True)
+        finally:
+            dpool.close()
+            pool.close()
+    ratios = [d["throughput"] / lo["throughput"] for d, lo in zip(rows["dask"], rows["local"], strict=True)]
+    print(f"dask / local throughput: median {statistics.median(ratios):.2f}, range {min(ratios):.2f}-{max(ratios):.2f}")
+    if args.out:
+        with open(args.out, "w") as fh:
+            json.dump({"buses": args.buses, "config": config, "runs": rows, "ratios": ratios}, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()
