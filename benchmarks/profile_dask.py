@@ -4,15 +4,12 @@ Both executors stay up for the whole run and take turns (interleaved repetitions
 cold tasks in groups of 64, as the period scheduler hands them over.  Reported per run: wall time and
 throughput; per window the worker thread's wall and CPU time inside the task (``TaskOutcome``); the
 CPU time of every process group (this process, by thread: the main thread submits, ``IO loop`` are
-the in-process Dask scheduler's and client's event loops; the local pool's workers; the Dask workers;
-their nannies).  The idle executor's processes are counted too: their overhead is real.
-
-On a machine shared through the kernel's autogroups (one CPU share per session, divided among its
-threads), throughput follows CPU per window summed over the whole process tree, which is why the
-groups are reported.
+the in-process Dask scheduler's, nannies' and client's event loops; the local pool's workers; the Dask
+workers).  The idle executor's processes are counted too: their overhead is real.  The cluster runs
+with the executor's ``CLUSTER_CONFIG`` unless ``--dask-defaults``.
 
     .venv/bin/python benchmarks/profile_dask.py --buses 1000 --reps 3
-    .venv/bin/python benchmarks/profile_dask.py --config '{"distributed.worker.profile.enabled": false}'
+    .venv/bin/python benchmarks/profile_dask.py --buses 1000 --reps 3 --dask-defaults
 """
 
 from __future__ import annotations
@@ -92,33 +89,33 @@ def main() -> None:
     ap.add_argument("--buses", type=int, default=1000)
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--config", default="{}", help="Dask config of the LocalCluster and client (JSON)")
+    ap.add_argument("--dask-defaults", action="store_true",
+                    help="the LocalCluster with Dask's default settings (but one retry), not CLUSTER_CONFIG")
     ap.add_argument("--out", default=None, help="JSON of every run")
     args = ap.parse_args()
 
     import dask
     import distributed
-    import psutil
 
-    from service.executors.dask import DaskPool, wait_workers
+    from service.executors.dask import CLUSTER_CONFIG, DaskPool, wait_workers
     from service.executors.local import LocalPool
 
     defaults = ServiceSettings.model_fields
     options = {"n_starts": defaults["n_starts"].default, "lowpass_hz": defaults["lowpass_hz"].default}
     tasks = make_tasks(args.buses, options)
-    config = json.loads(args.config)
+    config = {"distributed.scheduler.allowed-failures": 1} if args.dask_defaults else CLUSTER_CONFIG
     pool = LocalPool(args.workers, FN, timeout_s=120)
     pool.wait_ready(300)
     rows: dict[str, list] = {"local": [], "dask": []}
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1} | config), distributed.LocalCluster(
+    with dask.config.set(config), distributed.LocalCluster(
             n_workers=args.workers, threads_per_worker=1, processes=True, host="127.0.0.1", scheduler_port=0,
             dashboard_address=None, silence_logs=40) as cluster:
         dpool = DaskPool(cluster.scheduler_address, FN, timeout_s=120)
         try:
             wait_workers(dpool, args.workers, 300)
             dpids = list(dpool.client.run(os.getpid).values())
-            groups = {"this process": [os.getpid()], "local workers": pool.pids(), "dask workers": dpids,
-                      "dask nannies": [psutil.Process(pid).ppid() for pid in dpids]}
+            # A LocalCluster's nannies live in this process: its CPU includes theirs.
+            groups = {"this process": [os.getpid()], "local workers": pool.pids(), "dask workers": dpids}
             run(pool, tasks[:GROUP], groups)  # both executors warmed on these windows before timing
             run(dpool, tasks[:GROUP], groups)
             for r in range(args.reps):

@@ -49,6 +49,19 @@ INFLIGHT_PER_THREAD = 2
 #: How long the cluster's thread count is reused [s]: asking the scheduler costs a round trip, which
 #: each hand-over of a batch would otherwise pay.
 THREADS_TTL_S = 1.0
+#: Dask settings of the cluster's scheduler and workers: the compose profile's ``DASK_*`` variables
+#: and the tests' and benchmarks' ``LocalCluster``.  A batch whose worker dies is
+#: run once more, then fails.  The rest cuts Dask's background work, which by default costs an idle
+#: 2-worker cluster about 0.2 core (docs/cluster.md, "Measured"): the statistical profiler samples the
+#: task thread every 10 ms, every server's event loop ticks every 20 ms, memory is polled every 100 ms
+#: and the system monitor runs every 0.5 s.  None of these serve the service (no dashboard).
+CLUSTER_CONFIG: dict[str, object] = {
+    "distributed.scheduler.allowed-failures": 1,
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "5s",
+    "distributed.worker.memory.monitor-interval": "1s",
+}
 
 
 def run_batch(fn_path: str, tasks: list[WindowTask]) -> list[TaskOutcome]:
