@@ -52,7 +52,7 @@ THREADS_TTL_S = 1.0
 #: Dask settings of the cluster's scheduler and workers: the compose profile's ``DASK_*`` variables
 #: and the tests' and benchmarks' ``LocalCluster``.  A batch whose worker dies is
 #: run once more, then fails.  The rest cuts Dask's background work, which by default costs an idle
-#: 2-worker cluster about 0.2 core (docs/cluster.md, "Measured"): the statistical profiler samples the
+#: 2-worker cluster about 0.11 core (docs/cluster.md, "Measured"): the statistical profiler samples the
 #: task thread every 10 ms, every server's event loop ticks every 20 ms, memory is polled every 100 ms
 #: and the system monitor runs every 0.5 s.  None of these serve the service (no dashboard).
 CLUSTER_CONFIG: dict[str, object] = {
