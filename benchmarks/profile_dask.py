@@ -60,20 +60,42 @@ def make_tasks(buses: int, options: dict) -> list[WindowTask]:
                        options=options) for bus in store.buses()]
 
 
-def run(executor, tasks: list[WindowTask], groups: dict[str, list[int]]) -> dict:
+def sched_s(pids: list[int]) -> tuple[float, float]:
+    """(CPU, run-queue wait) [s] summed over every thread of ``pids`` (Linux schedstat)."""
+    cpu = wait = 0.0
+    for pid in pids:
+        try:
+            tids = os.listdir(f"/proc/{pid}/task")
+        except OSError:
+            continue
+        for tid in tids:
+            try:
+                with open(f"/proc/{pid}/task/{tid}/schedstat") as fh:
+                    fields = fh.read().split()
+            except OSError:
+                continue
+            cpu, wait = cpu + int(fields[0]) / 1e9, wait + int(fields[1]) / 1e9
+    return cpu, wait
+
+
+def run(executor, tasks: list[WindowTask], groups: dict[str, list[int]], workers: list[int]) -> dict:
     """Submit ``tasks`` in groups of :data:`GROUP` and wait for all; times and CPU of the run.
 
-    ``groups``: name → pids whose CPU time during the run is reported.
+    ``groups``: name → pids whose CPU time during the run is reported; ``workers``: the executor's
+    worker processes, whose threads' time running and waiting for a core (run queue) is summed.
     """
     th0, t0 = thread_cpu(), time.perf_counter()
     g0 = {name: cpu_s(pids) for name, pids in groups.items()}
     b0 = getattr(executor, "batches", 0)
+    s0 = sched_s(workers)
     futs = []
     for i in range(0, len(tasks), GROUP):
         futs += executor.submit_many(tasks[i:i + GROUP])
     outcomes = [f.result() for f in futs]
     wall = time.perf_counter() - t0
     th1 = thread_cpu()
+    s1 = sched_s(workers)
+    run_s, wait_s = s1[0] - s0[0], s1[1] - s0[1]
     g1 = {name: round(cpu_s(pids) - g0[name], 2) for name, pids in groups.items()}
     ok = [o for o in outcomes if o.ok]
     return {"n": len(tasks), "ok": len(ok), "wall_s": round(wall, 3), "throughput": len(ok) / wall,
@@ -81,7 +103,8 @@ def run(executor, tasks: list[WindowTask], groups: dict[str, list[int]]) -> dict
             "window_cpu_ms": 1e3 * statistics.mean(o.cpu_s for o in ok),
             "dask_tasks": getattr(executor, "batches", 0) - b0,
             "threads_cpu_s": {k: round(th1[k] - th0.get(k, 0.0), 2) for k in th1 if th1[k] - th0.get(k, 0.0) >= 0.01},
-            "groups_cpu_s": g1, "load": os.getloadavg()[0]}
+            "groups_cpu_s": g1, "workers_running_s": round(run_s, 2), "workers_waiting_s": round(wait_s, 2),
+            "load": os.getloadavg()[0]}
 
 
 def main() -> None:
@@ -116,15 +139,18 @@ def main() -> None:
             dpids = list(dpool.client.run(os.getpid).values())
             # A LocalCluster's nannies live in this process: its CPU includes theirs.
             groups = {"this process": [os.getpid()], "local workers": pool.pids(), "dask workers": dpids}
-            run(pool, tasks[:GROUP], groups)  # both executors warmed on these windows before timing
-            run(dpool, tasks[:GROUP], groups)
+            workers = {"local": pool.pids(), "dask": dpids}
+            run(pool, tasks[:GROUP], groups, workers["local"])  # both warmed on these windows before timing
+            run(dpool, tasks[:GROUP], groups, workers["dask"])
             for r in range(args.reps):
                 for name, ex in (("local", pool), ("dask", dpool)):
-                    row = run(ex, tasks, groups)
+                    row = run(ex, tasks, groups, workers[name])
                     rows[name].append(row)
                     print(f"rep {r} {name:5s}: {row['wall_s']:.2f} s, {row['throughput']:.0f} windows/s, window "
                           f"{row['window_wall_ms']:.2f} ms wall / {row['window_cpu_ms']:.2f} ms cpu, "
                           f"{row['dask_tasks']} Dask tasks, load {row['load']:.1f}\n"
+                          f"    worker processes' threads: running {row['workers_running_s']} s, waiting for a core "
+                          f"{row['workers_waiting_s']} s\n"
                           f"    cpu-s by process: {row['groups_cpu_s']} (sum {sum(row['groups_cpu_s'].values()):.2f}); "
                           f"this process by thread: {row['threads_cpu_s']}", flush=True)
         finally:
