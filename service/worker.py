@@ -107,13 +107,15 @@ def finite(obj):
 def run_task(fn_path: str, task: WindowTask) -> TaskOutcome:
     """Run one task, turning every exception into a failed outcome with a reason.
 
-    The value's non-finite floats become None (:func:`finite`).
+    The value's non-finite floats become None (:func:`finite`).  The outcome carries the task's wall
+    time and its thread's CPU time [s].
     """
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     try:
         value = finite(resolve(task.fn or fn_path)(task))
-        return TaskOutcome(ok=True, value=value, elapsed_s=time.perf_counter() - t0)
+        return TaskOutcome(ok=True, value=value, elapsed_s=time.perf_counter() - t0, cpu_s=time.thread_time() - c0)
     except Exception as exc:  # noqa: BLE001 - any failure fails this bus only
         reason = getattr(exc, "reason", None)
         reason = f"window:{reason}" if reason and type(exc).__name__ == "WindowError" else f"error:{type(exc).__name__}"
-        return TaskOutcome(ok=False, reason=reason, message=str(exc)[:500], elapsed_s=time.perf_counter() - t0)
+        return TaskOutcome(ok=False, reason=reason, message=str(exc)[:500], elapsed_s=time.perf_counter() - t0,
+                           cpu_s=time.thread_time() - c0)

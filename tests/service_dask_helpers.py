@@ -28,3 +28,11 @@ def dies_on_doomed(task) -> dict:
     if task.bus == "doomed":
         os._exit(17)
     return echo(task)
+
+
+def spin(task) -> dict:
+    """:func:`echo` after 50 ms of CPU work (a busy loop: thread CPU time, unlike :func:`slow_echo`)."""
+    end = time.thread_time() + 0.05
+    while time.thread_time() < end:
+        pass
+    return echo(task)

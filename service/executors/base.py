@@ -50,6 +50,10 @@ class TaskOutcome:
 
     Reasons: ``window:<WindowError.reason>``, ``error:<ExceptionType>``, ``timeout``,
     ``worker_crashed``, ``shutdown``.
+
+    ``elapsed_s`` is the task's wall time in the worker [s], ``cpu_s`` the CPU time of the worker's
+    thread meanwhile [s]: on a shared machine the wall time also counts the time the worker waited
+    for a core, so what a task costs is ``cpu_s``.
     """
 
     ok: bool
@@ -57,6 +61,7 @@ class TaskOutcome:
     reason: str | None = None
     message: str = ""
     elapsed_s: float = 0.0
+    cpu_s: float = 0.0
 
 
 class Executor(Protocol):

@@ -37,15 +37,31 @@ except ImportError:  # pragma: no cover - the extra is part of the test install
 
 log = logging.getLogger(__name__)
 
-#: Work per batch [s]: 1 ms of scheduling is then 0.5 % of it, and a batch lost with its worker
-#: costs a fifth of a second to run again.
+#: Work per batch [s of a worker thread's CPU]: 1 ms of scheduling is then 0.5 % of it, and a batch
+#: lost with its worker costs a fifth of a second to run again.
 BATCH_S = 0.2
-#: Per-bus cost assumed until the first outcomes are measured [s] (a warm-started window,
+#: Per-bus cost assumed until the first outcomes are measured [s of CPU] (a warm-started window,
 #: docs/service.md: 2.5–3.7 ms).
 COST_S = 0.004
 #: Batches in flight per worker thread: one running, one queued behind it so no thread idles for a
 #: round trip; the rest wait here, so a batch's deadline starts close to when it runs.
 INFLIGHT_PER_THREAD = 2
+#: How long the cluster's thread count is reused [s]: asking the scheduler costs a round trip, which
+#: each hand-over of a batch would otherwise pay.
+THREADS_TTL_S = 1.0
+#: Dask settings of the cluster's scheduler and workers: the compose profile's ``DASK_*`` variables
+#: and the tests' and benchmarks' ``LocalCluster``.  A batch whose worker dies is
+#: run once more, then fails.  The rest cuts Dask's background work, which by default costs an idle
+#: 2-worker cluster about 0.11 core (docs/cluster.md, "Measured"): the statistical profiler samples the
+#: task thread every 10 ms, every server's event loop ticks every 20 ms, memory is polled every 100 ms
+#: and the system monitor runs every 0.5 s.  None of these serve the service (no dashboard).
+CLUSTER_CONFIG: dict[str, object] = {
+    "distributed.scheduler.allowed-failures": 1,
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "5s",
+    "distributed.worker.memory.monitor-interval": "1s",
+}
 
 
 def run_batch(fn_path: str, tasks: list[WindowTask]) -> list[TaskOutcome]:
@@ -116,6 +132,8 @@ def worker_state(dask_worker=None) -> dict:
 
 
 class _Batch:
+    """Windows handed to the scheduler as one Dask task, with their futures."""
+
     __slots__ = ("tasks", "futures", "dfut", "timer")
 
     def __init__(self, tasks: list[WindowTask], futures: list[Future]) -> None:
@@ -149,7 +167,14 @@ class DaskPool:
     Attributes
     ----------
     cost_s : float
-        Running estimate of the work per window [s] (mean of the latest outcomes' ``elapsed_s``).
+        Running estimate of the work per window [s of CPU] (mean of the latest outcomes' ``cpu_s``):
+        batches are sized from it.  CPU rather than wall time because on a shared machine a window's
+        wall time grows with the other jobs' load while Dask's per-task overhead, which batches
+        amortise, is CPU too: sized from wall time, batches would shrink as the machine gets busier.
+    wall_s : float
+        Running estimate of the wall time per window [s] (``elapsed_s``), for the batches' deadlines.
+    batches : int
+        Batches handed to the scheduler so far.
     """
 
     def __init__(self, address: str, fn_path: str, timeout_s: float, *, batch_s: float = BATCH_S,
@@ -165,21 +190,33 @@ class DaskPool:
         self.batch_s = batch_s
         self.inflight_per_thread = max(1, int(inflight_per_thread))
         self.cost_s = COST_S
+        self.wall_s = COST_S
+        self.batches = 0
         self.replaced = 0  # the Executor attribute /health reports; Dask's nannies replace workers
         self._lock = threading.Lock()
-        self._waiting: collections.deque[_Batch] = collections.deque()
-        self._inflight = 0
+        # Windows not yet handed over: cut into batches only when a batch can go, so windows submitted in
+        # small groups (the period scheduler hands them over 64 at a time) still travel in full batches.
+        self._waiting: collections.deque[tuple[WindowTask, Future]] = collections.deque()
+        self._inflight = 0  # batches handed to the scheduler and not resolved
+        self._inflight_windows = 0
+        self._threads = (0, -math.inf)  # (count, monotonic time it was asked)
         self._closed = False
         self.client.register_plugin(WarmupPlugin(fn_path, cache_root), name=WarmupPlugin.name)
 
     # --- public -------------------------------------------------------------------------------------
     def threads(self) -> int:
-        """Worker threads of the cluster now (at least 1)."""
-        return max(1, sum(self.client.nthreads().values()))
+        """Worker threads of the cluster (at least 1), as the scheduler said at most :data:`THREADS_TTL_S` ago."""
+        count, asked = self._threads
+        now = time.monotonic()
+        if now - asked > THREADS_TTL_S:
+            count = max(1, sum(self.client.nthreads().values()))
+            self._threads = (count, now)
+        return count
 
     def batch_size(self, n: int, threads: int | None = None) -> int:
-        """Windows per batch for ``n`` windows: about ``batch_s`` of work, yet at least 4 batches per
-        worker thread when ``n`` allows (so the load spreads and a lost batch is small)."""
+        """Windows per batch when ``n`` windows are outstanding (waiting here or in flight): about
+        ``batch_s`` of work, yet at least 4 batches per worker thread when ``n`` allows (so the load
+        spreads at the end of a period and a lost batch is small)."""
         threads = self.threads() if threads is None else threads
         by_cost = max(1, int(self.batch_s / max(self.cost_s, 1e-5)))
         return max(1, min(by_cost, math.ceil(n / (4 * threads))))
@@ -193,14 +230,12 @@ class DaskPool:
         futs = [Future() for _ in tasks]
         if not tasks:
             return futs
-        size = self.batch_size(len(tasks))
         with self._lock:
             if self._closed:
                 for fut in futs:
                     fut.set_result(TaskOutcome(ok=False, reason="shutdown", message="executor closed"))
                 return futs
-            for i in range(0, len(tasks), size):
-                self._waiting.append(_Batch(tasks[i:i + size], futs[i:i + size]))
+            self._waiting.extend(zip(tasks, futs, strict=True))
         self._pump()
         return futs
 
@@ -209,26 +244,32 @@ class DaskPool:
         with self._lock:
             self._closed = True
             waiting, self._waiting = list(self._waiting), collections.deque()
-        for batch in waiting:
-            self._resolve(batch, None, "shutdown", "executor closed")
+        for _, fut in waiting:
+            fut.set_result(TaskOutcome(ok=False, reason="shutdown", message="executor closed"))
         self.client.close()
 
     # --- internals ----------------------------------------------------------------------------------
     def _pump(self) -> None:
-        """Hand waiting batches to the scheduler, up to ``inflight_per_thread`` per worker thread."""
-        limit = self.inflight_per_thread * self.threads()
+        """Cut waiting windows into batches (:meth:`batch_size` of all outstanding windows) and hand
+        them to the scheduler, up to ``inflight_per_thread`` batches per worker thread."""
+        threads = self.threads()
+        limit = self.inflight_per_thread * threads
         while True:
             with self._lock:
                 if self._closed or not self._waiting or self._inflight >= limit:
                     return
-                batch = self._waiting.popleft()
+                size = self.batch_size(len(self._waiting) + self._inflight_windows, threads)
+                items = [self._waiting.popleft() for _ in range(min(size, len(self._waiting)))]
+                batch = _Batch([task for task, _ in items], [fut for _, fut in items])
                 self._inflight += 1
+                self._inflight_windows += len(items)
+                self.batches += 1
             try:
                 batch.dfut = self.client.submit(run_batch, self.fn_path, batch.tasks, pure=False)
             except Exception as exc:  # noqa: BLE001 - e.g. the scheduler is gone: fail this batch
                 self._settle(batch, None, f"error:{type(exc).__name__}", str(exc)[:500])
                 continue
-            limit_s = self.timeout_s + 2.0 * len(batch.tasks) * self.cost_s
+            limit_s = self.timeout_s + 2.0 * len(batch.tasks) * max(self.wall_s, self.cost_s)
             batch.timer = threading.Timer(limit_s, self._expire, args=(batch, limit_s))
             batch.timer.daemon = True
             batch.timer.start()
@@ -258,6 +299,7 @@ class DaskPool:
         if self._resolve(batch, outcomes, reason, message):
             with self._lock:
                 self._inflight -= 1
+                self._inflight_windows -= len(batch.tasks)
             self._pump()
 
     def _resolve(self, batch: _Batch, outcomes: list[TaskOutcome] | None, reason: str | None, message: str) -> bool:
@@ -267,9 +309,10 @@ class DaskPool:
                 return False
             futures, batch.futures = batch.futures, []
         if outcomes is not None:
-            elapsed = [o.elapsed_s for o in outcomes if o.ok]
-            if elapsed:
-                self.cost_s = 0.5 * self.cost_s + 0.5 * (sum(elapsed) / len(elapsed))
+            done = [o for o in outcomes if o.ok]
+            if done:
+                self.cost_s = 0.5 * self.cost_s + 0.5 * sum(o.cpu_s for o in done) / len(done)
+                self.wall_s = 0.5 * self.wall_s + 0.5 * sum(o.elapsed_s for o in done) / len(done)
             for fut, outcome in zip(futures, outcomes, strict=True):
                 fut.set_result(outcome)
         else:

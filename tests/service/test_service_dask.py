@@ -1,7 +1,7 @@
 """The Dask executor on a real ``LocalCluster`` of worker processes on 127.0.0.1.
 
-One cluster (2 worker processes, 1 thread each) serves the module; the scheduler retries a batch
-whose worker died once (``allowed-failures = 1``, as the compose profile sets it).
+One cluster (2 worker processes, 1 thread each) with the settings the compose profile gives its
+cluster (``CLUSTER_CONFIG``) serves the module: the scheduler retries a batch whose worker died once.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from service.buffers import BufferStore
 from service.clock import ManualClock
 from service.executors import make_executor
 from service.executors.base import WindowTask
-from service.executors.dask import DaskPool, wait_workers, worker_state
+from service.executors.dask import CLUSTER_CONFIG, DaskPool, wait_workers, worker_state
 from service.executors.local import LocalPool
 from service.scheduler import QualityRules, Scheduler
 from service.sources.base import Inlet
@@ -31,7 +31,7 @@ pytestmark = pytest.mark.slow  # real processes and a real scheduler on 127.0.0.
 
 @pytest.fixture(scope="module")
 def cluster():
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1}), distributed.LocalCluster(
+    with dask.config.set(CLUSTER_CONFIG), distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, processes=True, protocol="tcp://", host="127.0.0.1",
             scheduler_port=0, dashboard_address=None) as cluster:
         yield cluster
@@ -94,6 +94,21 @@ def test_windows_go_in_batches_sized_from_the_measured_cost_and_keep_their_order
     assert [o.value["warm_start"] for o in outcomes] == [t.warm_start for t in tasks]
     assert len({o.value["pid"] for o in outcomes}) == 2  # both workers took batches
     assert pool.cost_s < 0.004  # re-estimated from the outcomes (echo costs microseconds)
+
+
+def test_windows_submitted_in_small_groups_still_travel_in_full_batches(pool_of):
+    # The period scheduler hands windows over 64 at a time; cut per call, each group would become 8
+    # small batches (4 per worker thread).  Here 96 windows in groups of 8 (each alone: batches of 1).
+    pool = pool_of("service_dask_helpers:slow_echo")
+    tasks = [task(f"g{i}") for i in range(96)]
+    futs = [fut for i in range(0, 96, 8) for fut in pool.submit_many(tasks[i:i + 8])]
+    outcomes = [f.result(timeout=120) for f in futs]
+    assert [o.value["bus"] for o in outcomes] == [t.bus for t in tasks] and all(o.ok for o in outcomes)
+    # 4 first batches of 1 (the workers start at once), then each an eighth of the windows outstanding
+    # (~35 in all); cut per call it would be 96 batches of 1.
+    assert pool.batches <= 48, pool.batches
+    # Sized from CPU time: slow_echo sleeps 50 ms (wall) and costs microseconds of CPU.
+    assert pool.cost_s < 0.004 < 0.02 < pool.wall_s
 
 
 def test_a_worker_killed_mid_period_loses_and_duplicates_no_bus(pool_of):

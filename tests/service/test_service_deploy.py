@@ -83,6 +83,17 @@ def test_dask_profile_matches_executor_setting():
     assert load_settings(executor=address, storage_url=":memory:").executor == address
 
 
+def test_dask_containers_get_the_executors_cluster_config():
+    """Dask reads the compose variables as the executor's CLUSTER_CONFIG (parsed by Dask itself)."""
+    dask = pytest.importorskip("dask")
+    from service.executors.dask import CLUSTER_CONFIG
+
+    for name in ("dask-scheduler", "dask-worker"):
+        env = {k: resolve(v) for k, v in SERVICES[name]["environment"].items()}
+        with dask.config.set(dask.config.collect_env(env)):
+            assert {key: dask.config.get(key, None) for key in CLUSTER_CONFIG} == CLUSTER_CONFIG, name
+
+
 def test_published_ports_bind_loopback_only_and_never_the_dask_scheduler():
     # Issue 17, defect 7: "7447:7447" published the plain-TCP router (no access control) and "8786:8786"
     # the Dask scheduler (runs any code it is sent) on every host interface.

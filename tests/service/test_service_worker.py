@@ -29,3 +29,11 @@ def test_run_task_returns_the_identification_or_a_reason():
     short = WindowTask(Window(np.arange(3) / 50.0, np.ones(3), np.zeros(3), np.ones(3), np.ones(3), bus="s"))
     out = run_task("service.worker:identify_window", short)
     assert not out.ok and out.reason.startswith(("window:", "error:"))
+
+
+def test_run_task_reports_cpu_time_apart_from_wall_time():
+    busy = run_task("service_dask_helpers:spin", _task())  # 50 ms of CPU
+    idle = run_task("service_dask_helpers:slow_echo", _task())  # 50 ms asleep
+    assert busy.ok and idle.ok
+    assert busy.cpu_s > 0.02 and busy.elapsed_s >= busy.cpu_s
+    assert idle.elapsed_s >= 0.05 and idle.cpu_s < 0.02
