@@ -9,15 +9,18 @@ z_t = (D_t − D̂_pool)/√(s_t² + ŝ_pool²).  The detector declares a change
 both stand more than h from the pool on the same parameter with the same sign: the first such window is
 held out of the pool (a suspect), the second confirms it, and the pool restarts from the two.  Requiring
 two windows keeps a single outlying window (a local optimum, a disturbance) from restarting the pool, and a
-real step is still confirmed at the second period after it.  Under the null (independent Gaussian z) the
-false-alarm probability per period is ≤ 4·2·Φ(−h)² (four parameters, two signs), so h follows from a
-false-alarm rate per bus and day at period T: α = rate·T/86 400, h = −Φ⁻¹(√(α/8)).
+real step is still confirmed at the second period after it; a suspect that the next window does not confirm
+joins the pool winsorised (its innovations clipped at ±h).  Under the null (independent Gaussian z) the
+false-alarm probability per period is ≤ 4·2·P(Z1 > h, Z2 > h) (four parameters, two signs; the two
+innovations correlate with ρ = 1/(n + 1) through the pool of n windows they share), so h follows from a
+false-alarm rate per bus and day at period T: α = rate·T/86 400 = 8·P(Z1 > h, Z2 > h; ρ).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
+from functools import lru_cache
 from statistics import NormalDist
 
 import numpy as np
@@ -28,7 +31,18 @@ from aslm_core.params import DYNAMIC_NAMES
 _CELLS = 2 * len(DYNAMIC_NAMES)
 
 
-def threshold(false_alarms_per_day: float, period_s: float) -> float:
+def _pair_tail(h: float, rho: float) -> float:
+    """P(Z1 > h, Z2 > h) for standard normals with correlation rho (one-dimensional quadrature)."""
+    nd = NormalDist()
+    x = np.linspace(h, h + 10.0, 2001)
+    pdf = np.exp(-0.5 * x * x) / math.sqrt(2.0 * math.pi)
+    cond = np.array([1.0 - nd.cdf((h - rho * xi) / math.sqrt(1.0 - rho * rho)) for xi in x])
+    y = pdf * cond
+    return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(x)))
+
+
+@lru_cache(maxsize=256)
+def threshold(false_alarms_per_day: float, period_s: float, pool_n: int = 0) -> float:
     """Threshold h on |z| for a false-alarm rate per bus and day at one estimate per period.
 
     Parameters
@@ -37,14 +51,25 @@ def threshold(false_alarms_per_day: float, period_s: float) -> float:
         Accepted false alarms per bus and day under a stationary load [1/day], > 0.
     period_s : float
         Identification period T [s].
+    pool_n : int
+        Windows in the pool both innovations are taken against: they share its error, so they correlate
+        with ρ = 1/(n + 1) (equal standard errors); 0: independent.
 
     Returns
     -------
     float
-        h [-] with 8·Φ(−h)² = rate·T/86 400 (see the module docstring).
+        h [-] with 8·P(Z1 > h, Z2 > h; ρ) = rate·T/86 400 (see the module docstring).
     """
     alpha = min(false_alarms_per_day * period_s / 86400.0, 0.5)
-    return float(-NormalDist().inv_cdf(math.sqrt(alpha / _CELLS)))
+    h = -NormalDist().inv_cdf(math.sqrt(alpha / _CELLS))
+    rho = 1.0 / (pool_n + 1.0) if pool_n > 0 else 0.0
+    if rho == 0.0:
+        return float(h)
+    lo, hi = h, h + 4.0
+    for _ in range(50):  # bisection: the pair tail falls with h
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _CELLS * _pair_tail(mid, rho) > alpha else (lo, mid)
+    return float(hi)
 
 
 @dataclass(frozen=True)
@@ -72,8 +97,8 @@ class TrackerConfig:
 
     @property
     def threshold(self) -> float:
-        """Detector threshold h on |z| [-]."""
-        return threshold(self.false_alarms_per_day, self.period_s)
+        """Detector threshold h on |z| against a full pool [-]."""
+        return threshold(self.false_alarms_per_day, self.period_s, self.pool_windows)
 
 
 @dataclass
@@ -181,7 +206,8 @@ class Tracker:
         est = Estimate(float(t), [float(x) for x in d], [float(x) for x in se])
         if not all(math.isfinite(x) for x in est.d):
             return None
-        h = self.config.threshold
+        # The suspect was tested against the same pool (it is held out of it until now).
+        h = threshold(self.config.false_alarms_per_day, self.config.period_s, len(self.pool))
         z = self.innovation(est)
         if self.suspect is not None:
             zs = np.asarray(self.suspect_z)
@@ -197,15 +223,27 @@ class Tracker:
                 self.suspect = self.suspect_z = None
                 self.last_change = event.t
                 return event
-            # Not confirmed: the suspect was an outlier of the stationary load and joins the pool.
-            self._append(self.suspect)
+            # Not confirmed: an outlier of the stationary load.  It joins the pool winsorised (each
+            # innovation clipped at ±h), so that it neither biases the pool nor makes the next windows
+            # stand out against a pool it has pulled.
+            self._append(self._winsorised(self.suspect, np.asarray(self.suspect_z), h))
             self.suspect = self.suspect_z = None
             z = self.innovation(est)
+            h = threshold(self.config.false_alarms_per_day, self.config.period_s, len(self.pool))
         if z is not None and bool(np.any(np.abs(z) > h)):
             self.suspect, self.suspect_z = est, z.tolist()
         else:
             self._append(est)
         return None
+
+    def _winsorised(self, est: Estimate, z: np.ndarray, h: float) -> Estimate:
+        """``est`` with each parameter moved to the pool's mean + clip(z, ±h)·(its innovation's scale)."""
+        if not self.pool:
+            return est
+        mean = combine(self.pool)[0]
+        d = np.asarray(est.d)
+        clipped = np.where(np.abs(z) > h, mean + (d - mean) * h / np.where(np.abs(z) > h, np.abs(z), 1.0), d)
+        return Estimate(est.t, clipped.tolist(), est.se)
 
     def _append(self, est: Estimate) -> None:
         self.pool.append(est)
