@@ -192,7 +192,7 @@ def part_drift(n_buses: int, ks: tuple[int, ...], snr_db: float, false_alarms_pe
         for k in ks:
             tracked, events = track(d, se, TrackerConfig(pool_windows=k, false_alarms_per_day=false_alarms_per_day,
                                                          period_s=PERIOD_S))
-            lags[k].append(_lag(tracked[:, 3], lambda t: tm0 * f(t), skip=PERIODS_PER_DAY // 2))
+            lags[k].append(_lag(tracked[:, 3], lambda t, tm0=tm0: tm0 * f(t), skip=PERIODS_PER_DAY // 2))
             changes[k] += len(events)
     return {"snr_db": snr_db, "n_buses": n_buses, "periods": n,
             "lag_periods": {str(k): {"median": float(np.median(v)), "max": float(np.max(v)), "all": v}
