@@ -153,6 +153,10 @@ def combine(pool: list[Estimate]) -> tuple[np.ndarray, np.ndarray]:
     return mean, np.where(sw > 0.0, 1.0 / np.sqrt(np.where(sw > 0.0, sw, 1.0)), np.inf)
 
 
+def _plain(est: Estimate) -> dict:
+    return {"t": est.t, "d": est.d, "se": est.se}
+
+
 def _summary(pool: list[Estimate]) -> dict:
     mean, se = combine(pool)
     return {"dynamic": dict(zip(DYNAMIC_NAMES, mean.tolist(), strict=True)),
@@ -260,7 +264,8 @@ class Tracker:
 
     def to_state(self) -> dict:
         """The tracker's state as a plain dict (the configuration excluded), for persistence."""
-        return {"pool": [asdict(e) for e in self.pool], "suspect": asdict(self.suspect) if self.suspect else None,
+        # Plain dicts by hand: dataclasses.asdict deep-copies, ~10x slower per bus and period.
+        return {"pool": [_plain(e) for e in self.pool], "suspect": _plain(self.suspect) if self.suspect else None,
                 "suspect_z": self.suspect_z, "last_change": self.last_change}
 
     @classmethod
