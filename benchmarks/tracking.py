@@ -29,6 +29,7 @@ import os
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
+import json  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
 from statistics import NormalDist  # noqa: E402
@@ -104,7 +105,7 @@ def _sigma(ratios: np.ndarray) -> dict:
 def part_pooled(n_buses: int, ks: tuple[int, ...]) -> dict:
     """σ of the pooled fit and of the information-weighted mean for each k (14 dB)."""
     kmax = max(ks)
-    per = {("fit", k): [] for k in ks} | {("mean", k): [] for k in ks}
+    per = {(kind, k): [] for kind in ("fit", "mean", "tracker") for k in ks}
     cost = {k: [] for k in ks}
     for bus in range(n_buses):
         windows, truth = bus_windows(SEEDS["pooled"], bus, np.ones(kmax), 14.0)
@@ -123,6 +124,9 @@ def part_pooled(n_buses: int, ks: tuple[int, ...]) -> dict:
                 per[("fit", k)].append(fit.d / truth[0])
                 mean, _ = combine([Estimate(0.0, list(a), list(b)) for a, b in zip(d[sl], se[sl], strict=True)])
                 per[("mean", k)].append(mean / truth[0])
+                # What the service reports: the tracker's pool (suspects winsorised, a change restarts it).
+                tracked, _ = track(d[sl], se[sl], TrackerConfig(pool_windows=k, period_s=PERIOD_S))
+                per[("tracker", k)].append(tracked[-1] / truth[0])
     out = {}
     for (kind, k), rows in per.items():
         out.setdefault(kind, {})[str(k)] = _sigma(np.array(rows))
@@ -229,6 +233,8 @@ def part_calibrate(n_buses: int, n_periods: int, snr_db: float, config: TrackerC
 def main() -> None:
     p = common.parser(__doc__.splitlines()[0])
     p.add_argument("--calibrate", action="store_true", help="only the development-seed calibration of se_scale")
+    p.add_argument("--parts", nargs="+", default=list(SEEDS), choices=list(SEEDS),
+                   help="run these parts only (their results replace those parts in the JSON file)")
     args = p.parse_args()
     q = args.quick
     if args.calibrate:
@@ -238,22 +244,26 @@ def main() -> None:
             print(common.write_json("tracking_calibration", {"machine": common.machine(), "calibration": cal}))
         return
     config = TrackerConfig(pool_windows=16, false_alarms_per_day=0.1, period_s=PERIOD_S)
-    out = {"machine": common.machine(), "command": common.command("tracking", q), "config": vars(config),
-           "threshold": config.threshold}
-    t0 = time.time()
-    out["pooled"] = part_pooled(8 if q else 100, (1, 4, 16))
-    print("pooled", out["pooled"], flush=True)
-    out["step"] = part_step(10 if q else 100, config, 22.0)
-    print("step", out["step"], flush=True)
-    out["false_alarms"] = [part_false_alarms(4 if q else 30, 100 if q else 200, config, snr)
-                           for snr in (22.0, 14.0)]
-    print("false alarms", out["false_alarms"], flush=True)
-    out["drift"] = part_drift(3 if q else 10, (4, 16), 22.0, config.false_alarms_per_day)
-    print("drift", out["drift"], flush=True)
-    out["elapsed_s"] = time.time() - t0
-    out["load_avg_at_end"] = [round(x, 2) for x in os.getloadavg()]
+    name = "tracking_quick" if q else "tracking"
+    path = common.RESULTS / f"{name}.json"
+    out = json.loads(path.read_text()) if set(args.parts) != set(SEEDS) and path.exists() else {}
+    runs = {
+        "pooled": lambda: part_pooled(8 if q else 100, (1, 4, 16)),
+        "step": lambda: part_step(10 if q else 100, config, 22.0),
+        "false_alarms": lambda: [part_false_alarms(4 if q else 30, 100 if q else 200, config, snr)
+                                 for snr in (22.0, 14.0)],
+        "drift": lambda: part_drift(3 if q else 10, (4, 16), 22.0, config.false_alarms_per_day),
+    }
+    for part in args.parts:
+        t0 = time.time()
+        out[part] = runs[part]()
+        out.setdefault("runs", {})[part] = {"machine": common.machine(), "elapsed_s": time.time() - t0,
+                                            "load_avg_at_end": [round(x, 2) for x in os.getloadavg()],
+                                            "command": common.command("tracking", q) + " --parts " + part}
+        print(part, out[part], flush=True)
+    out.update({"config": vars(config), "threshold": config.threshold})
     if not args.no_write:
-        print(common.write_json("tracking_quick" if q else "tracking", out))
+        print(common.write_json(name, out))
 
 
 if __name__ == "__main__":
