@@ -15,11 +15,13 @@ service does (3 random starts plus the previous window's D as warm start); the t
 3. ``false_alarms``: stationary sequences at T = 15 min (22 dB and 14 dB); alarms per bus and week.
 4. ``drift``: two days of a daily cycle of motor share 1 ± 0.2 (sine, 96 periods a day); the lag [periods]
    of the tracked Tm behind the truth (the shift minimising the RMS between them) for k = 4 and 16.
+5. ``service_cost``: time of the service's ``tracking`` sink per bus and period (500 buses × 20 periods,
+   SQLite in a temporary file, no publication).
 
 Seeds are fixed in advance (one block per part); the detector's threshold is set from its false-alarm
 rate before any run (no tuning).
 
-    .venv/bin/python -m benchmarks.tracking [--quick]
+    .venv/bin/python -m benchmarks.tracking [--quick] [--parts pooled step ...] [--calibrate]
 """
 
 from __future__ import annotations
@@ -230,10 +232,46 @@ def part_calibrate(n_buses: int, n_periods: int, snr_db: float, config: TrackerC
             "scale": float(np.quantile(z.ravel(), 1.0 - tail) / h)}
 
 
+def part_service_cost(n_buses: int, n_periods: int) -> dict:
+    """Time of the service's tracking sink per bus and period: tracker update, model, SQLite row, put."""
+    import tempfile
+    from pathlib import Path
+
+    from service.models import BusResult
+    from service.sinks.tracking import TrackingSink
+    from service.storage import Storage
+
+    rng = np.random.default_rng(SEEDS["pooled"])
+    d0 = np.array([40.0, 12.0, 1.5, 0.5])
+    se = dict(zip(common.PARAMS, (0.02 * d0).tolist(), strict=True))
+
+    def result(bus: int, period: float) -> BusResult:
+        d = d0 * (1.0 + 0.02 * rng.standard_normal(4))
+        return BusResult(bus=f"bus{bus:05d}", period=period, period_s=PERIOD_S, status="ok", completed_at=period,
+                         parameters={"dynamic": dict(zip(common.PARAMS, d.tolist(), strict=True)),
+                                     "static": {"Pz": 0.1}, "objective": 0.1, "fit": {"fd_p": 0.9, "fd_q": 0.9},
+                                     "stderr": se})
+
+    times = []
+    with tempfile.TemporaryDirectory() as tmp:
+        storage = Storage(Path(tmp) / "cost.sqlite")
+        sink = TrackingSink(storage, TrackerConfig(), put=lambda key, payload: None)
+        for p in range(n_periods):
+            batch = [result(b, p * PERIOD_S) for b in range(n_buses)]
+            t0 = time.perf_counter()
+            sink.write_results(batch, [""] * n_buses)
+            times.append((time.perf_counter() - t0) / n_buses)
+        storage.close()
+    # The first periods fill the pools (and compute the thresholds once per pool size).
+    steady = times[n_periods // 2:]
+    return {"n_buses": n_buses, "n_periods": n_periods, "ms_per_bus_median": 1e3 * float(np.median(steady)),
+            "ms_per_bus_all": [1e3 * t for t in times], "load_avg": [round(x, 2) for x in os.getloadavg()]}
+
+
 def main() -> None:
     p = common.parser(__doc__.splitlines()[0])
     p.add_argument("--calibrate", action="store_true", help="only the development-seed calibration of se_scale")
-    p.add_argument("--parts", nargs="+", default=list(SEEDS), choices=list(SEEDS),
+    p.add_argument("--parts", nargs="+", default=[*SEEDS, "service_cost"], choices=[*SEEDS, "service_cost"],
                    help="run these parts only (their results replace those parts in the JSON file)")
     args = p.parse_args()
     q = args.quick
@@ -246,13 +284,14 @@ def main() -> None:
     config = TrackerConfig(pool_windows=16, false_alarms_per_day=0.1, period_s=PERIOD_S)
     name = "tracking_quick" if q else "tracking"
     path = common.RESULTS / f"{name}.json"
-    out = json.loads(path.read_text()) if set(args.parts) != set(SEEDS) and path.exists() else {}
+    out = json.loads(path.read_text()) if set(args.parts) != {*SEEDS, "service_cost"} and path.exists() else {}
     runs = {
         "pooled": lambda: part_pooled(8 if q else 100, (1, 4, 16)),
         "step": lambda: part_step(10 if q else 100, config, 22.0),
         "false_alarms": lambda: [part_false_alarms(4 if q else 30, 100 if q else 200, config, snr)
                                  for snr in (22.0, 14.0)],
         "drift": lambda: part_drift(3 if q else 10, (4, 16), 22.0, config.false_alarms_per_day),
+        "service_cost": lambda: part_service_cost(50 if q else 500, 20),
     }
     for part in args.parts:
         t0 = time.time()
