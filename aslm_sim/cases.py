@@ -89,6 +89,8 @@ def make_cases(
     input_noise: bool = True,
     own_sigma: float | Sequence[float] = 0.0,
     own_shape: str = "lowpass",
+    truths: Sequence[LoadTruth] | None = None,
+    networks: Sequence[dict] | None = None,
 ) -> list[SyntheticCase]:
     """Simulate n ambient cases with known truth.
 
@@ -119,6 +121,11 @@ def make_cases(
         versions for the same seed.
     own_shape : str
         Shape of the own process, one of :data:`aslm_sim.own.OWN_SHAPES`.
+    truths : sequence of LoadTruth, optional
+        The load of each case instead of a random draw (e.g. one bus over successive windows, or a load
+        that changes between them); the excitation and noise still come from (seed, i).
+    networks : sequence of dict, optional
+        The network of each case (as :func:`aslm_sim.network.draw_network` returns) instead of a draw.
 
     Returns
     -------
@@ -143,16 +150,22 @@ def make_cases(
     cases: list[SyntheticCase] = []
     children = np.random.SeedSequence(seed).spawn(n)
     for c0 in range(0, n, _CHUNK):
+        fixed = (truths[c0:c0 + _CHUNK] if truths is not None else None,
+                 networks[c0:c0 + _CHUNK] if networks is not None else None)
         cases.extend(_make_chunk(children[c0:c0 + _CHUNK], c0, sos, gain, m, k, h, n_skip, n_samp, n_int,
-                                 level, snr_db, seed, fs, f0, input_noise, sig_own[c0:c0 + _CHUNK], own_shape))
+                                 level, snr_db, seed, fs, f0, input_noise, sig_own[c0:c0 + _CHUNK], own_shape,
+                                 fixed))
     return cases
 
 
 def _make_chunk(children: list, c0: int, sos: np.ndarray, gain: float, m: int, k: int, h: float,
                 n_skip: int, n_samp: int, n_int: int, level: int | None, snr_db: float | None, seed: int,
                 fs: float, f0: float, input_noise: bool, sig_own: np.ndarray,
-                own_shape: str) -> list[SyntheticCase]:
-    """Simulate and post-process one chunk of :func:`make_cases` (cases c0, c0 + 1, ...)."""
+                own_shape: str, fixed: tuple = (None, None)) -> list[SyntheticCase]:
+    """Simulate and post-process one chunk of :func:`make_cases` (cases c0, c0 + 1, ...).
+
+    ``fixed``: the chunk's truths and networks, each a sequence or None (drawn).
+    """
     n = len(children)
     truths, nets, rows, x0s, vl0s, noise_rngs = [], [], [], [], [], []
     with_own = bool(np.any(sig_own > 0.0))
@@ -160,9 +173,9 @@ def _make_chunk(children: list, c0: int, sos: np.ndarray, gain: float, m: int, k
     for i, ss in enumerate(children):
         # A fourth child for the own process: the first three are the same as ss.spawn(3)'s.
         s_truth, s_net, s_noise, s_own = ss.spawn(4)
-        tr = random_truth(np.random.default_rng(s_truth))
+        tr = fixed[0][i] if fixed[0] is not None else random_truth(np.random.default_rng(s_truth))
         rng_net = np.random.default_rng(s_net)
-        net = draw_network(rng_net, tr, f0)
+        net = fixed[1][i] if fixed[1] is not None else draw_network(rng_net, tr, f0)
         p, x0, vl0 = steady_state(tr, net)
         w = rng_net.standard_normal((2, n_int))
         # Zero first value: the system starts at its steady state with no fluctuation.

@@ -8,7 +8,7 @@ voltages in pu, times in s.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numba as nb
 import numpy as np
@@ -103,6 +103,21 @@ class LoadTruth:
         p = self.Pz * V * V + self.Pi * V + self.Pp + self.Tm
         q = self.Qz * V * V + self.Qi * V + self.Qp + qm
         return float(p), float(q)
+
+    def scaled_motor(self, factor: float) -> LoadTruth:
+        """The same bus with ``factor`` times as many of its motors in parallel; the static part unchanged.
+
+        On the system base a, H2 and Tm scale with the motor count, b = X/(Td0·X') does not (X and X'
+        divide by it, Td0 stays), so Tm/(a/2b), the loading of each motor, and its ride-through are the
+        same.  E.g. 1.2: a 20 % step in motor share (the evening motors switching on).
+
+        Parameters
+        ----------
+        factor : float
+            Motor count relative to this truth's [-], > 0.
+        """
+        return replace(self, a=self.a * factor, H2=self.H2 * factor, Tm=self.Tm * factor, X=self.X / factor,
+                       Xp=self.Xp / factor)
 
     def to_dict(self) -> dict:
         """Plain dict (JSON-able): physical parameters plus the dynamic/static groupings."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hmac
+import json
 import logging
 import math
 import time
@@ -22,7 +23,7 @@ from service.dashboard import add_dashboard
 from service.docs_assets import mount_docs
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
-from service.models import BusResult, LatestDiagnosis, PeriodSummary
+from service.models import BusResult, ChangeEvent, LatestDiagnosis, PeriodSummary, TrackedModel
 from service.settings import PERIOD_MAX_S, ServiceSettings
 from service.storage import Storage
 
@@ -194,8 +195,8 @@ def _records(results: list, q: RecordQuery, f0: float) -> list[dict]:
 
     asm = Assumptions(xp=q.xp, td0=q.td0, loading=q.loading, v0=q.v0, f0=f0)
     try:
-        return [record_payload(r if isinstance(r, BusResult) else BusResult.model_validate_json(r), q.fmt, asm)
-                for r in results]
+        return [record_payload(r if isinstance(r, (BusResult, dict)) else BusResult.model_validate_json(r), q.fmt,
+                               asm) for r in results]
     except RecordError as exc:
         raise HTTPException(422, str(exc)) from None
 
@@ -313,6 +314,25 @@ def create_app(service: ServiceView) -> FastAPI:
             when = f"every {every} periods" if every else "never (diagnose_every = 0)"
             raise HTTPException(404, f"no diagnosis for bus {bus!r} yet: the service diagnoses {when}")
         return Response(js, media_type="application/json")
+
+    @app.get("/buses/{bus:path}/tracked", response_model=TrackedModel)
+    def tracked(bus: BusPath, rq: Annotated[RecordQuery, Depends(record_query)]) -> Response:
+        """The bus's tracked model: D pooled since the last change, its uncertainty, the last change
+        (docs/tracking.md); with ``?format=…`` its records for a simulator."""
+        js = service.storage.tracked(bus)
+        if js is None:
+            raise HTTPException(404, f"no tracked model for bus {bus!r} (the 'tracking' sink tracks every bus "
+                                     "with a successful result)")
+        if rq.fmt is not None:
+            return JSONResponse(_records([json.loads(js)], rq, service.settings.f0)[0])
+        return Response(js, media_type="application/json")
+
+    @app.get("/buses/{bus:path}/changes", response_model=list[ChangeEvent])
+    def changes(bus: BusPath, since: Annotated[float | None, Query(description="earliest change, UTC [s]")] = None,
+                limit: Annotated[int, Query(ge=1, le=10000)] = 100) -> Response:
+        """Detected changes of the bus's load model, newest first (time, before/after, evidence)."""
+        return Response("[" + ",".join(service.storage.changes(bus, since, limit)) + "]",
+                        media_type="application/json")
 
     @app.get("/periods", response_model=list[PeriodSummary])
     def periods(limit: Annotated[int, Query(ge=1, le=1000)] = 20) -> list[PeriodSummary]:

@@ -258,3 +258,49 @@ class FailedDiagnosis(BaseModel):
 
 #: What ``GET /buses/{bus}/diagnosis/latest`` answers: a report, or a failure (told apart by ``verdict``).
 LatestDiagnosis = Annotated[BusDiagnosis | FailedDiagnosis, Field(discriminator="verdict")]
+
+
+# --- tracking ---------------------------------------------------------------------------------------
+class TrackedSummary(BaseModel):
+    """A pool of windows' combined motor D (information-weighted mean of the windows' estimates)."""
+
+    dynamic: dict[str, float] = Field(description=f"D = {_listed(DYNAMIC_PARAMS)}")
+    stderr: dict[str, float | None] = Field(description="Standard errors of D (null: not determined)")
+    n_windows: int = Field(description="Windows combined")
+
+
+class TrackedModel(TrackedSummary):
+    """The tracked model of a bus: its current best D, pooled since the last change (docs/tracking.md)."""
+
+    bus: str
+    period: float = Field(description="Period of the newest pooled window, UTC [s]")
+    since: float = Field(description="Period of the oldest pooled window, UTC [s]")
+    last_change: float | None = Field(description="Period of the first window after the last detected change, "
+                                                  "UTC [s] (null: none since the tracking started)")
+    suspect: bool = Field(description="The newest window stood out and is held out of the pool until the next one "
+                                      "confirms a change or clears it")
+    static: dict[str, float] = Field(description="Static part of the newest successful window (not pooled)")
+    static_local: dict[str, float | None] = Field(default_factory=dict,
+                                                  description="Its level and slope at V0 (as in parameters)")
+    pool_windows: int = Field(description="Longest pool k in force [windows]")
+    threshold: float = Field(description="Detector threshold h on the standardised innovations [-]")
+
+
+class ChangeEvidence(BaseModel):
+    """Why a change was declared."""
+
+    param: str = Field(description="Parameter that moved (a, b, H2 or Tm)")
+    z: list[float] = Field(description="The two windows' standardised innovations on it [-]")
+    threshold: float = Field(description="Threshold h [-]")
+    z_all: list[list[float]] = Field(description="Both windows' innovations on a, b, H2, Tm [-]")
+
+
+class ChangeEvent(BaseModel):
+    """A detected change of a bus's load model."""
+
+    bus: str
+    t: float = Field(description="Period of the first window after the change, UTC [s]")
+    detected_t: float = Field(description="Period of the window that confirmed it, UTC [s]")
+    before: TrackedSummary = Field(description="The tracked model before the change")
+    after: TrackedSummary = Field(description="The pool of the two windows after it")
+    evidence: ChangeEvidence

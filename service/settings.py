@@ -106,6 +106,13 @@ class ServiceSettings(BaseSettings):
         description="Sinks of results, diagnoses and periods (service/sinks/): 'storage' (SQLite history, "
                     "always written first), 'zenoh' ({prefix}/params/{bus}, the latest queryable, liveliness)",
     )
+    # --- tracking (the 'tracking' sink) ---------------------------------------------------------
+    track_pool_windows: int = Field(
+        16, ge=1, description="Longest pool k of the tracked model: the last k windows since the last change",
+    )
+    track_false_alarms_per_day: float = Field(
+        0.1, gt=0, description="Change detector's false-alarm rate per bus and day under a stationary load",
+    )
     # --- storage -------------------------------------------------------------------------------
     storage_url: str = Field("aslm.sqlite", description="SQLite file path or sqlite:///path URL")
     retention_days: float = Field(90.0, description="Results and periods older than this are deleted [days]")

@@ -45,6 +45,19 @@ CREATE TABLE IF NOT EXISTS running (
     period_s REAL NOT NULL,
     buses TEXT NOT NULL
 );
+CREATE TABLE IF NOT EXISTS tracked (
+    bus TEXT PRIMARY KEY,
+    period REAL NOT NULL,
+    body TEXT NOT NULL,
+    state TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS changes (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    bus TEXT NOT NULL,
+    t REAL NOT NULL,
+    body TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS changes_bus_t ON changes (bus, t);
 CREATE TABLE IF NOT EXISTS config (
     key TEXT PRIMARY KEY,
     value TEXT NOT NULL,
@@ -166,6 +179,7 @@ class Storage:
         with self._transaction() as db:
             n = db.execute("DELETE FROM results WHERE period < ?", (before,)).rowcount
             db.execute("DELETE FROM periods WHERE period < ?", (before,))
+            db.execute("DELETE FROM changes WHERE t < ?", (before,))
         return n
 
     # --- periods that have started and not completed (a crash leaves them) ----------------------------
@@ -213,6 +227,38 @@ class Storage:
                 n_skipped=counts["skipped"], latency_s=now - (period + late_s), completed_at=now,
                 status="interrupted", no_result=[b for b in json.loads(buses) if b not in status]))
         return out
+
+    # --- tracked models and change events (service/sinks/tracking.py) ---------------------------------
+    def save_tracking(self, tracked: list[tuple[str, float, str, str]], changes: list[tuple[str, float, str]]) -> None:
+        """Replace tracked models and append change events, in one transaction.
+
+        Parameters
+        ----------
+        tracked : list of (bus, period [s], model JSON, tracker state JSON)
+        changes : list of (bus, t [s], event JSON)
+        """
+        _check_buses([b for b, *_ in tracked] + [b for b, *_ in changes])
+        with self._transaction() as db:
+            db.executemany("INSERT OR REPLACE INTO tracked (bus, period, body, state) VALUES (?, ?, ?, ?)", tracked)
+            db.executemany("INSERT INTO changes (bus, t, body) VALUES (?, ?, ?)", changes)
+
+    def tracked(self, bus: str) -> str | None:
+        """JSON of the bus's tracked model, or None."""
+        with self._lock:
+            row = self._db.execute("SELECT body FROM tracked WHERE bus = ?", (bus,)).fetchone()
+        return row[0] if row else None
+
+    def tracker_states(self) -> dict[str, str]:
+        """bus → JSON of its tracker's state (to resume tracking after a restart)."""
+        with self._lock:
+            return dict(self._db.execute("SELECT bus, state FROM tracked").fetchall())
+
+    def changes(self, bus: str, since: float | None = None, limit: int = 100) -> list[str]:
+        """JSON of the change events of ``bus`` with ``t >= since`` [s], newest first."""
+        with self._lock:
+            rows = self._db.execute("SELECT body FROM changes WHERE bus = ? AND t >= ? ORDER BY t DESC, id DESC "
+                                    "LIMIT ?", (bus, since if since is not None else -1e300, int(limit))).fetchall()
+        return [r[0] for r in rows]
 
     # --- configuration -------------------------------------------------------------------------------
     # --- diagnoses -------------------------------------------------------------------------------

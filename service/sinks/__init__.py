@@ -9,5 +9,6 @@ SINKS: dict[str, str] = {
     "zenoh": "service.sinks.zenoh:build",
     "records": "service.sinks.records:build",
     "bus_metrics": "service.sinks.bus_metrics:build",
+    "tracking": "service.sinks.tracking:build",
 }
 """name → ``module:factory`` (imported only when a service uses that sink; see service.registry)."""

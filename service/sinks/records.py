@@ -5,6 +5,9 @@ The assumptions are the documented defaults of :class:`aslm_core.records.Assumpt
 ``f0``; a planner who needs others asks REST (``?format=…&xp=…``) or runs ``aslm export``.  A result that
 cannot be written (e.g. no motor, or X' outside its interval) is published as ``{"bus", "period",
 "format", "error"}`` on the same key, so that a subscriber learns why there is no record.
+
+With the ``tracking`` sink, a bus's records are those of its tracked model (D pooled since the last change,
+docs/tracking.md) rather than of its latest window; ``model`` in the payload says which.
 """
 
 from __future__ import annotations
@@ -35,23 +38,30 @@ class RecordsSink:
         Record formats to publish (default all of :data:`aslm_core.records.FORMATS`).
     on_error : callable, optional
         Called once per failed put.
+    tracked : callable, optional
+        ``tracked(bus)``: JSON of the bus's tracked model or None; its records replace the window's.
     """
 
     name = "records"
     persists = False
 
     def __init__(self, put: Callable[[str, str], None], prefix: str, assumptions: Assumptions,
-                 formats: tuple[str, ...] = FORMATS, on_error: Callable[[], None] | None = None) -> None:
+                 formats: tuple[str, ...] = FORMATS, on_error: Callable[[], None] | None = None,
+                 tracked: Callable[[str], str | None] | None = None) -> None:
         self._put = put
         self.prefix = prefix
         self.assumptions = assumptions
         self.formats = formats
         self._on_error = on_error or (lambda: None)
+        self._tracked = tracked
         self.published = 0
 
     def _payload(self, res: BusResult, fmt: str) -> str:
+        js = self._tracked(res.bus) if self._tracked is not None else None
         try:
-            return json.dumps(record_payload(res, fmt, self.assumptions))
+            if js is not None:
+                return json.dumps({**record_payload(json.loads(js), fmt, self.assumptions), "model": "tracked"})
+            return json.dumps({**record_payload(res, fmt, self.assumptions), "model": "window"})
         except RecordError as exc:
             return json.dumps({"bus": res.bus, "period": res.period, "format": fmt, "error": str(exc)})
 
@@ -90,4 +100,5 @@ def build(ctx: Context) -> RecordsSink:
                     congestion_control=zenoh.CongestionControl.BLOCK)
 
     return RecordsSink(put, ctx.settings.prefix, Assumptions(f0=ctx.settings.f0),
-                       on_error=ctx.metrics.request_errors.labels("publish").inc)
+                       on_error=ctx.metrics.request_errors.labels("publish").inc,
+                       tracked=ctx.storage.tracked if "tracking" in ctx.settings.sinks else None)

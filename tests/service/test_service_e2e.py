@@ -1,5 +1,6 @@
 """End to end on loopback: a 20-bus synthetic fleet with known parameters over Zenoh → the service (real
-identifier in spawned workers) → results over REST, a Zenoh subscriber, the queryable and the history."""
+identifier in spawned workers) → results over REST, a Zenoh subscriber, the queryable and the history; the
+tracked models (the tracking sink) over REST and on {prefix}/tracked/{bus}."""
 
 from __future__ import annotations
 
@@ -23,10 +24,14 @@ def test_fleet_to_parameters_over_rest_and_zenoh(tmp_path):
     zport = free_port()
     # objective 'ml': a non-default identifier option travels from the settings to every worker.
     settings = settings_for(tmp_path, zport, period_s=12.0, window_s=10.0, late_s=1.0, task_timeout_s=120,
-                            objective="ml")
+                            objective="ml", sinks=["storage", "tracking", "zenoh"])
     with Service(settings) as svc:
         sess = client_session(zport)
         got: dict[tuple[str, float], dict] = {}
+        tracked: dict[str, dict] = {}
+        sub_tracked = sess.declare_subscriber(  # noqa: F841 - kept alive for the test
+            "aslm/tracked/**", lambda s: tracked.__setitem__(str(s.key_expr).rsplit("/", 1)[1],
+                                                            json.loads(s.payload.to_bytes())))
         sub = sess.declare_subscriber(  # noqa: F841 - kept alive for the test
             "aslm/params/**", lambda s: got.__setitem__(
                 (str(s.key_expr).rsplit("/", 1)[1], json.loads(s.payload.to_bytes())["period"]),
@@ -56,6 +61,14 @@ def test_fleet_to_parameters_over_rest_and_zenoh(tmp_path):
             rest = httpx.get(f"{svc.url}/buses/{bus}/parameters",
                              params={"since": done["period"], "until": done["period"]}).json()
             assert len(rest) == 1 and zres["parameters"]["dynamic"] == rest[0]["parameters"]["dynamic"]
+        # The tracked model of every bus: on REST and on Zenoh, pooled from its successful windows.
+        wait_for(lambda: set(tracked) == set(fleet.bus_names), 10, 0.1)
+        for bus in fleet.bus_names:
+            model = httpx.get(f"{svc.url}/buses/{bus}/tracked", timeout=5).json()
+            assert model["n_windows"] + model["suspect"] >= 1 and model["last_change"] is None, model
+            true = truth[bus]["dynamic"]
+            assert abs(model["dynamic"]["Tm"] - true["Tm"]) <= REL_TOL * true["Tm"], (bus, model, true)
+            assert tracked[bus]["bus"] == bus and httpx.get(f"{svc.url}/buses/{bus}/changes").json() == []
         # The queryable answers "latest" for every bus.
         replies = [r.ok for r in sess.get("aslm/params/**", timeout=5) if r.ok is not None]
         assert {str(s.key_expr).rsplit("/", 1)[1] for s in replies} == set(fleet.bus_names)

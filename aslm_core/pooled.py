@@ -1,0 +1,354 @@
+"""Pooled identification: one motor D from k windows of the same bus, jointly.
+
+Same hierarchical framework as :mod:`aslm_core.identify`: each window keeps its own initial state (the
+motor starts from its steady state at the window's first sample) and, by default, its own static part
+(the lower stage is that window's projection r_i = (I − Q_i·Q_iᵀ)(y_i − m_i(D))); with ``shared_static``
+one static part serves all windows (one weighted regression over the stacked samples).  The upper stage
+is a box- and equilibrium-constrained Levenberg–Marquardt over D on the stacked residuals of all windows,
+each window and channel weighted by the inverse of its noise variance (re-estimated at the optimum), so
+the pool is the Gaussian maximum-likelihood estimate when windows differ in SNR.  Standard errors come
+from the stacked Jacobians (sandwich form with the per-window residual autocorrelation).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from aslm_core import optimize, static
+from aslm_core.errors import WindowError
+from aslm_core.identify import EQUILIBRIUM_MARGIN, Problem, _transient_skip, identify
+from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
+from aslm_core.preprocess import prepare
+from aslm_core.result import IdentifyConfig
+from aslm_core.window import Window
+
+# Reweighting passes: noise variances at the start, then at the optimum of the previous pass.
+_PASSES = 2
+
+
+@dataclass
+class PooledResult:
+    """One D identified from several windows of a bus.
+
+    Attributes
+    ----------
+    dynamic : dict
+        D = {a [1/s], b [1/s], H2 [s], Tm [pu]}.
+    stderr : dict
+        Standard errors of D (sandwich form over the stacked windows).
+    cov : list of list
+        4×4 covariance of D in the order a, b, H2, Tm.
+    static : list of dict
+        Static coefficients per window (one entry, shared, with ``shared_static``) [pu].
+    noise_std : list of list
+        Per window, the residual std of P and Q [pu] (the weights' inverse square roots).
+    objective : float
+        Weighted sum of squares Σ_i Σ_c ‖r_ic‖²/σ_ic² at the optimum [-] (≈ number of samples).
+    n_windows : int
+    iterations, evaluations : int
+        LM iterations and window simulations.
+    status : str
+        ``converged``, ``max_iter`` or ``stalled``.
+    flags : list of str
+        ``at_bound:NAME``, ``equilibrium_constraint_active``.
+    elapsed_s : float
+    """
+
+    dynamic: dict[str, float]
+    stderr: dict[str, float]
+    cov: list[list[float]]
+    static: list[dict[str, float]]
+    noise_std: list[list[float]]
+    objective: float
+    n_windows: int
+    iterations: int = 0
+    evaluations: int = 0
+    status: str = "converged"
+    flags: list[str] = field(default_factory=list)
+    elapsed_s: float = 0.0
+
+    @property
+    def d(self) -> np.ndarray:
+        """D as an array [a, b, H2, Tm]."""
+        return np.array([self.dynamic[k] for k in DYNAMIC_NAMES])
+
+    def to_dict(self) -> dict:
+        """Plain JSON-serialisable dict."""
+        return asdict(self)
+
+
+class _Pool:
+    """The windows' problems, their common box and equilibrium constraint, and the stacked fit."""
+
+    def __init__(self, problems: list[Problem], shared_static: bool) -> None:
+        self.problems = problems
+        self.shared = shared_static
+        self.v_min = min(p.v_min for p in problems)
+        # Tm ≤ mean P of the pool (each window's bound is its own mean P).
+        self.lower, self.upper = dynamic_bounds(float(np.mean([p.p_mean for p in problems])))
+        self.weights = np.ones((len(problems), 2))
+        self.evaluations = 0
+
+    def feasible(self, d: np.ndarray) -> bool:
+        return bool(optimize.feasible(d, self.lower, self.upper, self.v_min, EQUILIBRIUM_MARGIN))
+
+    def into_feasible(self, d: np.ndarray) -> np.ndarray:
+        d = np.minimum(np.maximum(np.asarray(d, dtype=np.float64), self.lower), self.upper)
+        d[3] = min(d[3], (1.0 - 2 * EQUILIBRIUM_MARGIN) * d[0] * self.v_min**2 / (2.0 * d[1]))
+        return d
+
+    def blocks(self, d: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] | None:
+        """Per window: projected residuals of P and Q and their D-Jacobians; None if a simulation fails."""
+        self.evaluations += len(self.problems)
+        if not self.shared:
+            out = []
+            for p in self.problems:
+                r = p.residuals(d)
+                if r is None:
+                    return None
+                out.append(r)
+            return out
+        return self._shared_blocks(d)
+
+    def _shared_blocks(self, d: np.ndarray):
+        """Residuals and Jacobians with one static part: a weighted projection over the stacked samples."""
+        raw = []
+        for p in self.problems:
+            if p.residuals(d) is None:  # fills p._p, p._q, p._dp, p._dq: the motor and its gradient
+                return None
+            k0 = p.k0
+            raw.append((p.p_meas - p._p[k0:], p.q_meas - p._q[k0:], -p._dp[k0:], -p._dq[k0:]))
+        out = [[None] * 4 for _ in raw]
+        for c in range(2):
+            sw = np.sqrt(self.weights[:, c])
+            phi = np.vstack([sw[i] * static.regressors(p.prep.V[p.k0:], p.config.static)
+                             for i, p in enumerate(self.problems)])
+            q, _ = optimize.thin_qr(np.ascontiguousarray(phi))
+            y = np.concatenate([sw[i] * raw[i][c] for i in range(len(raw))])
+            jac = np.vstack([sw[i] * raw[i][2 + c] for i in range(len(raw))])
+            y -= q @ (q.T @ y)
+            jac -= q @ (q.T @ jac)
+            start = 0
+            for i, p in enumerate(self.problems):
+                # Unweighted back, so that the stacked sums below weight every block the same way.
+                out[i][c] = y[start:start + p.l] / sw[i]
+                out[i][2 + c] = jac[start:start + p.l] / sw[i]
+                start += p.l
+        return [tuple(o) for o in out]
+
+    def normal(self, blocks) -> tuple[float, np.ndarray, np.ndarray]:
+        """Weighted cost Σ w‖r‖², gradient Σ w·Jᵀr and Gauss–Newton matrix Σ w·JᵀJ."""
+        cost, g, a = 0.0, np.zeros(4), np.zeros((4, 4))
+        for (rp, rq, jp, jq), (wp, wq) in zip(blocks, self.weights, strict=True):
+            cost += wp * float(rp @ rp) + wq * float(rq @ rq)
+            g += wp * (jp.T @ rp) + wq * (jq.T @ rq)
+            a += wp * (jp.T @ jp) + wq * (jq.T @ jq)
+        return cost, g, a
+
+    def reweight(self, blocks) -> None:
+        """Weights 1/σ² per window and channel from the residuals (static columns and D counted out)."""
+        for i, (rp, rq, _, _) in enumerate(blocks):
+            dof = max(rp.size - self.problems[i].basis.shape[1] - 4.0 / len(blocks), 1.0)
+            self.weights[i] = [dof / max(float(rp @ rp), 1e-300), dof / max(float(rq @ rq), 1e-300)]
+
+
+def _lm(pool: _Pool, d0: np.ndarray, max_iter: int, xtol: float) -> dict:
+    """Levenberg–Marquardt over D on the stacked weighted residuals, steps by :func:`optimize.qp_step`."""
+    d = pool.into_feasible(d0)
+    blocks = pool.blocks(d)
+    if blocks is None:
+        return {"d": d, "cost": math.inf, "iterations": 0, "status": "failed", "blocks": None}
+    cost, g, a = pool.normal(blocks)
+    lam, nu = 1e-3, 2.0
+    work, vec, ivec, step = np.empty((4, 4)), np.empty((3, 4)), np.empty((3, 4), dtype=np.int64), np.empty(4)
+    status, it = "max_iter", 0
+    margin = EQUILIBRIUM_MARGIN
+    while it < max_iter:
+        it += 1
+        gc = np.array([pool.v_min**2 * (1.0 - margin), -2.0 * d[3], 0.0, -2.0 * d[1]])
+        c_d = float(gc[0] * d[0] - 2.0 * d[1] * d[3])
+        accepted = converged = False
+        moved = 0.0
+        for _ in range(14):
+            m = a + lam * np.diag(np.maximum(np.diag(a), 1e-12 * np.max(np.diag(a)) + 1e-300))
+            # The cost is Σ w‖r‖² (no ½): its model is cost + 2gᵀs + sᵀAs, with the same minimiser as
+            # qp_step's gᵀs + ½sᵀMs.
+            if not optimize.qp_step(m, g, d, pool.lower, pool.upper, gc, c_d, step, work, vec, ivec):
+                lam *= nu
+                nu *= 2.0
+                continue
+            if -(2.0 * float(g @ step) + float(step @ a @ step)) <= optimize.FTOL * cost:
+                converged = True
+                break
+            trial = np.minimum(np.maximum(d + step, pool.lower), pool.upper)
+            alpha = 1.0
+            while not pool.feasible(trial) and alpha > 1e-6:
+                alpha *= 0.5
+                trial = np.minimum(np.maximum(d + alpha * step, pool.lower), pool.upper)
+            tb = pool.blocks(trial) if pool.feasible(trial) else None
+            if tb is not None:
+                cost_t, g_t, a_t = pool.normal(tb)
+                su = trial - d
+                pred = -(2.0 * float(g @ su) + float(su @ a @ su))
+                if cost_t < cost and pred > 0.0:
+                    rho = (cost - cost_t) / pred
+                    lam = max(lam * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
+                    nu = 2.0
+                    moved = float(np.max(np.abs(trial - d) / (np.abs(d) + 1e-3)))
+                    if alpha < 1.0:
+                        moved = math.inf
+                    d, blocks, cost, g, a = trial, tb, cost_t, g_t, a_t
+                    accepted = True
+                    break
+            lam *= nu
+            nu *= 2.0
+        if converged:
+            status = "converged"
+            break
+        if not accepted:
+            status = "stalled"
+            break
+        if moved < xtol:
+            status = "converged"
+            break
+    return {"d": d, "cost": cost, "iterations": it, "status": status, "blocks": blocks}
+
+
+def _covariance(pool: _Pool, blocks) -> np.ndarray:
+    """A⁻¹·M·A⁻¹ with A = Σ w·JᵀJ and M = Σ w·g·JᵀJ, g = (1+ρ)/(1−ρ) the lag-1 inflation per block.
+
+    With w = 1/σ² the noise term w²·σ² reduces to w; inf on the diagonal where A is singular.
+    """
+    a, m = np.zeros((4, 4)), np.zeros((4, 4))
+    for (rp, rq, jp, jq), (wp, wq) in zip(blocks, pool.weights, strict=True):
+        for r, j, w in ((rp, jp, wp), (rq, jq, wq)):
+            rho = min(max(float(r[1:] @ r[:-1]) / max(float(r @ r), 1e-300), 0.0), 0.95)
+            jj = j.T @ j
+            a += w * jj
+            m += w * (1.0 + rho) / (1.0 - rho) * jj
+    try:
+        ainv = np.linalg.inv(a)
+    except np.linalg.LinAlgError:
+        return np.diag(np.full(4, np.inf))
+    return ainv @ m @ ainv.T
+
+
+def _static_parts(pool: _Pool, d: np.ndarray) -> list[dict[str, float]]:
+    """Static coefficients at D: per window (its own regression) or one over the stacked windows."""
+    rows, ys = [], []
+    for p in pool.problems:
+        p.residuals(d, jacobian=False)
+        phi = static.regressors(p.prep.V[p.k0:], p.config.static)
+        y = np.column_stack([p.p_meas - p._p[p.k0:], p.q_meas - p._q[p.k0:]])
+        rows.append(phi)
+        ys.append(y)
+    model = pool.problems[0].config.static
+    if pool.shared:
+        out = []
+        for c in range(2):
+            sw = np.sqrt(pool.weights[:, c])
+            phi = np.vstack([s * f for s, f in zip(sw, rows, strict=True)])
+            y = np.concatenate([s * y[:, c] for s, y in zip(sw, ys, strict=True)])
+            out.append(np.linalg.lstsq(phi, y, rcond=None)[0])
+        return [static.coefficients(out[0], out[1], model)]
+    parts = []
+    for phi, y in zip(rows, ys, strict=True):
+        beta = np.linalg.lstsq(phi, y, rcond=None)[0]
+        parts.append(static.coefficients(beta[:, 0], beta[:, 1], model))
+    return parts
+
+
+def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[float] | None = None,
+                    config: IdentifyConfig | None = None, shared_static: bool = False,
+                    max_iter: int | None = None, xtol: float = 1e-7) -> PooledResult:
+    """Identify one D = [a, b, H2, Tm] from several windows of the same bus, jointly.
+
+    Parameters
+    ----------
+    windows : sequence of Window
+        Windows of one bus over which the load is taken as stationary (e.g. the last k periods).
+    start : array_like, optional
+        First iterate (e.g. the previous pooled D); default: the component-wise median of the windows'
+        own identifications (:func:`aslm_core.identify`, which also costs one fit per window).
+    config : IdentifyConfig, optional
+        Integrator, static model, skip, preprocessing of every window (``objective`` and ``disturbance``
+        do not apply: the pool weights each window and channel by its inverse noise variance).
+    shared_static : bool
+        One static part for all windows instead of one per window.
+    max_iter : int, optional
+        LM iterations per reweighting pass (default ``config.max_iter``).
+    xtol : float
+        Relative step below which the LM stops.
+
+    Returns
+    -------
+    PooledResult
+
+    Raises
+    ------
+    WindowError
+        When a window fails its checks or the pool has no finite objective.
+    ValueError
+        When ``windows`` is empty.
+    """
+    t0 = time.perf_counter()
+    if not windows:
+        raise ValueError("identify_pooled needs at least one window")
+    config = config or IdentifyConfig()
+    max_iter = max_iter or config.max_iter
+    preps = [prepare(w, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
+                     lowpass_hz=config.lowpass_hz, floors=True, input_smoother=config.input_smoother,
+                     input_cutoff_hz=config.input_cutoff_hz) for w in windows]
+    if start is None:
+        start = np.median([identify(w, config=config).d for w in windows], axis=0)
+    d = np.asarray(start, dtype=np.float64)
+    pool = _Pool([Problem(p, w.f0, config) for p, w in zip(preps, windows, strict=True)], shared_static)
+    iterations = evaluations = 0
+    fit: dict = {}
+    for pass_ in range(_PASSES + 1):
+        if pass_ == _PASSES:
+            # The slow motor's initial-state error outlives a short skip: polish on later samples.
+            skips = [_transient_skip(d, p, w.f0, config) for p, w in zip(preps, windows, strict=True)]
+            if all(s <= config.skip_s + 0.5 * p.dt for s, p in zip(skips, preps, strict=True)):
+                break
+            old = pool
+            pool = _Pool([Problem(p, w.f0, replace(config, skip_s=s))
+                          for p, w, s in zip(preps, windows, skips, strict=True)], shared_static)
+            pool.weights = old.weights
+            evaluations += old.evaluations
+        blocks = pool.blocks(pool.into_feasible(d))
+        if blocks is None:
+            raise WindowError("no_solution", "the pooled start could not be simulated")
+        pool.reweight(blocks)
+        fit = _lm(pool, d, max_iter, xtol)
+        if not math.isfinite(fit["cost"]):
+            raise WindowError("no_solution", "no finite pooled objective")
+        d, iterations = fit["d"], iterations + fit["iterations"]
+    pool.reweight(fit["blocks"])
+    cost, _, _ = pool.normal(fit["blocks"])
+    cov = _covariance(pool, fit["blocks"])
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    flags = [f"at_bound:{n}" for i, n in enumerate(DYNAMIC_NAMES)
+             if d[i] <= pool.lower[i] * (1 + 1e-9) or d[i] >= pool.upper[i] * (1 - 1e-9)]
+    if (d[0] * pool.v_min**2 - 2 * d[1] * d[3]) / (d[0] * pool.v_min**2) < 0.01:
+        flags.append("equilibrium_constraint_active")
+    static_parts = _static_parts(pool, d)
+    return PooledResult(
+        dynamic={k: float(v) for k, v in zip(DYNAMIC_NAMES, d, strict=True)},
+        stderr={k: float(v) for k, v in zip(DYNAMIC_NAMES, se, strict=True)},
+        cov=cov.tolist(),
+        static=static_parts,
+        noise_std=(1.0 / np.sqrt(pool.weights)).tolist(),
+        objective=float(cost),
+        n_windows=len(windows),
+        iterations=iterations,
+        evaluations=evaluations + pool.evaluations,
+        status=fit["status"],
+        flags=flags,
+        elapsed_s=time.perf_counter() - t0,
+    )

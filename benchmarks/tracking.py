@@ -1,0 +1,309 @@
+"""Tracking load models over time (issue 18): pooled σ, step detection, false alarms, drift lag.
+
+Each simulated bus is one random load in one random network (as Table I's cases), seen over successive
+10 s windows with independent ambient excitation and noise; its load is stationary, steps to 1.2× its
+motors (a 20 % step in motor share: a, H2, Tm × 1.2), or follows a daily cycle of its motor share.  P and
+Q noise at the stated SNR, V and θ noise-free (Table I's setting).  Each window is identified as the
+service does (3 random starts plus the previous window's D as warm start); the tracker
+(:mod:`aslm_core.tracking`) runs on those estimates and their standard errors.
+
+1. ``pooled``: σ of D/D_true over buses at 14 dB for the joint pooled fit
+   (:func:`aslm_core.pooled.identify_pooled`) on k = 1, 4, 16 windows, and for the information-weighted
+   mean of the k per-window estimates (what the service's tracked model is), against σ_1/√k × 1.2.
+2. ``step``: 16 stationary windows, then the step; the share of buses whose change is confirmed within 2
+   periods of it (22 dB).
+3. ``false_alarms``: stationary sequences at T = 15 min (22 dB and 14 dB); alarms per bus and week.
+4. ``drift``: two days of a daily cycle of motor share 1 ± 0.2 (sine, 96 periods a day); the lag [periods]
+   of the tracked Tm behind the truth (the shift minimising the RMS between them) for k = 4 and 16.
+5. ``service_cost``: time of the service's ``tracking`` sink per bus and period (500 buses × 20 periods,
+   SQLite in a temporary file, no publication).
+
+Seeds are fixed in advance (one block per part); the detector's threshold is set from its false-alarm
+rate before any run (no tuning).
+
+    .venv/bin/python -m benchmarks.tracking [--quick] [--parts pooled step ...] [--calibrate]
+"""
+
+from __future__ import annotations
+
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import json  # noqa: E402
+import math  # noqa: E402
+import time  # noqa: E402
+from statistics import NormalDist  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from aslm_core import WindowError, identify  # noqa: E402
+from aslm_core.pooled import identify_pooled  # noqa: E402
+from aslm_core.tracking import Estimate, Tracker, TrackerConfig, combine  # noqa: E402
+from aslm_sim.cases import make_cases  # noqa: E402
+from aslm_sim.network import draw_network  # noqa: E402
+from aslm_sim.truth import random_truth  # noqa: E402
+from benchmarks import common  # noqa: E402
+
+SEEDS = {"pooled": 1801, "step": 1802, "false_alarms": 1803, "drift": 1804}
+#: Development seeds: the calibration of the standard errors' scale (``--calibrate``), never reported on.
+DEV_SEED = 2801
+PERIOD_S = 900.0
+PERIODS_PER_DAY = 96
+STEP = 1.2
+DRIFT_AMPLITUDE = 0.2
+
+
+def bus_windows(seed: int, bus: int, factors: np.ndarray, snr_db: float) -> tuple[list, np.ndarray]:
+    """Windows of one bus whose motor count is ``factors[i]`` × its drawn truth in window i; and D_true."""
+    rng = np.random.default_rng([seed, bus])
+    truth = random_truth(rng)
+    net = draw_network(rng, truth, 50.0)
+    truths = [truth.scaled_motor(float(f)) for f in factors]
+    cases = make_cases(len(truths), snr_db=snr_db, seed=seed * 100_000 + bus, input_noise=False,
+                       truths=truths, networks=[net] * len(truths))
+    return [c.window for c in cases], np.array([t.d for t in truths])
+
+
+def estimates(windows: list) -> tuple[np.ndarray, np.ndarray]:
+    """Per-window D and SEs, each warm-started from the previous window's D (nan where rejected)."""
+    d = np.full((len(windows), 4), np.nan)
+    se = np.full((len(windows), 4), np.nan)
+    warm = None
+    for i, w in enumerate(windows):
+        try:
+            r = identify(w, warm_start=warm)
+        except WindowError:
+            continue
+        d[i], se[i] = r.d, [r.stderr[k] for k in common.PARAMS]
+        warm = r.d
+    return d, se
+
+
+def track(d: np.ndarray, se: np.ndarray, config: TrackerConfig) -> tuple[np.ndarray, list]:
+    """Run a tracker over a bus's estimates: the tracked D after each period, and the change events."""
+    tr = Tracker(config=config)
+    out = np.full_like(d, np.nan)
+    events = []
+    for i in range(d.shape[0]):
+        if np.all(np.isfinite(d[i])):
+            ev = tr.update(i * PERIOD_S, d[i], se[i])
+            if ev is not None:
+                events.append(ev)
+        m = tr.model()
+        if m is not None:
+            out[i] = [m["dynamic"][k] for k in common.PARAMS]
+    return out, events
+
+
+def _sigma(ratios: np.ndarray) -> dict:
+    r = np.asarray(ratios).reshape(-1, 4)
+    mad = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
+    return {"n": int(r.shape[0]), "sigma": dict(zip(common.PARAMS, np.std(r, axis=0, ddof=1).tolist(), strict=True)),
+            "robust_sigma": dict(zip(common.PARAMS, mad.tolist(), strict=True))}
+
+
+def part_pooled(n_buses: int, ks: tuple[int, ...]) -> dict:
+    """σ of the pooled fit and of the information-weighted mean for each k (14 dB)."""
+    kmax = max(ks)
+    per = {(kind, k): [] for kind in ("fit", "mean", "tracker") for k in ks}
+    cost = {k: [] for k in ks}
+    for bus in range(n_buses):
+        windows, truth = bus_windows(SEEDS["pooled"], bus, np.ones(kmax), 14.0)
+        d, se = estimates(windows)
+        for k in ks:
+            for g0 in range(0, kmax, k):
+                sl = slice(g0, g0 + k)
+                if not np.all(np.isfinite(d[sl])):
+                    continue
+                t0 = time.perf_counter()
+                try:
+                    fit = identify_pooled(windows[sl], start=np.median(d[sl], axis=0))
+                except WindowError:
+                    continue
+                cost[k].append(time.perf_counter() - t0)
+                per[("fit", k)].append(fit.d / truth[0])
+                mean, _ = combine([Estimate(0.0, list(a), list(b)) for a, b in zip(d[sl], se[sl], strict=True)])
+                per[("mean", k)].append(mean / truth[0])
+                # What the service reports: the tracker's pool (suspects winsorised, a change restarts it).
+                tracked, _ = track(d[sl], se[sl], TrackerConfig(pool_windows=k, period_s=PERIOD_S))
+                per[("tracker", k)].append(tracked[-1] / truth[0])
+    out = {}
+    for (kind, k), rows in per.items():
+        out.setdefault(kind, {})[str(k)] = _sigma(np.array(rows))
+    out["fit_time_s_median"] = {str(k): float(np.median(v)) for k, v in cost.items()}
+    s1 = out["fit"]["1"]["sigma"]
+    out["target"] = {str(k): {p: s1[p] / math.sqrt(k) * 1.2 for p in common.PARAMS} for k in ks}
+    return out
+
+
+def part_step(n_buses: int, config: TrackerConfig, snr_db: float) -> dict:
+    """Share of buses whose 20 % motor step is confirmed within 2 periods; delays; alarms before it."""
+    n_before, n_after = 16, 4
+    factors = np.r_[np.ones(n_before), np.full(n_after, STEP)]
+    delays, early = [], 0
+    for bus in range(n_buses):
+        windows, _ = bus_windows(SEEDS["step"], bus, factors, snr_db)
+        d, se = estimates(windows)
+        _, events = track(d, se, config)
+        early += sum(1 for e in events if e.detected_t < n_before * PERIOD_S)
+        after = [e for e in events if e.detected_t >= n_before * PERIOD_S]
+        # Periods from the step to the confirmation: 1 = confirmed by the window after the step's.
+        delays.append(after[0].detected_t / PERIOD_S - n_before if after else math.inf)
+    delays = np.array(delays)
+    return {"n_buses": n_buses, "snr_db": snr_db, "detected_within_2": float(np.mean(delays <= 1.0)),
+            "detected_by_end": float(np.mean(np.isfinite(delays))),
+            "delay_histogram": {str(int(k)): int(np.sum(delays == k)) for k in np.unique(delays[np.isfinite(delays)])},
+            "false_alarms_before_step": early}
+
+
+def part_false_alarms(n_buses: int, n_periods: int, config: TrackerConfig, snr_db: float) -> dict:
+    """Alarms on stationary sequences at T = 15 min: per bus and week."""
+    alarms, periods = 0, 0
+    per_bus = []
+    for bus in range(n_buses):
+        windows, _ = bus_windows(SEEDS["false_alarms"] + int(snr_db), bus, np.ones(n_periods), snr_db)
+        d, se = estimates(windows)
+        _, events = track(d, se, config)
+        alarms += len(events)
+        per_bus.append(len(events))
+        periods += int(np.sum(np.all(np.isfinite(d), axis=1)))
+    weeks = periods / (7 * PERIODS_PER_DAY)
+    return {"snr_db": snr_db, "n_buses": n_buses, "periods": periods, "bus_weeks": weeks, "alarms": alarms,
+            "alarms_per_bus_week": alarms / weeks, "threshold": config.threshold,
+            "design_per_bus_week": config.false_alarms_per_day * 7, "alarms_per_bus": per_bus}
+
+
+def _lag(tracked: np.ndarray, truth_of, skip: int) -> float:
+    """Shift τ [periods] minimising the RMS of tracked(t) − truth(t − τ) over t ≥ skip."""
+    t = np.arange(tracked.size, dtype=float)
+    ok = (t >= skip) & np.isfinite(tracked)
+    taus = np.arange(-4.0, 24.0, 0.25)
+    rms = [np.sqrt(np.mean((tracked[ok] - truth_of(t[ok] - tau)) ** 2)) for tau in taus]
+    return float(taus[int(np.argmin(rms))])
+
+
+def part_drift(n_buses: int, ks: tuple[int, ...], snr_db: float, false_alarms_per_day: float) -> dict:
+    """Lag of the tracked Tm behind a daily cycle of motor share, per pool length."""
+    n = 2 * PERIODS_PER_DAY
+    f = lambda t: 1.0 + DRIFT_AMPLITUDE * np.sin(2 * np.pi * t / PERIODS_PER_DAY)  # noqa: E731
+    factors = f(np.arange(n, dtype=float))
+    lags = {k: [] for k in ks}
+    changes = {k: 0 for k in ks}
+    for bus in range(n_buses):
+        windows, truth = bus_windows(SEEDS["drift"], bus, factors, snr_db)
+        d, se = estimates(windows)
+        tm0 = truth[0, 3]
+        for k in ks:
+            tracked, events = track(d, se, TrackerConfig(pool_windows=k, false_alarms_per_day=false_alarms_per_day,
+                                                         period_s=PERIOD_S))
+            lags[k].append(_lag(tracked[:, 3], lambda t, tm0=tm0: tm0 * f(t), skip=PERIODS_PER_DAY // 2))
+            changes[k] += len(events)
+    return {"snr_db": snr_db, "n_buses": n_buses, "periods": n,
+            "lag_periods": {str(k): {"median": float(np.median(v)), "max": float(np.max(v)), "all": v}
+                            for k, v in lags.items()},
+            "target": {str(k): k / 2 for k in ks}, "changes_declared": {str(k): v for k, v in changes.items()}}
+
+
+def part_calibrate(n_buses: int, n_periods: int, snr_db: float, config: TrackerConfig) -> dict:
+    """On development seeds: how far the standardised innovations' tails are from N(0, 1).
+
+    Returns the share of |z| above the threshold h per parameter, and the scale c with
+    P(|z|/c > h) = 2Φ(−h) (what ``se_scale`` should be for the design false-alarm rate).
+    """
+    zs = []
+    for bus in range(n_buses):
+        windows, _ = bus_windows(DEV_SEED + int(snr_db), bus, np.ones(n_periods), snr_db)
+        d, se = estimates(windows)
+        tr = Tracker(config=config)
+        for i in range(n_periods):
+            if not np.all(np.isfinite(d[i])):
+                continue
+            z = tr.innovation(Estimate(i * PERIOD_S, list(d[i]), list(se[i])))
+            if z is not None and len(tr.pool) >= 4:
+                zs.append(z * config.se_scale)  # back to the unscaled innovation
+            tr.update(i * PERIOD_S, d[i], se[i])
+    z = np.abs(np.array(zs))
+    h = config.threshold
+    tail = 2.0 * NormalDist().cdf(-h)
+    return {"snr_db": snr_db, "n": int(z.shape[0]), "h": h, "design_tail": tail,
+            "tail_unscaled": dict(zip(common.PARAMS, np.mean(z > h, axis=0).tolist(), strict=True)),
+            "scale": float(np.quantile(z.ravel(), 1.0 - tail) / h)}
+
+
+def part_service_cost(n_buses: int, n_periods: int) -> dict:
+    """Time of the service's tracking sink per bus and period: tracker update, model, SQLite row, put."""
+    import tempfile
+    from pathlib import Path
+
+    from service.models import BusResult
+    from service.sinks.tracking import TrackingSink
+    from service.storage import Storage
+
+    rng = np.random.default_rng(SEEDS["pooled"])
+    d0 = np.array([40.0, 12.0, 1.5, 0.5])
+    se = dict(zip(common.PARAMS, (0.02 * d0).tolist(), strict=True))
+
+    def result(bus: int, period: float) -> BusResult:
+        d = d0 * (1.0 + 0.02 * rng.standard_normal(4))
+        return BusResult(bus=f"bus{bus:05d}", period=period, period_s=PERIOD_S, status="ok", completed_at=period,
+                         parameters={"dynamic": dict(zip(common.PARAMS, d.tolist(), strict=True)),
+                                     "static": {"Pz": 0.1}, "objective": 0.1, "fit": {"fd_p": 0.9, "fd_q": 0.9},
+                                     "stderr": se})
+
+    times = []
+    with tempfile.TemporaryDirectory() as tmp:
+        storage = Storage(Path(tmp) / "cost.sqlite")
+        sink = TrackingSink(storage, TrackerConfig(), put=lambda key, payload: None)
+        for p in range(n_periods):
+            batch = [result(b, p * PERIOD_S) for b in range(n_buses)]
+            t0 = time.perf_counter()
+            sink.write_results(batch, [""] * n_buses)
+            times.append((time.perf_counter() - t0) / n_buses)
+        storage.close()
+    # The first periods fill the pools (and compute the thresholds once per pool size).
+    steady = times[n_periods // 2:]
+    return {"n_buses": n_buses, "n_periods": n_periods, "ms_per_bus_median": 1e3 * float(np.median(steady)),
+            "ms_per_bus_all": [1e3 * t for t in times], "load_avg": [round(x, 2) for x in os.getloadavg()]}
+
+
+def main() -> None:
+    p = common.parser(__doc__.splitlines()[0])
+    p.add_argument("--calibrate", action="store_true", help="only the development-seed calibration of se_scale")
+    p.add_argument("--parts", nargs="+", default=[*SEEDS, "service_cost"], choices=[*SEEDS, "service_cost"],
+                   help="run these parts only (their results replace those parts in the JSON file)")
+    args = p.parse_args()
+    q = args.quick
+    if args.calibrate:
+        cal = [part_calibrate(6 if q else 20, 100, snr, TrackerConfig()) for snr in (22.0, 14.0)]
+        print(cal)
+        if not args.no_write:
+            print(common.write_json("tracking_calibration", {"machine": common.machine(), "calibration": cal}))
+        return
+    config = TrackerConfig(pool_windows=16, false_alarms_per_day=0.1, period_s=PERIOD_S)
+    name = "tracking_quick" if q else "tracking"
+    path = common.RESULTS / f"{name}.json"
+    out = json.loads(path.read_text()) if set(args.parts) != {*SEEDS, "service_cost"} and path.exists() else {}
+    runs = {
+        "pooled": lambda: part_pooled(8 if q else 100, (1, 4, 16)),
+        "step": lambda: part_step(10 if q else 100, config, 22.0),
+        "false_alarms": lambda: [part_false_alarms(4 if q else 30, 100 if q else 200, config, snr)
+                                 for snr in (22.0, 14.0)],
+        "drift": lambda: part_drift(3 if q else 10, (4, 16), 22.0, config.false_alarms_per_day),
+        "service_cost": lambda: part_service_cost(50 if q else 500, 20),
+    }
+    for part in args.parts:
+        t0 = time.time()
+        out[part] = runs[part]()
+        out.setdefault("runs", {})[part] = {"machine": common.machine(), "elapsed_s": time.time() - t0,
+                                            "load_avg_at_end": [round(x, 2) for x in os.getloadavg()],
+                                            "command": common.command("tracking", q) + " --parts " + part}
+        print(part, out[part], flush=True)
+    out.update({"config": vars(config), "threshold": config.threshold})
+    if not args.no_write:
+        print(common.write_json(name, out))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,67 @@
+"""Pooled identification (aslm_core.pooled) on windows of one simulated bus with known truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aslm_core import identify
+from aslm_core.pooled import identify_pooled
+from aslm_sim.cases import make_cases
+from aslm_sim.network import draw_network
+from aslm_sim.truth import random_truth
+
+PARAMS = ("a", "b", "H2", "Tm")
+
+
+def _bus(bus: int, n: int, snr_db: float = 14.0) -> tuple[list, np.ndarray]:
+    rng = np.random.default_rng([77, bus])
+    truth = random_truth(rng)
+    net = draw_network(rng, truth, 50.0)
+    cases = make_cases(n, snr_db=snr_db, seed=7700 + bus, input_noise=False, truths=[truth] * n,
+                       networks=[net] * n)
+    return [c.window for c in cases], truth.d
+
+
+@pytest.fixture(scope="module")
+def buses():
+    return [_bus(b, 8) for b in range(5)]
+
+
+def test_pooled_sigma_falls_with_k(buses):
+    # Relative errors of the pooled D over 5 buses: 8 windows one at a time, or 2 pools of 4, or 1 of 8.
+    err = {1: [], 4: [], 8: []}
+    for windows, d_true in buses:
+        for k in err:
+            for g in range(0, 8, k):
+                err[k].append(identify_pooled(windows[g:g + k]).d / d_true - 1.0)
+    rms = {k: np.sqrt(np.mean(np.square(v), axis=0)) for k, v in err.items()}
+    # Information predicts 1/√k; allow the target's 1.2 and the small sample's scatter in the mean.
+    assert np.mean(rms[4] / rms[1]) < 1.2 / 2.0
+    assert np.mean(rms[8] / rms[1]) < 1.2 / np.sqrt(8.0)
+
+
+def test_one_window_pooled_matches_the_window_fit_and_se_shrink(buses):
+    windows, d_true = buses[0]
+    one = identify_pooled(windows[:1])
+    alone = identify(windows[0])
+    assert one.d == pytest.approx(alone.d, rel=0.02)
+    assert [one.stderr[k] for k in PARAMS] == pytest.approx([alone.stderr[k] for k in PARAMS], rel=0.3)
+    four = identify_pooled(windows[:4], start=one.d)
+    assert four.status == "converged" and four.n_windows == 4 and len(four.static) == 4
+    for k in PARAMS:
+        assert four.stderr[k] < 0.7 * one.stderr[k]
+    assert np.all(np.abs(four.d / d_true - 1.0) < 5 * np.array([four.stderr[k] for k in PARAMS]) / d_true)
+
+
+def test_shared_static_gives_one_static_part_close_to_the_per_window_pool(buses):
+    windows, _ = buses[1]
+    per = identify_pooled(windows[:4])
+    shared = identify_pooled(windows[:4], start=per.d, shared_static=True)
+    assert len(shared.static) == 1 and set(shared.static[0]) == {"Pz", "Pi", "Pp", "Qz", "Qi", "Qp"}
+    assert shared.d == pytest.approx(per.d, rel=0.05)
+
+
+def test_no_window_is_an_error():
+    with pytest.raises(ValueError):
+        identify_pooled([])
