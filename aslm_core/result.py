@@ -51,8 +51,9 @@ class IdentifyConfig:
         mean given the window, the noise std taken from each channel's floor above 5 Hz;
         ``wiener_lowpass`` = the same, then (unless ``lowpass_hz`` is set) the causal low-pass of all
         four channels at half the frequency where V's or θ's signal sinks to its floor, none with exact
-        inputs; ``zero_phase`` = a zero-phase low-pass of V and θ at ``input_cutoff_hz``.  See
-        docs/numerics.md.
+        inputs (the default: one default for the Python API, the CLI and the service; exact inputs
+        identify as with ``none``); ``zero_phase`` = a zero-phase low-pass of V and θ at
+        ``input_cutoff_hz``.  See docs/numerics.md.
     input_cutoff_hz : float
         Cut-off of the ``zero_phase`` input smoother [Hz].
     max_iter : int
@@ -85,7 +86,7 @@ class IdentifyConfig:
     skip_max_s: float = 3.0
     n_starts: int = 3
     lowpass_hz: float | None = None
-    input_smoother: InputSmoother = "none"
+    input_smoother: InputSmoother = "wiener_lowpass"
     input_cutoff_hz: float = 3.0
     max_iter: int = 60
     seed: int | None = 0

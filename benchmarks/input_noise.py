@@ -31,12 +31,12 @@ SEED = 41
 #: PMU classes: (name, std of the V noise as a fraction of mean V [-], std of the θ noise [rad]).
 INPUT_NOISE = (("none", 0.0, 0.0), ("0.03 % / 3e-4 rad", 3e-4, 3e-4), ("0.1 % / 1e-3 rad", 1e-3, 1e-3))
 CANDIDATES = {
-    "none": IdentifyConfig(),
-    "causal low-pass 2 Hz": IdentifyConfig(lowpass_hz=2.0),
+    "none": IdentifyConfig(input_smoother="none"),
+    "causal low-pass 2 Hz": IdentifyConfig(input_smoother="none", lowpass_hz=2.0),
     "zero-phase V/θ 3 Hz": IdentifyConfig(input_smoother="zero_phase", input_cutoff_hz=3.0),
     "Wiener V/θ": IdentifyConfig(input_smoother="wiener"),
     "Wiener V/θ + causal low-pass 2 Hz": IdentifyConfig(input_smoother="wiener", lowpass_hz=2.0),
-    "Wiener V/θ + adaptive low-pass": IdentifyConfig(input_smoother="wiener_lowpass"),
+    "Wiener V/θ + adaptive low-pass (default)": IdentifyConfig(),
 }
 NOISE_KEYS = ("noise_v", "noise_theta", "noise_p", "noise_q")
 

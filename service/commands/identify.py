@@ -7,6 +7,7 @@ import json
 import sys
 
 from aslm_core import IdentifyConfig, WindowError, identify, warmup
+from aslm_core.preprocess import INPUT_SMOOTHERS
 from service.commands._common import add_mapping_flags
 from service.files import read_window
 
@@ -21,7 +22,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--objective", choices=["paper", "ml", "ssq"], default="paper",
                    help="objective: the paper's eq. 7, Gaussian likelihood or sum of squares")
     p.add_argument("--static", choices=["zip", "exponential"], default="zip", help="static load model")
-    p.add_argument("--lowpass", type=float, default=None, metavar="HZ", help="causal low-pass cut-off [Hz]")
+    p.add_argument("--lowpass", type=float, default=None, metavar="HZ",
+                   help="fixed causal low-pass cut-off [Hz] (default: chosen from the inputs' noise floors)")
+    p.add_argument("--input-smoother", choices=list(INPUT_SMOOTHERS), default=IdentifyConfig.input_smoother,
+                   help="smoother of the noisy inputs V and θ (default %(default)s, docs/numerics.md)")
     p.add_argument("--starts", type=int, default=3, help="random feasible starts")
     p.add_argument("--disturbance", choices=["none", "ar"], default="none",
                    help="noise model of P and Q: none (white) or ar (the load's own fluctuation, docs/numerics.md)")
@@ -31,7 +35,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     config = IdentifyConfig(
         integrator=args.integrator, objective=args.objective, static=args.static,
-        lowpass_hz=args.lowpass, n_starts=args.starts, disturbance=args.disturbance,
+        lowpass_hz=args.lowpass, input_smoother=args.input_smoother, n_starts=args.starts,
+        disturbance=args.disturbance,
     )
     warmup()  # load the compiled kernels first so elapsed_s measures the identification alone
     status = 0
