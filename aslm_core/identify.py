@@ -57,7 +57,8 @@ class Problem:
         self.omega0 = motor.omega0_of(f0)
         self.dt = prep.dt
         self.rk4 = config.integrator == "rk4"
-        self.vd, self.vq, self.vdm, self.vqm = motor.dq_inputs(prep.V, prep.theta)
+        self.substeps = motor.substeps(prep.dt) if self.rk4 else 1
+        self.vd, self.vq, self.vdm, self.vqm = motor.dq_inputs(prep.V, prep.theta, self.substeps)
         n = prep.V.shape[0]
         self._set_samples(prep.V, prep.P, prep.Q, min(int(math.ceil(config.skip_s / prep.dt - 1e-9)), n - 10))
         self.v_min = float(prep.V.min())
@@ -379,6 +380,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         "snr_p_db": snr_p, "snr_q_db": snr_q, "v_std_rel": v_rel,
         "f_dev_std_hz": dth_std / prep.dt / (2 * math.pi), "equilibrium_margin": float(margin),
         "n_samples": float(prep.V.size), "n_regression": float(problem.l), "dt_s": prep.dt,
+        "rk4_substeps": float(getattr(problem, "substeps", 1)),
         "skip_s": problem.k0 * prep.dt,
         "of_paper": (math.sqrt(rr_p) + math.sqrt(rr_q)) / problem.l,
         "residual_rho_p": min(max(rho_p, 0.0), 0.95), "residual_rho_q": min(max(rho_q, 0.0), 0.95),
