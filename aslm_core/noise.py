@@ -143,6 +143,30 @@ def _floor_bins(n: int, fs: float, from_hz: float) -> np.ndarray:
     return np.flatnonzero(_floor_band(np.fft.rfftfreq(n, 1.0 / fs), fs, from_hz))
 
 
+def input_ratios(V: np.ndarray, theta: np.ndarray, floors: dict[str, float]) -> dict[str, float]:
+    """Ambient std of the inputs V and θ over their white-noise std: how far the PMU noise swamps them.
+
+    Parameters
+    ----------
+    V, theta : ndarray
+        The measured inputs on a uniform grid [pu, rad].
+    floors : dict
+        ``noise_v`` [pu], ``noise_theta`` [rad] (:func:`channel_floors`).
+
+    Returns
+    -------
+    dict
+        ``input_ratio_v``, ``input_ratio_theta`` [-]: sqrt(var − σ²)/σ of each linearly detrended input (σ its
+        floor; 1e6 where σ is zero).
+    """
+    out = {}
+    for name, x in (("v", V), ("theta", theta)):
+        sigma = floors[f"noise_{name}"]
+        var = float(np.var(_detrend(np.asarray(x, dtype=np.float64))))
+        out[f"input_ratio_{name}"] = math.sqrt(max(var - sigma * sigma, 0.0)) / sigma if sigma > 0.0 else 1e6
+    return out
+
+
 def _end_value(x: np.ndarray, m: int, at_start: bool) -> float:
     """Value at the first (or last) sample of the least-squares line through the first (last) m samples."""
     seg = x[:m] if at_start else x[-m:]

@@ -167,6 +167,8 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         raise ValueError(f"input_smoother must be one of {INPUT_SMOOTHERS}, got {input_smoother!r}")
     wiener = input_smoother in ("wiener", "wiener_lowpass")
     est = noise.channel_floors(V, theta, P, Q, 1.0 / dt) if floors or wiener else {}
+    if est:
+        est.update(noise.input_ratios(V, theta, est))
     if wiener:
         (V, theta), cut = noise.wiener_smooth(np.stack([V, theta]), 1.0 / dt, [est["noise_v"], est["noise_theta"]],
                                               return_cutoffs=True)

@@ -125,12 +125,14 @@ class IdentificationResult:
         (condition number of the static regressors, unit-norm columns), ``excitation_share_p``, ``_q``
         (the model's share of the measured ambient variance, white floor removed) [-], ``own_std_p``,
         ``_q`` (std of the residual's coloured part: the load's own fluctuation) [pu] and ``own_ratio_p``,
-        ``_q`` (that std over the measured ambient std) [-].
+        ``_q`` (that std over the measured ambient std) [-], ``input_ratio_v``, ``input_ratio_theta`` (the
+        inputs' ambient std over their white PMU noise std) [-], ``rk4_substeps`` (RK4 steps per sample).
     flags : list of str
         Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``,
         ``static_split_unidentifiable`` (a static coefficient's standard error above 10 % of the load),
         ``unexplained_fluctuation`` (``own_ratio_p`` above 0.7: P moves mostly for reasons V and θ do not
-        explain).
+        explain), ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
+        variation and D is not trustworthy).
     static_stderr : dict
         Standard errors of the ``static`` coefficients [pu or -] (D taken as known).
     static_local : dict

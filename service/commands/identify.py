@@ -66,8 +66,13 @@ def _human(path: str, result) -> str:
     flags = ", ".join(result.flags) or "none"
     loc = result.static_local
     at_v0 = "  ".join(f"{k}={loc[k]:.4g}±{loc[k + '_se']:.2g}" for k in ("P0", "dPdV", "Q0", "dQdV") if k in loc)
+    q = result.quality
+    warn = ""
+    if "input_noise_too_large" in result.flags:
+        warn = (f"\n  warning: input noise too large: V moves by {q['input_ratio_v']:.2g}× its PMU noise std "
+                f"({q['noise_v']:.2g} pu), below 2×: D is not trustworthy from this window")
     return (
         f"{path}\n  dynamic: {dyn}\n  static:  {sta}\n  static at V0={loc.get('V0', float('nan')):.4g}: {at_v0}\n"
         f"  objective={result.objective:.4g}  FD(P)={result.fit['fd_p']:.4f}  FD(Q)={result.fit['fd_q']:.4f}"
-        f"  flags: {flags}  ({result.elapsed_s * 1e3:.1f} ms)"
+        f"  flags: {flags}  ({result.elapsed_s * 1e3:.1f} ms)" + warn
     )

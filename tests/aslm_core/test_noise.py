@@ -131,3 +131,16 @@ def test_zero_phase_option_and_a_bad_smoother_name(cases):
         identify(w, config=IdentifyConfig(input_smoother="kalman"))
     with pytest.raises(ValueError, match="input_cutoff_hz"):
         identify(w, config=IdentifyConfig(input_smoother="zero_phase", input_cutoff_hz=80.0))
+
+
+def test_swamped_inputs_get_their_flag_and_exact_ones_do_not(cases):
+    """At 1 % / 1e-2 rad the PMU noise swamps V's ambient variation (input_ratio_v 0.0–0.6 on the development
+    windows, D off by 57 % median): flagged; exact inputs and the good PMU class (ratio 3.5–19) are not."""
+    for i, c in enumerate(cases[:3]):
+        swamped = identify(with_input_noise(c.window, 1e-2, 1e-2, seed=100 + i))
+        assert "input_noise_too_large" in swamped.flags
+        assert swamped.quality["input_ratio_v"] < 1.0
+        exact = identify(c.window)
+        assert "input_noise_too_large" not in exact.flags and exact.quality["input_ratio_v"] > 100
+        good = identify(with_input_noise(c.window, 3e-4, 3e-4, seed=200 + i))
+        assert "input_noise_too_large" not in good.flags
