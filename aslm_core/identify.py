@@ -37,6 +37,8 @@ COARSE_XTOL = 1e-3
 # misfit): the coloured residual's std above this fraction of P's ambient std.  At own/clean std 0.9 the
 # median error of D is 11-20 % with every estimator tried (docs/numerics.md).
 UNEXPLAINED_RATIO = 0.7
+# Width of the frequency average of the residual's periodogram in the spectral standard errors [Hz].
+SE_SMOOTH_HZ = 0.5
 # Flag a window whose V moves by less than this multiple of its white PMU noise (``input_ratio_v``): the
 # noise then swamps the ambient input.  Tuned on development seed 5 (40 DL 2 windows at five PMU noise
 # levels): at 2, 69 of the 73 windows off by more than 20 % were flagged and 6 of the 88 within 5 %
@@ -209,6 +211,7 @@ def _covariance(problem: Problem, rr: tuple[float, float], rho: tuple[float, flo
     """
     n_free = problem.basis.shape[1]
     obj = problem.config.objective
+    spectral = _score_variances(problem) if problem.config.stderr_method == "spectral" else None
     bread = np.zeros((4, 4))
     meat = np.zeros((4, 4))
     for c in range(2):
@@ -216,12 +219,44 @@ def _covariance(problem: Problem, rr: tuple[float, float], rho: tuple[float, flo
         r1 = min(max(rho[c], 0.0), 0.95)
         w = 1.0 / math.sqrt(max(rr[c], 1e-300)) if obj == "paper" else (1.0 / var if obj == "ml" else 1.0)
         bread += w * jj[c]
-        meat += (w * w * var * (1.0 + r1) / (1.0 - r1)) * jj[c]
+        if spectral is not None:
+            meat += (w * w * problem.l / max(problem.l - n_free, 1)) * spectral[c]
+        else:
+            meat += (w * w * var * (1.0 + r1) / (1.0 - r1)) * jj[c]
     try:
         binv = np.linalg.inv(bread)
     except np.linalg.LinAlgError:
         return np.diag(np.full(4, np.inf))
     return binv @ meat @ binv.T
+
+
+def _score_variances(problem: Problem) -> np.ndarray:
+    """Per channel, the covariance of the score Jᵀr from the residual's smoothed spectrum, shape (2, 4, 4).
+
+    Var(Jᵀr) = Σ_f Ĵ(f)ᴴ·S_r(f)·Ĵ(f) / l² with Ĵ the DFT of the projected Jacobian's columns and S_r the
+    residual's periodogram averaged over ``SE_SMOOTH_HZ``: the residual's colour at every frequency, where
+    the lag-1 rule (1+ρ)/(1−ρ) only knows its first lag.  It matters after a low-pass and under input noise
+    (the in-band PMU noise the smoother leaves is propagated by the model into coloured residuals): the
+    lag-1 rule's intervals covered 98–100 % there (docs/numerics.md).  Needs the optimum's simulation in
+    ``problem._p``, ``_q``, ``_dp``, ``_dq``.
+    """
+    pb = problem
+    k0, q1 = pb.k0, pb.basis
+    l = pb.l
+    width = max(1, int(round(SE_SMOOTH_HZ * l * pb.dt)))
+    kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
+    out = np.empty((2, 4, 4))
+    for c, (meas, model, jac) in enumerate(((pb.p_meas, pb._p, pb._dp), (pb.q_meas, pb._q, pb._dq))):
+        x = np.column_stack([meas - model[k0:], jac[k0:]])
+        x -= q1 @ (q1.T @ x)  # both projected off the static regressors
+        f = np.fft.fft(x, axis=0)
+        fj = f[:, 1:]
+        # The fit takes the residual's power where J has its own (4 degrees of freedom, concentrated in J's
+        # band, not spread evenly): divide it back per frequency by 1 − the leverage of D's directions.
+        lev = np.einsum("fi,ij,fj->f", fj.conj(), np.linalg.pinv(x[:, 1:].T @ x[:, 1:]), fj).real / l
+        s = _circular_mean(np.abs(f[:, 0]) ** 2, kernel) / np.maximum(1.0 - _circular_mean(lev, kernel), 0.25)
+        out[c] = (fj.conj().T @ (s[:, None] * fj)).real / (l * l)
+    return out
 
 
 def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None = None,
@@ -443,6 +478,12 @@ def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, r
         share, own_std, own_ratio = excitation.split(ss[c] / pb.l, rr[c] / pb.l, white)
         extra.update({f"excitation_share_{name}": share, f"own_std_{name}": own_std, f"own_ratio_{name}": own_ratio})
     return local, coef_se, extra
+
+
+def _circular_mean(x: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """Moving average of a periodic sequence (a full DFT's bins)."""
+    h = kernel.size // 2
+    return np.convolve(np.concatenate((x[-h:], x, x[:h])), kernel, mode="valid") if h else x
 
 
 def identify_many(windows: Sequence[Window], *, warm_starts: Sequence[np.ndarray | None] | None = None,

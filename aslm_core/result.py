@@ -14,6 +14,7 @@ Objective = Literal["paper", "ml", "ssq"]
 StaticModel = Literal["zip", "exponential"]
 InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
 Disturbance = Literal["none", "ar"]
+StderrMethod = Literal["spectral", "ar1"]
 
 
 @dataclass(frozen=True)
@@ -76,6 +77,10 @@ class IdentifyConfig:
         RK4 only: random starts descend first on a coarse grid (every m-th sample, m·dt ≤ 40 ms, the
         half-step inputs taken from the measured sample in between), then polish on the full grid.
         The answer is the full grid's optimum either way; False descends on the full grid throughout.
+    stderr_method : {"spectral", "ar1"}
+        Output-error standard errors: the score's variance from the residual's smoothed spectrum (every
+        lag of its colour; default), or the lag-1 inflation (1+ρ)/(1−ρ) of a white-noise sandwich (before
+        issue 11).  See docs/numerics.md.
     """
 
     integrator: Integrator = "rk4"
@@ -95,6 +100,7 @@ class IdentifyConfig:
     coarse_to_fine: bool = True
     disturbance: Disturbance = "none"
     ar_max_order: int = 30
+    stderr_method: StderrMethod = "spectral"
 
     def to_dict(self) -> dict:
         """The options as a plain dict (flat, so cheaper than ``dataclasses.asdict``)."""

@@ -144,3 +144,16 @@ def test_swamped_inputs_get_their_flag_and_exact_ones_do_not(cases):
         assert "input_noise_too_large" not in exact.flags and exact.quality["input_ratio_v"] > 100
         good = identify(with_input_noise(c.window, 3e-4, 3e-4, seed=200 + i))
         assert "input_noise_too_large" not in good.flags
+
+
+def test_spectral_standard_errors_agree_with_the_white_rule_on_white_residuals_and_not_after_a_low_pass(cases):
+    """White residuals (exact inputs, no filter): both rules give the same SE within 25 %. Low-passed residuals
+    are where the lag-1 rule (1+ρ)/(1−ρ) overshoots (its intervals covered 98–100 %): the spectral SE is smaller."""
+    for c in cases[:3]:
+        spec, ar1 = (identify(c.window, config=IdentifyConfig(stderr_method=m)) for m in ("spectral", "ar1"))
+        ratio = np.array([spec.stderr[k] / ar1.stderr[k] for k in PARAMS])
+        assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
+        spec, ar1 = (identify(c.window, config=IdentifyConfig(stderr_method=m, lowpass_hz=2.0))
+                     for m in ("spectral", "ar1"))
+        ratio = np.array([spec.stderr[k] / ar1.stderr[k] for k in PARAMS])
+        assert np.all(ratio < 0.9), ratio
