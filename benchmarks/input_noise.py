@@ -197,7 +197,7 @@ def supplement_rows(levels_out: dict) -> tuple[list[list], list[list]]:
 SUPP_HEAD = (["DL", "input noise", "n"] + [f"μ {p} [95 % CI]" for p in common.PARAMS]
              + [f"σ {p} [95 % CI]" for p in common.PARAMS]
              + ["±1.96 SE cover a / b / H2 / Tm [%]", "off > 20 % (unflagged)", "input_noise_too_large"])
-CHECK_HEAD = ["DL", "input noise"] + [f"{p}: |μ−1| / σ" for p in common.PARAMS]
+CHECK_HEAD = ["DL", "input noise"] + [f"{p}: bias / σ" for p in common.PARAMS]
 RATE_HEAD = (["frames/s", "input noise", "n"] + [f"μ {p}" for p in common.PARAMS] + [f"σ {p}" for p in common.PARAMS]
              + ["±1.96 SE cover [%]", "off > 20 % (unflagged)", "ms"])
 
