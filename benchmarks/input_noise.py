@@ -149,7 +149,7 @@ def rows(level_out: dict) -> list[list]:
 def run_level(n: int, level: int, seed: int, candidates: dict, workers: int, time_n: int,
               fs: float = 100.0) -> dict:
     """Every PMU class on the same n windows of one level (and rate): summaries per class and candidate."""
-    cs = common.cases(n, level=level, seed=seed, input_noise=False, fs=fs)
+    cs = common.cases(n, level=level or None, seed=seed, input_noise=False, fs=fs)  # level 0: noise-free P, Q
     out = {}
     for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
         rng = np.random.default_rng([seed, level, k])
@@ -218,7 +218,7 @@ def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None,
                     help="windows per level (default 200, --supplement 300, --rates 150; --quick: 20)")
-    ap.add_argument("--levels", type=int, nargs="+", default=None, help="disturbance levels")
+    ap.add_argument("--levels", type=int, nargs="+", default=None, help="disturbance levels (0: noise-free P, Q)")
     ap.add_argument("--workers", type=int, default=2, help="threads (the machine is shared)")
     ap.add_argument("--time-n", type=int, default=30, help="windows per class in the one-thread timing pass")
     ap.add_argument("--supplement", action="store_true", help="the Table I supplement (default identifier)")
@@ -259,6 +259,8 @@ def main(argv=None) -> dict:
     print("\n\n".join(text))
     if not args.no_write:
         name = {"compare": "input_noise", "supplement": "input_noise_supplement", "rates": "input_noise_rates"}[mode]
+        if mode == "rates" and levels != [2]:
+            name += "_dl" + "-".join(str(x) for x in levels)
         common.write_json(name + ("_quick" if args.quick else ""), out)
     return out
 
