@@ -241,21 +241,29 @@ def _score_variances(problem: Problem) -> np.ndarray:
     ``problem._p``, ``_q``, ``_dp``, ``_dq``.
     """
     pb = problem
-    k0, q1 = pb.k0, pb.basis
-    l = pb.l
+    k0, l = pb.k0, pb.l
     width = max(1, int(round(SE_SMOOTH_HZ * l * pb.dt)))
     kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
+    x = np.column_stack([pb.p_meas - pb._p[k0:], pb._dp[k0:], pb.q_meas - pb._q[k0:], pb._dq[k0:]])
+    x -= pb.basis @ (pb.basis.T @ x)  # residuals and Jacobians projected off the static regressors
+    f = np.fft.rfft(x, axis=0)
+    # One-sided spectrum: the bins between DC and Nyquist stand for two of the full DFT's.
+    mult = np.full(f.shape[0], 2.0)
+    mult[0] = 1.0
+    if l % 2 == 0:
+        mult[-1] = 1.0
     out = np.empty((2, 4, 4))
-    for c, (meas, model, jac) in enumerate(((pb.p_meas, pb._p, pb._dp), (pb.q_meas, pb._q, pb._dq))):
-        x = np.column_stack([meas - model[k0:], jac[k0:]])
-        x -= q1 @ (q1.T @ x)  # both projected off the static regressors
-        f = np.fft.fft(x, axis=0)
-        fj = f[:, 1:]
+    for c in range(2):
+        fr, fj, jc = f[:, 5 * c], f[:, 5 * c + 1:5 * c + 5], x[:, 5 * c + 1:5 * c + 5]
         # The fit takes the residual's power where J has its own (4 degrees of freedom, concentrated in J's
         # band, not spread evenly): divide it back per frequency by 1 − the leverage of D's directions.
-        lev = np.einsum("fi,ij,fj->f", fj.conj(), np.linalg.pinv(x[:, 1:].T @ x[:, 1:]), fj).real / l
-        s = _circular_mean(np.abs(f[:, 0]) ** 2, kernel) / np.maximum(1.0 - _circular_mean(lev, kernel), 0.25)
-        out[c] = (fj.conj().T @ (s[:, None] * fj)).real / (l * l)
+        try:
+            inv = np.linalg.inv(jc.T @ jc)
+        except np.linalg.LinAlgError:
+            inv = np.linalg.pinv(jc.T @ jc)
+        lev = np.sum((fj @ inv) * fj.conj(), axis=1).real / l
+        sr = _reflected_mean(fr.real**2 + fr.imag**2, kernel) / np.maximum(1.0 - _reflected_mean(lev, kernel), 0.25)
+        out[c] = (fj.conj().T @ ((mult * sr)[:, None] * fj)).real / (l * l)
     return out
 
 
@@ -480,10 +488,10 @@ def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, r
     return local, coef_se, extra
 
 
-def _circular_mean(x: np.ndarray, kernel: np.ndarray) -> np.ndarray:
-    """Moving average of a periodic sequence (a full DFT's bins)."""
+def _reflected_mean(x: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """Moving average of a one-sided spectrum, reflected at DC and Nyquist (as the full DFT continues it)."""
     h = kernel.size // 2
-    return np.convolve(np.concatenate((x[-h:], x, x[:h])), kernel, mode="valid") if h else x
+    return np.convolve(np.concatenate((x[h:0:-1], x, x[-2:-h - 2:-1])), kernel, mode="valid") if h else x
 
 
 def identify_many(windows: Sequence[Window], *, warm_starts: Sequence[np.ndarray | None] | None = None,
