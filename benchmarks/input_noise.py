@@ -18,6 +18,10 @@ same per-sample PMU noise, 150 windows per rate (seed 43).
     .venv/bin/python -m benchmarks.input_noise [--quick] [--n N] [--levels 2 3] [--workers 2] [--time-n 30]
     .venv/bin/python -m benchmarks.input_noise --supplement [--n 300]
     .venv/bin/python -m benchmarks.input_noise --rates 25 30 50 60 100 120 [--n 150]
+    .venv/bin/python -m benchmarks.input_noise --cost [--n 60]
+
+``--cost``: the default's time per identification against the identifier before issue 11 (no input
+smoother, lag-1 SE rule), interleaved per window, minimum of 5 runs, median over DL 1 windows, one thread.
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ CANDIDATES = {
     "default, lag-1 SE rule": IdentifyConfig(stderr_method="ar1"),
 }
 DEFAULT_ONLY = {"default": IdentifyConfig()}
+COST = {"before issue 11": IdentifyConfig(input_smoother="none", stderr_method="ar1"), "default": IdentifyConfig()}
 #: Issue 11's targets per PMU class: |μ − 1| bound, and σ bound (absolute, or as a multiple of exact-input σ).
 TARGETS = {"0.03 % / 3e-4 rad": (0.01, "1.3x"), "0.1 % / 1e-3 rad": (0.02, 0.05)}
 NOISE_KEYS = ("noise_v", "noise_theta", "noise_p", "noise_q")
@@ -214,6 +219,24 @@ def rate_rows(rates_out: dict) -> list[list]:
     return out
 
 
+def cost(n: int, no_write: bool) -> dict:
+    """``--cost`` (module docstring): exact inputs and 0.1 % / 1e-3 rad, the same windows for both."""
+    cs = common.cases(n, level=1, seed=CONFIRM_SEED, input_noise=False)
+    _one(cs[0].window, COST)
+    out = {"machine": common.machine(), "mode": "cost", "n": n, "seed": CONFIRM_SEED, "classes": {}}
+    for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
+        rng = np.random.default_rng([CONFIRM_SEED, 1, k])
+        windows = [with_input_noise(c.window, c.clean, v_rel, th, rng) for c in cs]
+        ms = timings(windows, reps=5, candidates=COST)
+        ms["ratio"] = ms["default"] / ms["before issue 11"]
+        out["classes"][cls] = ms
+        print(f"{cls}: " + ", ".join(f"{k} {v:.2f}" for k, v in ms.items()), flush=True)
+    out["load_avg_at_end"] = list(os.getloadavg())
+    if not no_write:
+        common.write_json("input_noise_cost", out)
+    return out
+
+
 def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None,
@@ -223,7 +246,10 @@ def main(argv=None) -> dict:
     ap.add_argument("--time-n", type=int, default=30, help="windows per class in the one-thread timing pass")
     ap.add_argument("--supplement", action="store_true", help="the Table I supplement (default identifier)")
     ap.add_argument("--rates", type=float, nargs="+", default=None, help="reporting rates [frames/s]")
+    ap.add_argument("--cost", action="store_true", help="time per identification: the default against before")
     args = ap.parse_args(argv)
+    if args.cost:
+        return cost(args.n or 60, args.no_write)
     mode = "supplement" if args.supplement else ("rates" if args.rates else "compare")
     n = args.n or (20 if args.quick else {"compare": 200, "supplement": 300, "rates": 150}[mode])
     levels = args.levels or {"compare": [2, 3], "supplement": [1, 2, 3], "rates": [2]}[mode]
