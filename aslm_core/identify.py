@@ -37,6 +37,13 @@ COARSE_XTOL = 1e-3
 # misfit): the coloured residual's std above this fraction of P's ambient std.  At own/clean std 0.9 the
 # median error of D is 11-20 % with every estimator tried (docs/numerics.md).
 UNEXPLAINED_RATIO = 0.7
+# Width of the frequency average of the residual's periodogram in the spectral standard errors [Hz].
+SE_SMOOTH_HZ = 0.5
+# Flag a window whose V moves by less than this multiple of its white PMU noise (``input_ratio_v``): the
+# noise then swamps the ambient input.  Tuned on development seed 5 (40 DL 2 windows at five PMU noise
+# levels): at 2, 69 of the 73 windows off by more than 20 % were flagged and 6 of the 88 within 5 %
+# (docs/numerics.md).
+INPUT_RATIO_MIN = 2.0
 
 
 class Problem:
@@ -57,7 +64,8 @@ class Problem:
         self.omega0 = motor.omega0_of(f0)
         self.dt = prep.dt
         self.rk4 = config.integrator == "rk4"
-        self.vd, self.vq, self.vdm, self.vqm = motor.dq_inputs(prep.V, prep.theta)
+        self.substeps = motor.substeps(prep.dt) if self.rk4 else 1
+        self.vd, self.vq, self.vdm, self.vqm = motor.dq_inputs(prep.V, prep.theta, self.substeps)
         n = prep.V.shape[0]
         self._set_samples(prep.V, prep.P, prep.Q, min(int(math.ceil(config.skip_s / prep.dt - 1e-9)), n - 10))
         self.v_min = float(prep.V.min())
@@ -203,6 +211,7 @@ def _covariance(problem: Problem, rr: tuple[float, float], rho: tuple[float, flo
     """
     n_free = problem.basis.shape[1]
     obj = problem.config.objective
+    spectral = _score_variances(problem) if problem.config.stderr_method == "spectral" else None
     bread = np.zeros((4, 4))
     meat = np.zeros((4, 4))
     for c in range(2):
@@ -210,12 +219,52 @@ def _covariance(problem: Problem, rr: tuple[float, float], rho: tuple[float, flo
         r1 = min(max(rho[c], 0.0), 0.95)
         w = 1.0 / math.sqrt(max(rr[c], 1e-300)) if obj == "paper" else (1.0 / var if obj == "ml" else 1.0)
         bread += w * jj[c]
-        meat += (w * w * var * (1.0 + r1) / (1.0 - r1)) * jj[c]
+        if spectral is not None:
+            meat += (w * w * problem.l / max(problem.l - n_free, 1)) * spectral[c]
+        else:
+            meat += (w * w * var * (1.0 + r1) / (1.0 - r1)) * jj[c]
     try:
         binv = np.linalg.inv(bread)
     except np.linalg.LinAlgError:
         return np.diag(np.full(4, np.inf))
     return binv @ meat @ binv.T
+
+
+def _score_variances(problem: Problem) -> np.ndarray:
+    """Per channel, the covariance of the score Jᵀr from the residual's smoothed spectrum, shape (2, 4, 4).
+
+    Var(Jᵀr) = Σ_f Ĵ(f)ᴴ·S_r(f)·Ĵ(f) / l² with Ĵ the DFT of the projected Jacobian's columns and S_r the
+    residual's periodogram averaged over ``SE_SMOOTH_HZ``: the residual's colour at every frequency, where
+    the lag-1 rule (1+ρ)/(1−ρ) only knows its first lag.  It matters after a low-pass and under input noise
+    (the in-band PMU noise the smoother leaves is propagated by the model into coloured residuals): the
+    lag-1 rule's intervals covered 98–100 % there (docs/numerics.md).  Needs the optimum's simulation in
+    ``problem._p``, ``_q``, ``_dp``, ``_dq``.
+    """
+    pb = problem
+    k0, l = pb.k0, pb.l
+    width = max(1, int(round(SE_SMOOTH_HZ * l * pb.dt)))
+    kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
+    x = np.column_stack([pb.p_meas - pb._p[k0:], pb._dp[k0:], pb.q_meas - pb._q[k0:], pb._dq[k0:]])
+    x -= pb.basis @ (pb.basis.T @ x)  # residuals and Jacobians projected off the static regressors
+    f = np.fft.rfft(x, axis=0)
+    # One-sided spectrum: the bins between DC and Nyquist stand for two of the full DFT's.
+    mult = np.full(f.shape[0], 2.0)
+    mult[0] = 1.0
+    if l % 2 == 0:
+        mult[-1] = 1.0
+    out = np.empty((2, 4, 4))
+    for c in range(2):
+        fr, fj, jc = f[:, 5 * c], f[:, 5 * c + 1:5 * c + 5], x[:, 5 * c + 1:5 * c + 5]
+        # The fit takes the residual's power where J has its own (4 degrees of freedom, concentrated in J's
+        # band, not spread evenly): divide it back per frequency by 1 − the leverage of D's directions.
+        try:
+            inv = np.linalg.inv(jc.T @ jc)
+        except np.linalg.LinAlgError:
+            inv = np.linalg.pinv(jc.T @ jc)
+        lev = np.sum((fj @ inv) * fj.conj(), axis=1).real / l
+        sr = _reflected_mean(fr.real**2 + fr.imag**2, kernel) / np.maximum(1.0 - _reflected_mean(lev, kernel), 0.25)
+        out[c] = (fj.conj().T @ ((mult * sr)[:, None] * fj)).real / (l * l)
+    return out
 
 
 def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None = None,
@@ -372,6 +421,8 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         flags.append("poor_fit")
     if extra["own_ratio_p"] > UNEXPLAINED_RATIO:
         flags.append("unexplained_fluctuation")
+    if prep.noise.get("input_ratio_v", math.inf) < INPUT_RATIO_MIN:
+        flags.append("input_noise_too_large")
     # Ambient signal = measured variance minus what the fit leaves (the noise estimate), eq. 10.
     snr_p = 10.0 * math.log10(max(ss_p - rr_p, 1e-300) / max(rr_p, 1e-300))
     snr_q = 10.0 * math.log10(max(ss_q - rr_q, 1e-300) / max(rr_q, 1e-300))
@@ -379,6 +430,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         "snr_p_db": snr_p, "snr_q_db": snr_q, "v_std_rel": v_rel,
         "f_dev_std_hz": dth_std / prep.dt / (2 * math.pi), "equilibrium_margin": float(margin),
         "n_samples": float(prep.V.size), "n_regression": float(problem.l), "dt_s": prep.dt,
+        "rk4_substeps": float(getattr(problem, "substeps", 1)),
         "skip_s": problem.k0 * prep.dt,
         "of_paper": (math.sqrt(rr_p) + math.sqrt(rr_q)) / problem.l,
         "residual_rho_p": min(max(rho_p, 0.0), 0.95), "residual_rho_q": min(max(rho_q, 0.0), 0.95),
@@ -434,6 +486,12 @@ def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, r
         share, own_std, own_ratio = excitation.split(ss[c] / pb.l, rr[c] / pb.l, white)
         extra.update({f"excitation_share_{name}": share, f"own_std_{name}": own_std, f"own_ratio_{name}": own_ratio})
     return local, coef_se, extra
+
+
+def _reflected_mean(x: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """Moving average of a one-sided spectrum, reflected at DC and Nyquist (as the full DFT continues it)."""
+    h = kernel.size // 2
+    return np.convolve(np.concatenate((x[h:0:-1], x, x[-2:-h - 2:-1])), kernel, mode="valid") if h else x
 
 
 def identify_many(windows: Sequence[Window], *, warm_starts: Sequence[np.ndarray | None] | None = None,

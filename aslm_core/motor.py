@@ -7,9 +7,10 @@ States x = [Fd, Fq, s] with Fd = Ed/X', Fq = Eq/X'; parameters D = [a, b, H2, Tm
     ds/dt  = (Tm - Vq·Fd + Vd·Fq) / H2
     P_im = Fd·Vq - Fq·Vd,   Q_im = -Vd·Fd - Vq·Fq
 
-The kernels integrate at the sample step, either RK4 with V and θ interpolated (cubic) to the
-half step (default) or the paper's explicit Euler, and propagate dx/dD through the *discrete* map so
-the gradient is exact for the objective actually minimised.
+The kernels integrate either by RK4 at the sample step, split into sub-steps of at most
+``MAX_STEP_S`` at low reporting rates, with V and θ interpolated (cubic) inside the step (default), or by
+the paper's explicit Euler at the sample step, and propagate dx/dD through the *discrete* map so the
+gradient is exact for the objective actually minimised.
 
 Initial state: the low-slip steady state at the first sample.  Ambient windows start off nominal
 frequency; a steady state at ω0 then carries a slip error of Δω/ω0 whose transient outlasts the skipped
@@ -28,6 +29,16 @@ from aslm_core.errors import NoEquilibriumError
 
 # The initial steady state turns with the bus frequency, estimated over this first stretch [s].
 START_SLOPE_S = 0.05
+#: Longest RK4 step [s]: a sample step above it is split into sub-steps (inputs interpolated by cubics).
+#: The fastest stator mode in the box decays at b ≤ 100 /s and turns at ~s·ω0, so |λ|·h reaches ~1–4 at the
+#: 33–40 ms of 25–30 frames/s: there RK4 at the sample step was off by up to 0.6–0.95 of P_im's ambient
+#: std and noise-free D by up to 5–9 % (H2); at 10 ms by ≤ 0.5 % of the std and ≤ 0.07 % (docs/numerics.md).
+MAX_STEP_S = 0.0101
+
+
+def substeps(dt: float) -> int:
+    """RK4 sub-steps per sample step dt [s]: the fewest that keep each within :data:`MAX_STEP_S`."""
+    return max(1, int(math.ceil(dt / MAX_STEP_S - 1e-9)))
 
 
 def omega0_of(f0: float) -> float:
@@ -41,8 +52,8 @@ def omega0_of(f0: float) -> float:
     return 2.0 * math.pi * f0
 
 
-def dq_inputs(V: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Voltage components at the samples and at the half steps.
+def dq_inputs(V: np.ndarray, theta: np.ndarray, m: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Voltage components at the samples and at the points inside each step RK4 with m sub-steps needs.
 
     Parameters
     ----------
@@ -50,19 +61,36 @@ def dq_inputs(V: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray,
         Voltage magnitude [pu].
     theta : ndarray
         Unwrapped voltage angle [rad].
+    m : int
+        RK4 sub-steps per sample step (:func:`substeps`).
 
     Returns
     -------
     vd, vq : ndarray, shape (n,)
         Vd + jVq = V·e^{jθ} at the samples [pu].
-    vdm, vqm : ndarray, shape (n-1,)
-        The same at the half steps, from V and θ interpolated by cubics [pu].
+    vdm, vqm : ndarray, shape ((n-1)·(2m-1),)
+        The same at the fractions 1/(2m) … (2m-1)/(2m) of each step, step-major (m = 1: the half steps),
+        from V and θ interpolated by cubics [pu].  :func:`simulate_kernel` infers m from the length.
     """
     vd = V * np.cos(theta)
     vq = V * np.sin(theta)
-    vm = _midpoints(V)
-    thm = _midpoints(theta)
+    if m == 1:
+        vm, thm = _midpoints(V), _midpoints(theta)
+    else:
+        fr = np.arange(1, 2 * m) / (2.0 * m)
+        vm = np.stack([_interior(V, f) for f in fr], axis=1).ravel()
+        thm = np.stack([_interior(theta, f) for f in fr], axis=1).ravel()
     return vd, vq, vm * np.cos(thm), vm * np.sin(thm)
+
+
+def _interior(x: np.ndarray, f: float) -> np.ndarray:
+    """Values at the fraction f of each step: 4-point (cubic) Lagrange inside, linear at the two end steps."""
+    out = x[:-1] + f * (x[1:] - x[:-1])
+    if x.size >= 4:
+        w = (-f * (f - 1) * (f - 2) / 6, (f + 1) * (f - 1) * (f - 2) / 2, -(f + 1) * f * (f - 2) / 2,
+             (f + 1) * f * (f - 1) / 6)
+        out[1:-1] = w[0] * x[:-3] + w[1] * x[1:-2] + w[2] * x[2:-1] + w[3] * x[3:]
+    return out
 
 
 def _midpoints(x: np.ndarray) -> np.ndarray:
@@ -208,7 +236,10 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
     fd = x[0]
     fq = x[1]
     s = x[2]
-    h = dt
+    # RK4 sub-steps per sample step, from the interior inputs given (see dq_inputs).
+    per = vdm.shape[0] // (n - 1) if n > 1 else 1
+    m = (per + 1) // 2 if rk4 else 1
+    h = dt / m
     h6 = h / 6.0
     for k in range(n):
         ud = vd[k]
@@ -235,11 +266,19 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
                     X[i, j] -= X[0, j]
         if k == n - 1:
             break
-        if rk4:
-            md = vdm[k]
-            mq = vqm[k]
-            nd = vd[k + 1]
-            nq = vq[k + 1]
+        for j in range(m if rk4 else 0):
+            base = k * per + 2 * j
+            if j > 0:
+                ud = vdm[base - 1]
+                uq = vqm[base - 1]
+            md = vdm[base]
+            mq = vqm[base]
+            if j == m - 1:
+                nd = vd[k + 1]
+                nq = vq[k + 1]
+            else:
+                nd = vdm[base + 1]
+                nq = vqm[base + 1]
             k1 = _f(fd, fq, s, ud, uq, a, b, ih2, tm, w0)
             x2d = fd + 0.5 * h * k1[0]
             x2q = fq + 0.5 * h * k1[1]
@@ -264,7 +303,7 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
             fd += h6 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
             fq += h6 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
             s += h6 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
-        else:
+        if not rk4:
             k1 = _f(fd, fq, s, ud, uq, a, b, ih2, tm, w0)
             if with_sens:
                 _sens_rate(W, 0.0, fd, fq, s, ud, uq, k1[2], b, w0, ih2, 0, 3)
@@ -418,7 +457,7 @@ def simulate(
     theta = np.ascontiguousarray(theta, dtype=np.float64)
     d = np.ascontiguousarray(d, dtype=np.float64)
     steady_state(float(V[0]), float(theta[0]), d, omega0)
-    vd, vq, vdm, vqm = dq_inputs(V, theta)
+    vd, vq, vdm, vqm = dq_inputs(V, theta, substeps(dt) if integrator == "rk4" else 1)
     n = V.shape[0]
     p = np.empty(n)
     q = np.empty(n)

@@ -124,23 +124,57 @@ def channel_floors(V: np.ndarray, theta: np.ndarray, P: np.ndarray, Q: np.ndarra
     Returns
     -------
     dict
-        ``noise_v`` [pu], ``noise_theta`` [rad], ``noise_p``, ``noise_q`` [pu].
+        ``noise_v`` [pu], ``noise_theta`` [rad], ``noise_p``, ``noise_q`` [pu], and ``floor_tilt_v``,
+        ``floor_tilt_theta`` [-]: the median power of the floor band's lower half over its upper half's
+        (~1 for white noise; well above where the band holds the input's own falling spectrum: exact inputs).
     """
     # One FFT call for the four and a partition instead of np.median: this runs for every window.
     x = np.stack([V, theta, P, Q])
     _, pxx = periodogram(x, fs)
     vals = pxx[:, _floor_bins(x.shape[1], round(fs, 3), FLOOR_FROM_HZ)]
+    psd = _median(vals) / math.log(2.0)
+    h = vals.shape[1] // 2
+    tilt = _median(vals[:2, :h]) / np.maximum(_median(vals[:2, h:]), 1e-300)
+    return {"noise_v": math.sqrt(psd[0] * fs / 2), "noise_theta": math.sqrt(psd[1] * fs / 2),
+            "noise_p": math.sqrt(psd[2] * fs / 2), "noise_q": math.sqrt(psd[3] * fs / 2),
+            "floor_tilt_v": float(tilt[0]), "floor_tilt_theta": float(tilt[1])}
+
+
+def _median(vals: np.ndarray) -> np.ndarray:
+    """Median along the last axis by a partition (cheaper than np.median for these short rows)."""
     m = vals.shape[1]
     part = np.partition(vals, ((m - 1) // 2, m // 2), axis=1)
-    psd = 0.5 * (part[:, (m - 1) // 2] + part[:, m // 2]) / math.log(2.0)
-    return {"noise_v": math.sqrt(psd[0] * fs / 2), "noise_theta": math.sqrt(psd[1] * fs / 2),
-            "noise_p": math.sqrt(psd[2] * fs / 2), "noise_q": math.sqrt(psd[3] * fs / 2)}
+    return 0.5 * (part[:, (m - 1) // 2] + part[:, m // 2])
 
 
 @lru_cache(maxsize=32)
 def _floor_bins(n: int, fs: float, from_hz: float) -> np.ndarray:
     """Indices of the periodogram bins of an n-sample record the floor is the median of."""
     return np.flatnonzero(_floor_band(np.fft.rfftfreq(n, 1.0 / fs), fs, from_hz))
+
+
+def input_ratios(V: np.ndarray, theta: np.ndarray, floors: dict[str, float]) -> dict[str, float]:
+    """Ambient std of the inputs V and θ over their white-noise std: how far the PMU noise swamps them.
+
+    Parameters
+    ----------
+    V, theta : ndarray
+        The measured inputs on a uniform grid [pu, rad].
+    floors : dict
+        ``noise_v`` [pu], ``noise_theta`` [rad] (:func:`channel_floors`).
+
+    Returns
+    -------
+    dict
+        ``input_ratio_v``, ``input_ratio_theta`` [-]: sqrt(var − σ²)/σ of each linearly detrended input (σ its
+        floor; 1e6 where σ is zero, an exact input).
+    """
+    out = {}
+    for name, x in (("v", V), ("theta", theta)):
+        sigma = floors[f"noise_{name}"]
+        var = float(np.var(_detrend(np.asarray(x, dtype=np.float64))))
+        out[f"input_ratio_{name}"] = math.sqrt(max(var - sigma * sigma, 0.0)) / sigma if sigma > 0.0 else 1e6
+    return out
 
 
 def _end_value(x: np.ndarray, m: int, at_start: bool) -> float:

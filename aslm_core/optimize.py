@@ -1,7 +1,9 @@
 """Upper stage: constrained Levenberg–Marquardt over D on the projected (lower-stage) residuals.
 
 Compiled end to end with numba: one iteration is one simulation with sensitivities plus O(n) work,
-no Python in the loop.  Each step solves the damped model in the box and the linearised equilibrium
+no Python in the loop.  The kernels here compile motor.simulate_kernel into themselves, and numba's cache
+only watches this file: a change to the motor kernel must touch this file too (or clear ``__pycache__``),
+or the cached kernels keep the old one (seen with the RK4 sub-steps).  Each step solves the damped model in the box and the linearised equilibrium
 constraint a·Vmin²·(1 − margin) − 2b·Tm > 0 (a 4-variable active-set QP); the constraint's curvature is
 corrected along Tm, with backtracking as the fallback.
 """

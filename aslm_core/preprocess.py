@@ -17,6 +17,10 @@ CHANNELS = SIGNALS  # V, θ, P, Q: put on one grid and filtered together
 INPUT_SMOOTHERS = ("none", "wiener", "wiener_lowpass", "zero_phase")
 #: ``wiener_lowpass``: cut-off of the low-pass as a fraction of the lower signal cut-off of V and θ [-].
 PREFILTER_FRACTION = 0.5
+#: An input whose floor band tilts by more than this (``floor_tilt_*``) holds its own falling spectrum there, not
+#: white PMU noise: it is taken as exact (not smoothed).  Measured at 25–120 frames/s: white noise 0.4–2.3,
+#: exact inputs of the synthetic generator 14–1,600, 2 Hz low-passed noise (tests' equation window) 42–165.
+FLOOR_TILT_MAX = 5.0
 
 
 @dataclass
@@ -90,7 +94,8 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         Estimate the white-noise floor of every channel (``Prepared.noise``); implied by the Wiener smoothers.
     input_smoother : {"none", "wiener", "wiener_lowpass", "zero_phase"}
         Applied to V and θ only, before the low-pass: ``wiener`` replaces them by their conditional
-        mean given the window, with the noise std from their floors (:func:`aslm_core.noise.wiener_smooth`);
+        mean given the window, with the noise std from their floors (:func:`aslm_core.noise.wiener_smooth`;
+        an input whose floor band is not flat, ``floor_tilt_*`` above ``FLOOR_TILT_MAX``, is taken as exact);
         ``wiener_lowpass`` does the same and then, unless ``lowpass_hz`` is given, low-passes all four
         channels as ``lowpass_hz`` would at ``PREFILTER_FRACTION`` × the lower of V's and θ's signal
         cut-off (where their power sinks to the noise floor; no low-pass when neither does: exact inputs);
@@ -167,8 +172,13 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         raise ValueError(f"input_smoother must be one of {INPUT_SMOOTHERS}, got {input_smoother!r}")
     wiener = input_smoother in ("wiener", "wiener_lowpass")
     est = noise.channel_floors(V, theta, P, Q, 1.0 / dt) if floors or wiener else {}
+    # The inputs' white noise: none where the floor band is not flat (an exact input's own spectrum).
+    white = {k: (est[k] if est[f"floor_tilt_{k[6:]}"] <= FLOOR_TILT_MAX else 0.0) for k in ("noise_v", "noise_theta")
+             if k in est}
+    if est:
+        est.update(noise.input_ratios(V, theta, white))
     if wiener:
-        (V, theta), cut = noise.wiener_smooth(np.stack([V, theta]), 1.0 / dt, [est["noise_v"], est["noise_theta"]],
+        (V, theta), cut = noise.wiener_smooth(np.stack([V, theta]), 1.0 / dt, [white["noise_v"], white["noise_theta"]],
                                               return_cutoffs=True)
         if input_smoother == "wiener_lowpass" and lowpass_hz is None and cut.min() < 0.45 / dt:
             # Rounded to 0.1 Hz so the filter designs are cached.

@@ -14,6 +14,7 @@ Objective = Literal["paper", "ml", "ssq"]
 StaticModel = Literal["zip", "exponential"]
 InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
 Disturbance = Literal["none", "ar"]
+StderrMethod = Literal["spectral", "ar1"]
 
 
 @dataclass(frozen=True)
@@ -51,8 +52,9 @@ class IdentifyConfig:
         mean given the window, the noise std taken from each channel's floor above 5 Hz;
         ``wiener_lowpass`` = the same, then (unless ``lowpass_hz`` is set) the causal low-pass of all
         four channels at half the frequency where V's or θ's signal sinks to its floor, none with exact
-        inputs; ``zero_phase`` = a zero-phase low-pass of V and θ at ``input_cutoff_hz``.  See
-        docs/numerics.md.
+        inputs (the default: one default for the Python API, the CLI and the service; exact inputs
+        identify as with ``none``); ``zero_phase`` = a zero-phase low-pass of V and θ at
+        ``input_cutoff_hz``.  See docs/numerics.md.
     input_cutoff_hz : float
         Cut-off of the ``zero_phase`` input smoother [Hz].
     max_iter : int
@@ -75,6 +77,10 @@ class IdentifyConfig:
         RK4 only: random starts descend first on a coarse grid (every m-th sample, m·dt ≤ 40 ms, the
         half-step inputs taken from the measured sample in between), then polish on the full grid.
         The answer is the full grid's optimum either way; False descends on the full grid throughout.
+    stderr_method : {"spectral", "ar1"}
+        Output-error standard errors: the score's variance from the residual's smoothed spectrum (every
+        lag of its colour; default), or the lag-1 inflation (1+ρ)/(1−ρ) of a white-noise sandwich (before
+        issue 11).  See docs/numerics.md.
     """
 
     integrator: Integrator = "rk4"
@@ -85,7 +91,7 @@ class IdentifyConfig:
     skip_max_s: float = 3.0
     n_starts: int = 3
     lowpass_hz: float | None = None
-    input_smoother: InputSmoother = "none"
+    input_smoother: InputSmoother = "wiener_lowpass"
     input_cutoff_hz: float = 3.0
     max_iter: int = 60
     seed: int | None = 0
@@ -94,6 +100,7 @@ class IdentifyConfig:
     coarse_to_fine: bool = True
     disturbance: Disturbance = "none"
     ar_max_order: int = 30
+    stderr_method: StderrMethod = "spectral"
 
     def to_dict(self) -> dict:
         """The options as a plain dict (flat, so cheaper than ``dataclasses.asdict``)."""
@@ -124,12 +131,14 @@ class IdentificationResult:
         (condition number of the static regressors, unit-norm columns), ``excitation_share_p``, ``_q``
         (the model's share of the measured ambient variance, white floor removed) [-], ``own_std_p``,
         ``_q`` (std of the residual's coloured part: the load's own fluctuation) [pu] and ``own_ratio_p``,
-        ``_q`` (that std over the measured ambient std) [-].
+        ``_q`` (that std over the measured ambient std) [-], ``input_ratio_v``, ``input_ratio_theta`` (the
+        inputs' ambient std over their white PMU noise std) [-], ``rk4_substeps`` (RK4 steps per sample).
     flags : list of str
         Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``,
         ``static_split_unidentifiable`` (a static coefficient's standard error above 10 % of the load),
         ``unexplained_fluctuation`` (``own_ratio_p`` above 0.7: P moves mostly for reasons V and θ do not
-        explain).
+        explain), ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
+        variation and D is not trustworthy).
     static_stderr : dict
         Standard errors of the ``static`` coefficients [pu or -] (D taken as known).
     static_local : dict

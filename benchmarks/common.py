@@ -39,14 +39,31 @@ def parser(description: str) -> argparse.ArgumentParser:
     return p
 
 
-def cases(n: int, *, level: int | None, seed: int, input_noise: bool = False) -> list:
+def cases(n: int, *, level: int | None, seed: int, input_noise: bool = False, fs: float = 100.0) -> list:
     """``make_cases`` in chunks of 250 (bounded memory); chunk k uses seed·1000 + k, so the set is
-    deterministic for (seed, n) and the same seed at different levels gives the same clean records."""
+    deterministic for (seed, n) and the same seed at different levels gives the same clean records.
+    ``fs``: the reporting rate [frames/s]."""
     out = []
     chunk = 250
     for k, start in enumerate(range(0, n, chunk)):
         m = min(chunk, n - start)
-        out.extend(make_cases(m, level=level, seed=seed * 1000 + k, input_noise=input_noise))
+        out.extend(make_cases(m, level=level, seed=seed * 1000 + k, input_noise=input_noise, fs=fs))
+    return out
+
+
+def bootstrap_mu_sigma(ratios: np.ndarray, n_boot: int = 2000) -> dict:
+    """95 % bootstrap intervals (percentile, cases resampled) of μ and σ per parameter of (n, 4) ratios.
+
+    Returns ``{"mu": {p: [lo, hi]}, "sigma": {p: [lo, hi]}}``.
+    """
+    r = np.asarray(ratios, dtype=float).reshape(-1, 4)
+    rng = np.random.default_rng(0)
+    idx = rng.integers(0, len(r), (n_boot, len(r)))
+    boot = r[idx]  # (n_boot, n, 4)
+    out = {}
+    for key, stat in (("mu", boot.mean(axis=1)), ("sigma", boot.std(axis=1, ddof=1))):
+        lo, hi = np.percentile(stat, [2.5, 97.5], axis=0)
+        out[key] = {p: [float(a), float(b)] for p, a, b in zip(PARAMS, lo, hi, strict=True)}
     return out
 
 

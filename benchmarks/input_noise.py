@@ -9,7 +9,19 @@ the channels' noise estimates over the injected std.  Time per identification: a
 thread over the first ``--time-n`` windows, the candidates interleaved, minimum of 3 repeats per window,
 median over windows.
 
+``--supplement``: the Table I supplement (docs/reproduction.md): the default identifier only, DL 1–3,
+300 windows per level, the three PMU classes, μ and σ with 95 % bootstrap intervals against issue 11's
+targets; confirmation seed 43, fixed before the run (the thresholds were tuned on seed 5, the candidates
+compared on seed 41).  ``--rates R ...``: the default at those reporting rates [frames/s], DL 2, the
+same per-sample PMU noise, 150 windows per rate (seed 43).
+
     .venv/bin/python -m benchmarks.input_noise [--quick] [--n N] [--levels 2 3] [--workers 2] [--time-n 30]
+    .venv/bin/python -m benchmarks.input_noise --supplement [--n 300]
+    .venv/bin/python -m benchmarks.input_noise --rates 25 30 50 60 100 120 [--n 150]
+    .venv/bin/python -m benchmarks.input_noise --cost [--n 60]
+
+``--cost``: the default's time per identification against the identifier before issue 11 (no input
+smoother, lag-1 SE rule), interleaved per window, minimum of 5 runs, median over DL 1 windows, one thread.
 """
 
 from __future__ import annotations
@@ -28,16 +40,23 @@ from aslm_core import IdentifyConfig, Window, WindowError, identify  # noqa: E40
 from benchmarks import common  # noqa: E402
 
 SEED = 41
+#: Confirmation seed of the supplement and the rates, fixed before their runs.
+CONFIRM_SEED = 43
 #: PMU classes: (name, std of the V noise as a fraction of mean V [-], std of the θ noise [rad]).
 INPUT_NOISE = (("none", 0.0, 0.0), ("0.03 % / 3e-4 rad", 3e-4, 3e-4), ("0.1 % / 1e-3 rad", 1e-3, 1e-3))
 CANDIDATES = {
-    "none": IdentifyConfig(),
-    "causal low-pass 2 Hz": IdentifyConfig(lowpass_hz=2.0),
+    "none": IdentifyConfig(input_smoother="none"),
+    "causal low-pass 2 Hz": IdentifyConfig(input_smoother="none", lowpass_hz=2.0),
     "zero-phase V/θ 3 Hz": IdentifyConfig(input_smoother="zero_phase", input_cutoff_hz=3.0),
     "Wiener V/θ": IdentifyConfig(input_smoother="wiener"),
     "Wiener V/θ + causal low-pass 2 Hz": IdentifyConfig(input_smoother="wiener", lowpass_hz=2.0),
-    "Wiener V/θ + adaptive low-pass": IdentifyConfig(input_smoother="wiener_lowpass"),
+    "Wiener V/θ + adaptive low-pass (default)": IdentifyConfig(),
+    "default, lag-1 SE rule": IdentifyConfig(stderr_method="ar1"),
 }
+DEFAULT_ONLY = {"default": IdentifyConfig()}
+COST = {"before issue 11": IdentifyConfig(input_smoother="none", stderr_method="ar1"), "default": IdentifyConfig()}
+#: Issue 11's targets per PMU class: |μ − 1| bound, and σ bound (absolute, or as a multiple of exact-input σ).
+TARGETS = {"0.03 % / 3e-4 rad": (0.01, "1.3x"), "0.1 % / 1e-3 rad": (0.02, 0.05)}
 NOISE_KEYS = ("noise_v", "noise_theta", "noise_p", "noise_q")
 
 
@@ -49,10 +68,10 @@ def with_input_noise(w: Window, clean: Window, v_rel: float, th_rad: float, rng:
     return Window(t=w.t, V=w.V + ev, theta=w.theta + et, P=w.P, Q=w.Q, f0=w.f0, bus=w.bus, meta=w.meta)
 
 
-def _one(w: Window) -> dict:
+def _one(w: Window, candidates: dict | None = None) -> dict:
     """Every candidate on one window, in turn."""
     out = {}
-    for name, cfg in CANDIDATES.items():
+    for name, cfg in (candidates or CANDIDATES).items():
         try:
             out[name] = identify(w, config=cfg)
         except WindowError as exc:
@@ -60,11 +79,12 @@ def _one(w: Window) -> dict:
     return out
 
 
-def timings(windows, reps: int = 3) -> dict[str, float]:
+def timings(windows, reps: int = 3, candidates: dict | None = None) -> dict[str, float]:
     """Median over windows of the minimum over ``reps`` of one identification [ms], candidates interleaved."""
-    ts = {k: [] for k in CANDIDATES}
+    candidates = candidates or CANDIDATES
+    ts = {k: [] for k in candidates}
     for w in windows:
-        for name, cfg in CANDIDATES.items():
+        for name, cfg in candidates.items():
             best = np.inf
             for _ in range(reps):
                 t0 = time.perf_counter()
@@ -77,18 +97,19 @@ def timings(windows, reps: int = 3) -> dict[str, float]:
     return {k: float(np.median(v) * 1e3) for k, v in ts.items()}
 
 
-def summarise(cases, windows, results, injected) -> dict:
+def summarise(cases, windows, results, injected, candidates: dict | None = None) -> dict:
     """Statistics per candidate over the cases (see the module docstring)."""
     out = {}
-    for name in CANDIDATES:
+    for name in candidates or CANDIDATES:
         ratios, cover, est = [], [], []
-        failed = off = off_unflagged = 0
+        failed = off = off_unflagged = swamped = 0
         for c, res, inj in zip(cases, results, injected, strict=True):
             r = res[name]
             if isinstance(r, WindowError):
                 failed += 1
                 continue
             ratios.append(r.d / c.truth.d)
+            swamped += "input_noise_too_large" in r.flags
             if np.max(np.abs(ratios[-1] - 1)) > 0.2:
                 off += 1
                 off_unflagged += not any(f.startswith(("uncertain", "poor_fit", "at_bound", "restarts")) for f in r.flags)
@@ -100,6 +121,8 @@ def summarise(cases, windows, results, injected) -> dict:
         st["coverage_95"] = dict(zip(common.PARAMS, np.mean(cover, axis=0).tolist(), strict=True))
         st["failed"] = failed
         st["off_20pct_unflagged"] = off_unflagged  # of n_off_20pct: without uncertain/poor_fit/at_bound/restarts
+        st["input_noise_too_large"] = swamped
+        st["intervals"] = common.bootstrap_mu_sigma(rr)
         e = np.array(est)
         st["noise_estimate_over_injected"] = {
             k: ({"median": float(np.nanmedian(e[:, i])), "min": float(np.nanmin(e[:, i])),
@@ -128,40 +151,143 @@ def rows(level_out: dict) -> list[list]:
     return out
 
 
+def run_level(n: int, level: int, seed: int, candidates: dict, workers: int, time_n: int,
+              fs: float = 100.0) -> dict:
+    """Every PMU class on the same n windows of one level (and rate): summaries per class and candidate."""
+    cs = common.cases(n, level=level or None, seed=seed, input_noise=False, fs=fs)  # level 0: noise-free P, Q
+    out = {}
+    for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
+        rng = np.random.default_rng([seed, level, k])
+        windows = [with_input_noise(c.window, c.clean, v_rel, th, rng) for c in cs]
+        injected = [{"noise_v": v_rel * float(np.mean(c.clean.V)), "noise_theta": th,
+                     "noise_p": float(np.std(c.window.P - c.clean.P)),
+                     "noise_q": float(np.std(c.window.Q - c.clean.Q))} for c in cs]
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            results = list(pool.map(lambda w: _one(w, candidates), windows))
+        out[cls] = summarise(cs, windows, results, injected, candidates)
+        for name, ms in timings(windows[:time_n], candidates=candidates).items():
+            out[cls][name]["median_time_ms"] = ms
+    return out
+
+
+def _interval(st: dict, key: str, p: str) -> str:
+    lo, hi = st["intervals"][key][p]
+    return f"{st[key][p]:.3f} [{lo:.3f}, {hi:.3f}]"
+
+
+def supplement_rows(levels_out: dict) -> tuple[list[list], list[list]]:
+    """The supplement's table (μ, σ with intervals) and its target check per level and noisy class."""
+    table, check = [], []
+    for level, per in levels_out.items():
+        exact = per["none"]["default"]
+        for cls, by in per.items():
+            st = by["default"]
+            table.append([level, cls, st["n"]] + [_interval(st, "mu", p) for p in common.PARAMS]
+                         + [_interval(st, "sigma", p) for p in common.PARAMS]
+                         + [" / ".join(f"{100 * st['coverage_95'][p]:.0f}" for p in common.PARAMS),
+                            f"{st['n_off_20pct']} ({st['off_20pct_unflagged']})", st["input_noise_too_large"]])
+            if cls not in TARGETS:
+                continue
+            mu_tol, sig = TARGETS[cls]
+            cells = []
+            for p in common.PARAMS:
+                bound = 1.3 * exact["sigma"][p] if sig == "1.3x" else sig
+                cells.append(f"{'met' if abs(st['mu'][p] - 1) <= mu_tol else 'NOT'} / "
+                             f"{'met' if st['sigma'][p] <= bound else 'NOT'} "
+                             f"(σ {st['sigma'][p]:.3f} vs {bound:.3f}, {st['sigma'][p] / exact['sigma'][p]:.1f}× exact)")
+            check.append([level, cls] + cells)
+    return table, check
+
+
+SUPP_HEAD = (["DL", "input noise", "n"] + [f"μ {p} [95 % CI]" for p in common.PARAMS]
+             + [f"σ {p} [95 % CI]" for p in common.PARAMS]
+             + ["±1.96 SE cover a / b / H2 / Tm [%]", "off > 20 % (unflagged)", "input_noise_too_large"])
+CHECK_HEAD = ["DL", "input noise"] + [f"{p}: bias / σ" for p in common.PARAMS]
+RATE_HEAD = (["frames/s", "input noise", "n"] + [f"μ {p}" for p in common.PARAMS] + [f"σ {p}" for p in common.PARAMS]
+             + ["±1.96 SE cover [%]", "off > 20 % (unflagged)", "ms"])
+
+
+def rate_rows(rates_out: dict) -> list[list]:
+    out = []
+    for fs, per in rates_out.items():
+        for cls, by in per.items():
+            st = by["default"]
+            out.append([fs, cls, st["n"]] + [f"{st['mu'][p]:.3f}" for p in common.PARAMS]
+                       + [f"{st['sigma'][p]:.3f}" for p in common.PARAMS]
+                       + [" / ".join(f"{100 * st['coverage_95'][p]:.0f}" for p in common.PARAMS),
+                          f"{st['n_off_20pct']} ({st['off_20pct_unflagged']})", f"{st['median_time_ms']:.1f}"])
+    return out
+
+
+def cost(n: int, no_write: bool) -> dict:
+    """``--cost`` (module docstring): exact inputs and 0.1 % / 1e-3 rad, the same windows for both."""
+    cs = common.cases(n, level=1, seed=CONFIRM_SEED, input_noise=False)
+    _one(cs[0].window, COST)
+    out = {"machine": common.machine(), "mode": "cost", "n": n, "seed": CONFIRM_SEED, "classes": {}}
+    for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
+        rng = np.random.default_rng([CONFIRM_SEED, 1, k])
+        windows = [with_input_noise(c.window, c.clean, v_rel, th, rng) for c in cs]
+        ms = timings(windows, reps=5, candidates=COST)
+        ms["ratio"] = ms["default"] / ms["before issue 11"]
+        out["classes"][cls] = ms
+        print(f"{cls}: " + ", ".join(f"{k} {v:.2f}" for k, v in ms.items()), flush=True)
+    out["load_avg_at_end"] = list(os.getloadavg())
+    if not no_write:
+        common.write_json("input_noise_cost", out)
+    return out
+
+
 def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=None, help="windows per level (default 200; --quick: 20)")
-    ap.add_argument("--levels", type=int, nargs="+", default=[2, 3], help="disturbance levels")
+    ap.add_argument("--n", type=int, default=None,
+                    help="windows per level (default 200, --supplement 300, --rates 150; --quick: 20)")
+    ap.add_argument("--levels", type=int, nargs="+", default=None, help="disturbance levels (0: noise-free P, Q)")
     ap.add_argument("--workers", type=int, default=2, help="threads (the machine is shared)")
     ap.add_argument("--time-n", type=int, default=30, help="windows per class in the one-thread timing pass")
+    ap.add_argument("--supplement", action="store_true", help="the Table I supplement (default identifier)")
+    ap.add_argument("--rates", type=float, nargs="+", default=None, help="reporting rates [frames/s]")
+    ap.add_argument("--cost", action="store_true", help="time per identification: the default against before")
     args = ap.parse_args(argv)
-    n = args.n or (20 if args.quick else 200)
+    if args.cost:
+        return cost(args.n or 60, args.no_write)
+    mode = "supplement" if args.supplement else ("rates" if args.rates else "compare")
+    n = args.n or (20 if args.quick else {"compare": 200, "supplement": 300, "rates": 150}[mode])
+    levels = args.levels or {"compare": [2, 3], "supplement": [1, 2, 3], "rates": [2]}[mode]
+    seed = SEED if mode == "compare" else CONFIRM_SEED
+    candidates = CANDIDATES if mode == "compare" else DEFAULT_ONLY
     t_all = time.perf_counter()
-    out = {"machine": common.machine(), "n_per_level": n, "seed": SEED, "quick": args.quick,
-           "candidates": {k: v.to_dict() for k, v in CANDIDATES.items()}, "levels": {}}
-    _one(common.cases(1, level=2, seed=SEED)[0].window)  # numba compilation / cache load outside the timings
+    out = {"machine": common.machine(), "mode": mode, "n_per_level": n, "seed": seed, "quick": args.quick,
+           "candidates": {k: v.to_dict() for k, v in candidates.items()}, "levels": {}}
+    _one(common.cases(1, level=2, seed=SEED)[0].window, candidates)  # numba compilation outside the timings
     text = []
-    for level in args.levels:
-        cs = common.cases(n, level=level, seed=SEED, input_noise=False)
-        out["levels"][level] = {}
-        for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
-            rng = np.random.default_rng([SEED, level, k])
-            windows = [with_input_noise(c.window, c.clean, v_rel, th, rng) for c in cs]
-            injected = [{"noise_v": v_rel * float(np.mean(c.clean.V)), "noise_theta": th,
-                         "noise_p": float(np.std(c.window.P - c.clean.P)),
-                         "noise_q": float(np.std(c.window.Q - c.clean.Q))} for c in cs]
-            with ThreadPoolExecutor(max_workers=args.workers) as pool:
-                results = list(pool.map(_one, windows))
-            out["levels"][level][cls] = summarise(cs, windows, results, injected)
-            for name, ms in timings(windows[: args.time_n]).items():
-                out["levels"][level][cls][name]["median_time_ms"] = ms
-            print(f"DL {level}, {cls}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
-        text.append(f"**DL {level}** ({n} windows, seed {SEED}):\n\n"
-                    + common.md_table(HEAD, rows(out["levels"][level])))
+    if mode == "rates":
+        out["rates"] = {}
+        for fs in args.rates:
+            key = f"{fs:g}"
+            out["rates"][key] = run_level(n, levels[0], seed, candidates, args.workers, args.time_n, fs=fs)
+            print(f"{key} frames/s: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
+        text.append(f"**Reporting rates** (DL {levels[0]}, {n} windows per rate, seed {seed}):\n\n"
+                    + common.md_table(RATE_HEAD, rate_rows(out["rates"])))
+    else:
+        for level in levels:
+            out["levels"][level] = run_level(n, level, seed, candidates, args.workers, args.time_n)
+            print(f"DL {level}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
+            if mode == "compare":
+                text.append(f"**DL {level}** ({n} windows, seed {seed}):\n\n"
+                            + common.md_table(HEAD, rows(out["levels"][level])))
+        if mode == "supplement":
+            table, check = supplement_rows(out["levels"])
+            text.append(f"**Table I supplement** ({n} windows per level, seed {seed}):\n\n"
+                        + common.md_table(SUPP_HEAD, table))
+            text.append("**Targets** (met / NOT):\n\n" + common.md_table(CHECK_HEAD, check))
     out["total_s"] = time.perf_counter() - t_all
+    out["load_avg_at_end"] = list(os.getloadavg())
     print("\n\n".join(text))
     if not args.no_write:
-        common.write_json("input_noise" + ("_quick" if args.quick else ""), out)
+        name = {"compare": "input_noise", "supplement": "input_noise_supplement", "rates": "input_noise_rates"}[mode]
+        if mode == "rates" and levels != [2]:
+            name += "_dl" + "-".join(str(x) for x in levels)
+        common.write_json(name + ("_quick" if args.quick else ""), out)
     return out
 
 

@@ -33,8 +33,9 @@ def playback_window(task: WindowTask) -> dict:
     ----------
     task : WindowTask
         ``window``: the bus's newest frames; ``previous``: an identification (``dynamic`` D = {a [1/s],
-        b [1/s], H2 [s], Tm [pu]} and ``static``); ``options["lowpass_hz"]``: the low-pass the identifier
-        applies [Hz] (None: off), so that the model is compared with what it was fitted to.
+        b [1/s], H2 [s], Tm [pu]} and ``static``); ``options["lowpass_hz"]``: the fixed low-pass the identifier
+        applies [Hz] (None: the identifier's default conditioning), so that the model is compared with what it
+        was fitted to.
 
     Returns
     -------
@@ -48,10 +49,12 @@ def playback_window(task: WindowTask) -> dict:
         The frames do not form a usable window (gaps, too short); the worker reports it as
         ``window:<reason>``.
     """
+    from aslm_core import IdentifyConfig
     from aslm_core.diagnosis.playback import model_power
     from aslm_core.preprocess import prepare
 
-    prep = prepare(task.window, lowpass_hz=task.options.get("lowpass_hz"))
+    smoother = IdentifyConfig.input_smoother  # the identifier's default input conditioning
+    prep = prepare(task.window, lowpass_hz=task.options.get("lowpass_hz"), input_smoother=smoother)
     p_model, q_model = model_power(prep.V, prep.theta, task.previous, prep.dt, task.window.f0)
     step = max(1, math.ceil(prep.t.size / MAX_POINTS))
     return {

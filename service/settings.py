@@ -74,8 +74,9 @@ class ServiceSettings(BaseSettings):
                        "a cheaper steady state; n_starts applies to buses without one",
     )
     lowpass_hz: float | None = Field(
-        2.0, description="Causal low-pass of V, θ, P, Q before identification [Hz] (None: off); it keeps "
-                         "PMU noise on V and θ from biasing D (errors in variables), see docs/reproduction.md",
+        None, description="Fixed causal low-pass of V, θ, P, Q before identification [Hz]; None (default): the "
+                          "identifier's own default, which smooths V and θ and low-passes only where their PMU "
+                          "noise floor calls for it (IdentifyConfig.input_smoother, docs/numerics.md)",
     )
     objective: Literal["paper", "ml", "ssq"] = Field(
         "paper", description="Identifier objective: 'paper' (eq. 7, (‖r_P‖ + ‖r_Q‖)/l), 'ml' (Gaussian likelihood, "

@@ -47,7 +47,7 @@ def result_dict(result) -> dict:
 def _warm_identify() -> None:
     """Compile (or load from numba's cache) the identifier's kernels: worker start-up, not the first period.
 
-    Identifies a small synthetic window with the default integrator (RK4) and the low-pass on: the
+    Identifies a small synthetic window with the default configuration (RK4, input smoother): the
     service's path only (``aslm_core.warmup`` also compiles the Euler mode, which the service never uses).
     """
     from aslm_core import IdentifyConfig, Window, identify
@@ -56,7 +56,7 @@ def _warm_identify() -> None:
     V = 1.0 + 0.003 * np.sin(2 * np.pi * 0.7 * t) + 0.002 * np.sin(2 * np.pi * 1.9 * t)
     theta = 0.005 * np.sin(2 * np.pi * 0.4 * t)
     identify(Window(t, V, theta, 0.8 * V * V + 0.05 * V, 0.3 * V * V), warm_start=[40.0, 15.0, 1.3, 0.5],
-             config=IdentifyConfig(n_starts=1, lowpass_hz=2.0))
+             config=IdentifyConfig(n_starts=1))
 
 
 identify_window.warmup = _warm_identify

@@ -7,6 +7,7 @@ import json
 import sys
 
 from aslm_core import IdentifyConfig, WindowError, identify, warmup
+from aslm_core.preprocess import INPUT_SMOOTHERS
 from service.commands._common import add_mapping_flags
 from service.files import read_window
 
@@ -21,7 +22,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--objective", choices=["paper", "ml", "ssq"], default="paper",
                    help="objective: the paper's eq. 7, Gaussian likelihood or sum of squares")
     p.add_argument("--static", choices=["zip", "exponential"], default="zip", help="static load model")
-    p.add_argument("--lowpass", type=float, default=None, metavar="HZ", help="causal low-pass cut-off [Hz]")
+    p.add_argument("--lowpass", type=float, default=None, metavar="HZ",
+                   help="fixed causal low-pass cut-off [Hz] (default: chosen from the inputs' noise floors)")
+    p.add_argument("--input-smoother", choices=list(INPUT_SMOOTHERS), default=IdentifyConfig.input_smoother,
+                   help="smoother of the noisy inputs V and θ (default %(default)s, docs/numerics.md)")
     p.add_argument("--starts", type=int, default=3, help="random feasible starts")
     p.add_argument("--disturbance", choices=["none", "ar"], default="none",
                    help="noise model of P and Q: none (white) or ar (the load's own fluctuation, docs/numerics.md)")
@@ -31,7 +35,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     config = IdentifyConfig(
         integrator=args.integrator, objective=args.objective, static=args.static,
-        lowpass_hz=args.lowpass, n_starts=args.starts, disturbance=args.disturbance,
+        lowpass_hz=args.lowpass, input_smoother=args.input_smoother, n_starts=args.starts,
+        disturbance=args.disturbance,
     )
     warmup()  # load the compiled kernels first so elapsed_s measures the identification alone
     status = 0
@@ -61,8 +66,13 @@ def _human(path: str, result) -> str:
     flags = ", ".join(result.flags) or "none"
     loc = result.static_local
     at_v0 = "  ".join(f"{k}={loc[k]:.4g}±{loc[k + '_se']:.2g}" for k in ("P0", "dPdV", "Q0", "dQdV") if k in loc)
+    q = result.quality
+    warn = ""
+    if "input_noise_too_large" in result.flags:
+        warn = (f"\n  warning: input noise too large: V moves by {q['input_ratio_v']:.2g}× its PMU noise std "
+                f"({q['noise_v']:.2g} pu), below 2×: D is not trustworthy from this window")
     return (
         f"{path}\n  dynamic: {dyn}\n  static:  {sta}\n  static at V0={loc.get('V0', float('nan')):.4g}: {at_v0}\n"
         f"  objective={result.objective:.4g}  FD(P)={result.fit['fd_p']:.4f}  FD(Q)={result.fit['fd_q']:.4f}"
-        f"  flags: {flags}  ({result.elapsed_s * 1e3:.1f} ms)"
+        f"  flags: {flags}  ({result.elapsed_s * 1e3:.1f} ms)" + warn
     )

@@ -65,7 +65,5 @@ def run(args: argparse.Namespace) -> int:
           f"{noise}" + (f", effect {args.effect}" if args.effect != "none" else ""))
     print("  true D = " + "  ".join(f"{k}={v:.4g}" for k, v in dyn.items())
           + (f"   (all true parameters in {args.truth})" if args.truth else ""))
-    # PMU noise on V and θ biases D unless low-passed (docs/numerics.md): the service uses 2 Hz.
-    lowpass = " --lowpass 2" if args.level else ""
-    print(f"  next: aslm identify {path}{lowpass}   or   aslm diagnose {path} --report report/")
+    print(f"  next: aslm identify {path}   or   aslm diagnose {path} --report report/")
     return 0

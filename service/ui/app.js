@@ -269,7 +269,7 @@
       ["running", health.running_period ? utc(health.running_period) : "no"],
       ["window", `${s.window_s} s at ${s.frame_rate} frames/s, late allowance ${s.late_s} s`],
       ["diagnosis", s.diagnose_every ? `every ${s.diagnose_every} periods` : "off"],
-      ["identifier", `${s.objective}, ${s.n_starts} starts (warm +${s.n_starts_warm}), low-pass ${s.lowpass_hz ?? "off"} Hz`],
+      ["identifier", `${s.objective}, ${s.n_starts} starts (warm +${s.n_starts_warm}), low-pass ${s.lowpass_hz == null ? "adaptive" : s.lowpass_hz + " Hz"}`],
       ["workers", `${s.workers} (${s.executor}), ${health.workers_replaced} replaced`],
       ["frames", `${health.frames_received} received, ${health.frames_dropped} dropped`],
     ]);

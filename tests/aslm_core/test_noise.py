@@ -82,7 +82,7 @@ def test_wiener_option_removes_the_errors_in_variables_bias(cases, noisy):
     """The default fit is off by tens of per cent on these windows (median a 78 %); the Wiener option by a few
     (measured: mean ratio 0.957 / 0.964 / 1.002 / 0.973, median |error| 6.4 / 2.7 / 1.5 / 4.8 %)."""
     truth = np.array([c.truth.d for c in cases])
-    plain = np.array([identify(w).d for w in noisy]) / truth
+    plain = np.array([identify(w, config=IdentifyConfig(input_smoother="none")).d for w in noisy]) / truth
     smoothed = np.array([identify(w, config=IdentifyConfig(input_smoother="wiener")).d for w in noisy]) / truth
     assert np.median(np.abs(plain[:, 0] - 1)) > 0.3
     assert np.all(np.abs(np.mean(smoothed, axis=0) - 1) < 0.05), np.mean(smoothed, axis=0)
@@ -93,18 +93,21 @@ def test_wiener_option_before_the_services_low_pass_removes_its_bias(cases, nois
     """The service's causal 2 Hz low-pass alone leaves a −10 % bias in a on these windows (mean ratio 0.897,
     H2 0.936); with the smoother before it: 0.989 / 0.993 / 1.002 / 1.000 (measured)."""
     truth = np.array([c.truth.d for c in cases])
-    lowpass = np.array([identify(w, config=IdentifyConfig(lowpass_hz=2.0)).d for w in noisy]) / truth
+    lowpass = np.array([identify(w, config=IdentifyConfig(input_smoother="none", lowpass_hz=2.0)).d
+                        for w in noisy]) / truth
     both = np.array([identify(w, config=IdentifyConfig(input_smoother="wiener", lowpass_hz=2.0)).d
                      for w in noisy]) / truth
     assert np.mean(lowpass[:, 0]) < 0.92
     assert np.all(np.abs(np.mean(both, axis=0) - 1) < 0.03), np.mean(both, axis=0)
 
 
-def test_wiener_lowpass_option_chooses_its_cut_off_from_the_noise(cases, noisy):
-    """Measured: mean ratio 0.986 / 0.996 / 0.992 / 1.008, median |error| 5.1 / 2.4 / 1.1 / 3.5 %, low-pass
-    cut-offs 1.5–2.6 Hz; with exact inputs no low-pass at all (see the next test)."""
+def test_default_chooses_its_low_pass_from_the_noise(cases, noisy):
+    """The default (``wiener_lowpass``). Measured: mean ratio 0.986 / 0.996 / 0.992 / 1.008, median |error|
+    5.1 / 2.4 / 1.1 / 3.5 %, low-pass cut-offs 1.5–2.6 Hz; with exact inputs no low-pass at all (see the next
+    test)."""
+    assert IdentifyConfig().input_smoother == "wiener_lowpass"
     truth = np.array([c.truth.d for c in cases])
-    res = [identify(w, config=IdentifyConfig(input_smoother="wiener_lowpass")) for w in noisy]
+    res = [identify(w) for w in noisy]
     ratio = np.array([r.d for r in res]) / truth
     assert all(1.0 < r.quality["lowpass_hz"] < 3.5 for r in res)
     assert np.all(np.abs(np.mean(ratio, axis=0) - 1) < 0.03), np.mean(ratio, axis=0)
@@ -114,7 +117,7 @@ def test_wiener_lowpass_option_chooses_its_cut_off_from_the_noise(cases, noisy):
 @pytest.mark.parametrize("smoother", ["wiener", "wiener_lowpass"])
 def test_wiener_options_leave_exact_inputs_alone(cases, smoother):
     for c in cases[:4]:
-        a = identify(c.window).d
+        a = identify(c.window, config=IdentifyConfig(input_smoother="none")).d
         b = identify(c.window, config=IdentifyConfig(input_smoother=smoother))
         assert b.quality["lowpass_hz"] == 0.0
         np.testing.assert_allclose(b.d, a, rtol=1e-4)  # measured: ≤ 3e-6
@@ -128,3 +131,29 @@ def test_zero_phase_option_and_a_bad_smoother_name(cases):
         identify(w, config=IdentifyConfig(input_smoother="kalman"))
     with pytest.raises(ValueError, match="input_cutoff_hz"):
         identify(w, config=IdentifyConfig(input_smoother="zero_phase", input_cutoff_hz=80.0))
+
+
+def test_swamped_inputs_get_their_flag_and_exact_ones_do_not(cases):
+    """At 1 % / 1e-2 rad the PMU noise swamps V's ambient variation (input_ratio_v 0.0–0.6 on the development
+    windows, D off by 57 % median): flagged; exact inputs and the good PMU class (ratio 3.5–19) are not."""
+    for i, c in enumerate(cases[:3]):
+        swamped = identify(with_input_noise(c.window, 1e-2, 1e-2, seed=100 + i))
+        assert "input_noise_too_large" in swamped.flags
+        assert swamped.quality["input_ratio_v"] < 1.0
+        exact = identify(c.window)
+        assert "input_noise_too_large" not in exact.flags and exact.quality["input_ratio_v"] > 100
+        good = identify(with_input_noise(c.window, 3e-4, 3e-4, seed=200 + i))
+        assert "input_noise_too_large" not in good.flags
+
+
+def test_spectral_standard_errors_agree_with_the_white_rule_on_white_residuals_and_not_after_a_low_pass(cases):
+    """White residuals (exact inputs, no filter): both rules give the same SE within 25 %. Low-passed residuals
+    are where the lag-1 rule (1+ρ)/(1−ρ) overshoots (its intervals covered 98–100 %): the spectral SE is smaller."""
+    for c in cases[:3]:
+        spec, ar1 = (identify(c.window, config=IdentifyConfig(stderr_method=m)) for m in ("spectral", "ar1"))
+        ratio = np.array([spec.stderr[k] / ar1.stderr[k] for k in PARAMS])
+        assert np.all((ratio > 0.8) & (ratio < 1.25)), ratio
+        spec, ar1 = (identify(c.window, config=IdentifyConfig(stderr_method=m, lowpass_hz=2.0))
+                     for m in ("spectral", "ar1"))
+        ratio = np.array([spec.stderr[k] / ar1.stderr[k] for k in PARAMS])
+        assert np.all(ratio < 0.9), ratio

@@ -71,3 +71,16 @@ def test_human_output_shows_the_identifiable_static_part_and_the_disturbance_fla
     out = json.loads(run_cli("identify", "--json", "--disturbance", "ar", str(d / "bus.npz")).stdout)
     assert out["config"]["disturbance"] == "ar" and "ar_order_p" in out["quality"]
     assert {"P0", "dPdV", "Q0", "dQdV"} <= set(out["static_local"])
+
+
+def test_identify_warns_in_words_when_the_input_noise_swamps_v(tmp_path, capsys):
+    from service.cli import main
+
+    w = make_case(21, level=2, input_noise=False).window
+    rng = np.random.default_rng(0)
+    noisy = type(w)(t=w.t, V=w.V + 1e-2 * rng.standard_normal(w.V.size),
+                    theta=w.theta + 1e-2 * rng.standard_normal(w.V.size), P=w.P, Q=w.Q, f0=w.f0)
+    write_window(tmp_path / "noisy.npz", noisy)
+    assert main(["identify", str(tmp_path / "noisy.npz")]) == 0
+    out = capsys.readouterr().out
+    assert "input_noise_too_large" in out and "warning: input noise too large" in out and "not trustworthy" in out
