@@ -24,11 +24,13 @@ import time
 from pathlib import Path
 
 import numpy as np
+from scipy import signal
 
 from aslm_sim.network import forcing_filter
 from aslm_sim.own import OWN_Q_PER_P, own_process
 
-__all__ = ["CACHE_DIR", "cut_windows", "recording", "run", "superposition_error"]
+__all__ = ["CACHE_DIR", "cut_windows", "grid_recording", "own_input", "own_recording", "respond", "run",
+           "step_response", "superposition_error"]
 
 #: Recordings are cached here (ANDES runs at 2–6 s of wall time per simulated second).
 CACHE_DIR = Path(os.environ.get("ASLM_ANDES_OWN_CACHE", Path.home() / ".cache" / "aslm" / "andes_own"))
@@ -38,10 +40,11 @@ OWN_RUN_STD = 0.003
 #: Relative std of the grid-side ambient noise on the other loads' constant-power parts (as the cross-check).
 GRID_AMP = 0.15
 _CHANNELS = ("V", "theta", "P", "Q", "dp_own", "dq_own")
+#: Length of the step-response run [s]: the governors settle the frequency within it.
+STEP_RUN_S = 60.0
 
 
-def run(*, tf: float, tstep: float, grid_amp: float, own_shape: str | None, own_std: float, seed: int,
-        tol: float = 1e-8) -> dict:
+def run(*, tf: float, tstep: float, grid_amp: float, own: np.ndarray | None, seed: int, tol: float = 1e-8) -> dict:
     """One ANDES time-domain run of the 14-bus case with grid-side ambient and/or bus 9's own fluctuation.
 
     Parameters
@@ -50,13 +53,11 @@ def run(*, tf: float, tstep: float, grid_amp: float, own_shape: str | None, own_
         Simulated time and ANDES's fixed step [s].
     grid_amp : float
         Relative std of the other loads' constant-power noise (0: no grid-side excitation) [-].
-    own_shape : str or None
-        Shape of bus 9's own process (:data:`aslm_sim.own.OWN_SHAPES`), None for none.
-    own_std : float
-        Std of the own ΔP [pu, system base].
+    own : ndarray or None
+        Bus 9's own ΔP at every step (at least round(tf/tstep) + 2 values) [pu, system base]; None for none.
+        ΔQ = 0.33·ΔP.
     seed : int
-        The grid noise is drawn from ``default_rng(seed)`` (as the cross-check), the own process from
-        ``default_rng([seed, 7])``: a run with both equals the sum of the two runs with one each.
+        The grid noise is drawn from ``default_rng(seed)`` (as the cross-check).
     tol : float
         ANDES's Newton tolerance.
 
@@ -90,10 +91,7 @@ def run(*, tf: float, tstep: float, grid_amp: float, own_shape: str | None, own_
     rng = np.random.default_rng(seed)
     grid_p = np.stack([ac.lowpass_noise(n, tstep, 2.0, rng) for _ in others], axis=1)
     grid_q = np.stack([ac.lowpass_noise(n, tstep, 2.0, rng) for _ in others], axis=1)
-    dp = np.zeros(n)
-    if own_shape is not None and own_std > 0.0:
-        sos, gain = forcing_filter(1.0 / tstep)
-        dp = own_std * own_process(np.random.default_rng([seed, 7]), own_shape, n, 1.0 / tstep, sos, gain)
+    dp = np.zeros(n) if own is None else np.asarray(own, dtype=np.float64)[:n]
     dq = OWN_Q_PER_P * dp
     # ANDES's PQ in TDS is p2p·Ppf + p2i·Ipeq·v + p2z·Req·v²: the own ΔP enters through Ppf / p2p.
     p2p, q2q = ac.ZIP_SHARES["p2p"], ac.ZIP_SHARES["q2q"]
@@ -126,26 +124,88 @@ def run(*, tf: float, tstep: float, grid_amp: float, own_shape: str | None, own_
     return {**out, "truth": truth, "tds_s": t_run, "andes_version": andes.__version__}
 
 
-def recording(kind: str, *, tf: float, tstep: float, seed: int, fs: float = 100.0) -> dict:
-    """A cached ANDES recording on a uniform grid at fs [Hz]: ``grid`` (grid-side ambient only) or an own shape.
+def own_input(shape: str, n: int, tstep: float, seed: int) -> np.ndarray:
+    """Bus 9's own ΔP on ANDES's step grid: the unit own process (from ``default_rng([seed, 7])``) × OWN_RUN_STD [pu]."""
+    sos, gain = forcing_filter(1.0 / tstep)
+    return OWN_RUN_STD * own_process(np.random.default_rng([seed, 7]), shape, n, 1.0 / tstep, sos, gain)
 
-    The own recordings carry the own process alone at :data:`OWN_RUN_STD`.  Keys as :func:`run` (on the
-    uniform grid), ``truth``, ``tds_s``.
-    """
-    path = CACHE_DIR / f"{kind}_tf{tf:g}_dt{tstep:g}_s{seed}_fs{fs:g}.npz"
+
+def _cached(name: str, make) -> dict:
+    """The arrays cached under ``name`` in :data:`CACHE_DIR`, made by ``make()`` the first time."""
+    path = CACHE_DIR / f"{name}.npz"
     if path.exists():
         with np.load(path) as z:
             return {k: z[k] for k in z.files}
-    if kind == "grid":
-        sim = run(tf=tf, tstep=tstep, grid_amp=GRID_AMP, own_shape=None, own_std=0.0, seed=seed)
-    else:
-        sim = run(tf=tf, tstep=tstep, grid_amp=0.0, own_shape=kind, own_std=OWN_RUN_STD, seed=seed)
-    grid = np.arange(0.0, sim["t"][-1] + 1e-9, 1.0 / fs)
-    rec = {k: np.interp(grid, sim["t"], sim[k]) for k in _CHANNELS}
-    rec.update(t=grid, truth=sim["truth"], tds_s=np.float64(sim["tds_s"]))
+    rec = make()
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez(path, **rec)
     return rec
+
+
+def _on_grid(sim: dict, fs: float) -> dict:
+    """An ANDES run on a uniform grid at fs from t = 0 (linear interpolation), with its truth and TDS time."""
+    grid = np.arange(0.0, sim["t"][-1] + 1e-9, 1.0 / fs)
+    rec = {k: np.interp(grid, sim["t"], sim[k]) for k in _CHANNELS}
+    rec.update(t=grid, truth=sim["truth"], tds_s=np.float64(sim["tds_s"]))
+    return rec
+
+
+def grid_recording(*, tf: float, tstep: float, seed: int, fs: float = 100.0) -> dict:
+    """The cached ANDES recording with the grid-side ambient only (keys as :func:`run`, on a uniform grid)."""
+    return _cached(f"grid_tf{tf:g}_dt{tstep:g}_s{seed}_fs{fs:g}",
+                   lambda: _on_grid(run(tf=tf, tstep=tstep, grid_amp=GRID_AMP, own=None, seed=seed), fs))
+
+
+def step_response(*, tstep: float, tf: float = STEP_RUN_S) -> dict:
+    """Bus 9's response to a step of its own ΔP (ΔQ = 0.33·ΔP), per pu of ΔP, from ANDES (cached).
+
+    Returns
+    -------
+    dict of ``V``, ``theta``, ``P``, ``Q``: s[j] = (y[k_s + j] − y[k_s − 1]) / ΔP on ANDES's step grid, and
+    ``t`` (j·tstep) [s].
+    """
+    def make() -> dict:
+        n = int(round(tf / tstep)) + 2
+        k_s = int(round(1.0 / tstep))
+        own = np.where(np.arange(n) >= k_s, OWN_RUN_STD, 0.0)
+        sim = run(tf=tf, tstep=tstep, grid_amp=0.0, own=own, seed=0)
+        rec = _on_grid(sim, 1.0 / tstep)
+        out = {c: (rec[c][k_s:] - rec[c][k_s - 1]) / OWN_RUN_STD for c in ("V", "theta", "P", "Q")}
+        return {**out, "t": rec["t"][k_s:] - rec["t"][k_s], "tds_s": rec["tds_s"]}
+
+    return _cached(f"step_tf{tf:g}_dt{tstep:g}", make)
+
+
+def respond(step: dict, own: np.ndarray) -> dict:
+    """Bus 9's V, θ, P, Q deviations caused by an own ΔP sequence on the step grid (linear superposition).
+
+    y[j] = Σ_i Δu[i]·s[j − i] with Δu the increments of ``own`` and s the :func:`step_response`, continued past
+    its end along its slope over its last 10 s (the angle keeps turning at the settled frequency offset).
+    """
+    n = own.size
+    du = np.diff(own, prepend=0.0)
+    out = {}
+    for c in ("V", "theta", "P", "Q"):
+        s = step[c]
+        if s.size < n:
+            tail = int(10.0 / float(step["t"][1] - step["t"][0]))
+            slope = (s[-1] - s[-tail]) / (tail - 1)
+            s = np.concatenate([s, s[-1] + slope * np.arange(1, n - s.size + 1)])
+        out[c] = signal.fftconvolve(du, s[:n])[:n]
+    return out
+
+
+def own_recording(shape: str, *, tf: float, tstep: float, seed: int, step_tf: float = STEP_RUN_S) -> dict:
+    """Bus 9 driven by its own process alone (at :data:`OWN_RUN_STD`), on ANDES's step grid from t = 0.
+
+    Made from ANDES's :func:`step_response` by superposition (one ANDES run serves every shape and length);
+    :func:`superposition_error` measures it against a direct ANDES run.  ``step_tf``: length of the step run
+    [s].  Keys as :func:`run`.
+    """
+    n = int(round(tf / tstep)) + 1
+    own = own_input(shape, n + 1, tstep, seed)[:n]
+    rec = respond(step_response(tstep=tstep, tf=step_tf), own)
+    return {**rec, "t": np.arange(n) * tstep, "dp_own": own, "dq_own": OWN_Q_PER_P * own}
 
 
 def cut_windows(grid: dict, own: dict | None, ratio: float, *, length_s: float, start_s: float, stride_s: float,
@@ -155,7 +215,7 @@ def cut_windows(grid: dict, own: dict | None, ratio: float, *, length_s: float, 
     Parameters
     ----------
     grid, own : dict
-        :func:`recording` of ``grid`` and of an own shape (None when ``ratio`` is 0).
+        :func:`grid_recording` and :func:`own_recording` of a shape (None when ``ratio`` is 0).
     ratio : float
         Target own/total std ratio r of P [-] (own and grid-driven parts uncorrelated: k gives r).
     length_s, start_s, stride_s : float
@@ -169,8 +229,9 @@ def cut_windows(grid: dict, own: dict | None, ratio: float, *, length_s: float, 
 
     Returns
     -------
-    list of dict with t, V, theta, P, Q (the window), ``own_ratio`` (the achieved std(own ΔP)/std(grid P))
-    and ``k`` (the scale of the own run).
+    list of dict with t, V, theta, P, Q (the window), ``own_ratio`` (the achieved std(own ΔP)/std(grid P)),
+    ``k`` (the scale of the own run), ``dp_own`` (the window's own ΔP) [pu] and ``noise_std_p``, ``_q`` (the
+    white noise added) [pu].
     """
     fs = 1.0 / float(grid["t"][1] - grid["t"][0])
     m = int(round(length_s * fs)) + 1
@@ -189,28 +250,32 @@ def cut_windows(grid: dict, own: dict | None, ratio: float, *, length_s: float, 
                 w[c] += scale * (own[c][sl] - own[c][0])
         dp = scale * own["dp_own"][sl] if own is not None else np.zeros(m)
         for c in ("P", "Q"):
-            w[c] += rng.standard_normal(m) * float(np.std(w[c])) * 10 ** (-snr_db / 20)
-        w["own_ratio"] = float(np.std(dp)) / float(np.std(grid["P"][sl]))
-        w["k"] = scale
+            w[f"noise_std_{c.lower()}"] = float(np.std(w[c])) * 10 ** (-snr_db / 20)
+            w[c] += rng.standard_normal(m) * w[f"noise_std_{c.lower()}"]
+        w.update(own_ratio=float(np.std(dp)) / float(np.std(grid["P"][sl])), k=scale, dp_own=dp)
         out.append(w)
     return out
 
 
 def superposition_error(*, tf: float, tstep: float, shape: str, seed: int, scale: float) -> dict:
-    """Relative RMS error of the superposed recording against one ANDES run with both excitations.
+    """Relative error of the superposed recording against one ANDES run with both excitations.
 
     The joint run has the grid-side ambient and the own process at ``scale``·:data:`OWN_RUN_STD`; the
-    superposition is ``grid + scale·own`` of the two separate runs (same seeds, same length) up to a constant.
-    Returns, per channel V, theta, P, Q, the std of the difference over the std of the joint run (after 1 s) [-].
+    superposition is the grid-only run plus ``scale``·:func:`own_recording` (same seeds, same length).
+    Returns, per channel V, theta, P, Q, the std of the difference over the std of the joint run after 1 s
+    [-] (constant offsets do not matter to the identifier), and the same for the own part alone
+    (``own_V``, ...: the difference over the std of the own-driven part).
     """
-    joint = run(tf=tf, tstep=tstep, grid_amp=GRID_AMP, own_shape=shape, own_std=scale * OWN_RUN_STD, seed=seed)
-    grid = run(tf=tf, tstep=tstep, grid_amp=GRID_AMP, own_shape=None, own_std=0.0, seed=seed)
-    own = run(tf=tf, tstep=tstep, grid_amp=0.0, own_shape=shape, own_std=OWN_RUN_STD, seed=seed)
+    n = int(round(tf / tstep)) + 2
+    own = own_input(shape, n, tstep, seed)
+    joint = run(tf=tf, tstep=tstep, grid_amp=GRID_AMP, own=scale * own, seed=seed)
+    grid = run(tf=tf, tstep=tstep, grid_amp=GRID_AMP, own=None, seed=seed)
+    m = min(joint["t"].size, grid["t"].size)
+    resp = respond(step_response(tstep=tstep), scale * own[:m])
     k0 = int(round(1.0 / tstep))
     err = {}
     for c in ("V", "theta", "P", "Q"):
-        # Constant offsets (the own run's first sample is not the equilibrium) do not matter to the identifier.
-        diff = (grid[c] + scale * own[c] - joint[c])[k0:]
-        fl = joint[c][k0:]
-        err[c] = float(np.std(diff) / np.std(fl))
+        diff = (grid[c][:m] + resp[c] - joint[c][:m])[k0:]
+        err[c] = float(np.std(diff) / np.std(joint[c][k0:m]))
+        err[f"own_{c}"] = float(np.std(diff) / np.std((joint[c][:m] - grid[c][:m])[k0:]))
     return err

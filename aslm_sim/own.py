@@ -14,7 +14,7 @@ import math
 import numpy as np
 from scipy import signal
 
-__all__ = ["OWN_SHAPES", "OWN_Q_PER_P", "own_process"]
+__all__ = ["OWN_SHAPES", "OWN_Q_PER_P", "own_process", "window_covariance"]
 
 #: Shapes of the own process: ``lowpass`` (2 Hz low-passed white noise, as bus N's forcing), ``switching``
 #: (many small loads switching on and off: steps), ``pink`` (1/f spectrum from 0.05 to 5 Hz), ``ramp`` (slow
@@ -82,3 +82,33 @@ def own_process(rng: np.random.Generator, shape: str, n: int, fs: float, sos: np
     else:
         raise ValueError(f"unknown own-fluctuation shape {shape!r} (use one of {OWN_SHAPES})")
     return (x - x.mean()) / max(float(x.std()), 1e-300)
+
+
+def window_covariance(shape: str, length: int, fs: float, n_windows: int, seed: int) -> np.ndarray:
+    """Covariance of the unit own process over windows of ``length`` samples, each window's mean removed [-].
+
+    Estimated from ``n_windows`` consecutive windows of one long realisation and scaled to a mean variance
+    of 1 over the window, so that a window's own-fluctuation covariance is its own variance times this
+    (the mean is a static regressor, so removing it changes no bound on D).
+
+    Parameters
+    ----------
+    shape : str
+        One of :data:`OWN_SHAPES`.
+    length : int
+        Samples per window.
+    fs : float
+        Sample rate [Hz].
+    n_windows : int
+        Windows averaged.
+    seed : int
+        Seed of the realisation.
+    """
+    from aslm_sim.network import forcing_filter
+
+    sos, gain = forcing_filter(fs)
+    x = own_process(np.random.default_rng(seed), shape, length * n_windows, fs, sos, gain)
+    w = x.reshape(n_windows, length)
+    w = w - w.mean(axis=1, keepdims=True)
+    cov = w.T @ w / n_windows
+    return cov / float(np.mean(np.diag(cov)))
