@@ -7,10 +7,11 @@ time-domain perturbation hook, at every step, so that ANDES carries its effect o
 P and Q are the whole bus load: Motor3 + ZIP + the own ΔP, ΔQ.
 
 Recordings are long runs cut into windows.  To give every window its requested ratio of own to grid-driven
-fluctuation without one ANDES run per ratio, the grid-driven run and a run with the own process alone are
-made separately and superposed: for an ambient operating point the response is linear in the small
-perturbations, so x = x_grid + k·(x_own − x_eq) with a per-window k.  :func:`superposition_error` measures
-what that approximation costs against one ANDES run with both (docs/numerics.md gives the figure).
+fluctuation without one ANDES run per ratio and shape, the grid-driven run and the response to the own
+process are made separately and superposed: for an ambient operating point the response is linear in the
+small perturbations, so x = x_grid + k·x_own with a per-window k, and x_own is the own ΔP's increments
+convolved with bus 9's step response from one ANDES run (:func:`step_response`).
+:func:`superposition_error` measures what that costs against one ANDES run with both (docs/numerics.md).
 
 ANDES is an optional dependency: importing this module does not import it.
 """
