@@ -181,7 +181,7 @@ def respond(step: dict, own: np.ndarray) -> dict:
     """Bus 9's V, θ, P, Q deviations caused by an own ΔP sequence on the step grid (linear superposition).
 
     y[j] = Σ_i Δu[i]·s[j − i] with Δu the increments of ``own`` and s the :func:`step_response`, continued past
-    its end along its slope over its last 10 s (the angle keeps turning at the settled frequency offset).
+    its end along its slope over its last 10 s, or last half (the angle keeps turning at the settled frequency offset).
     """
     n = own.size
     du = np.diff(own, prepend=0.0)
@@ -189,7 +189,7 @@ def respond(step: dict, own: np.ndarray) -> dict:
     for c in ("V", "theta", "P", "Q"):
         s = step[c]
         if s.size < n:
-            tail = int(10.0 / float(step["t"][1] - step["t"][0]))
+            tail = min(int(10.0 / float(step["t"][1] - step["t"][0])), s.size // 2)
             slope = (s[-1] - s[-tail]) / (tail - 1)
             s = np.concatenate([s, s[-1] + slope * np.arange(1, n - s.size + 1)])
         out[c] = signal.fftconvolve(du, s[:n])[:n]
