@@ -14,11 +14,12 @@ import math
 import numpy as np
 from scipy import signal
 
-__all__ = ["OWN_SHAPES", "OWN_Q_PER_P", "own_process"]
+__all__ = ["OWN_SHAPES", "OWN_Q_PER_P", "own_process", "window_covariance"]
 
 #: Shapes of the own process: ``lowpass`` (2 Hz low-passed white noise, as bus N's forcing), ``switching``
-#: (many small loads switching on and off: steps), ``pink`` (1/f spectrum from 0.05 to 5 Hz).
-OWN_SHAPES = ("lowpass", "switching", "pink")
+#: (many small loads switching on and off: steps), ``pink`` (1/f spectrum from 0.05 to 5 Hz), ``ramp`` (slow
+#: ramps: straight lines between random levels at random instants, 30 s apart on average).
+OWN_SHAPES = ("lowpass", "switching", "pink", "ramp")
 #: ΔQ of the own fluctuation per ΔP: small loads at power factor 0.95 [-].
 OWN_Q_PER_P = math.tan(math.acos(0.95))
 #: Small loads in the switching process, and the mean time each stays in a state [s].
@@ -26,6 +27,8 @@ _N_SMALL_LOADS = 200
 _SWITCH_MEAN_S = 1.0
 #: Band of the pink process [Hz].
 _PINK_BAND_HZ = (0.05, 5.0)
+#: Mean time between the ramp's breakpoints [s].
+_RAMP_MEAN_S = 30.0
 
 
 def own_process(rng: np.random.Generator, shape: str, n: int, fs: float, sos: np.ndarray, gain: float) -> np.ndarray:
@@ -68,6 +71,44 @@ def own_process(rng: np.random.Generator, shape: str, n: int, fs: float, sos: np
         amp[band] = 1.0 / np.sqrt(f[band])
         spec = amp * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
         x = np.fft.irfft(spec, n)
+    elif shape == "ramp":
+        # Exponential gaps between breakpoints (a Poisson process), enough of them to cover the grid.
+        span = n / fs
+        gaps = rng.exponential(_RAMP_MEAN_S, int(3 * span / _RAMP_MEAN_S) + 10)
+        knots = np.concatenate(([0.0], np.cumsum(gaps)))
+        while knots[-1] < span:
+            knots = np.append(knots, knots[-1] + rng.exponential(_RAMP_MEAN_S))
+        x = np.interp(np.arange(n) / fs, knots, rng.standard_normal(knots.size))
     else:
         raise ValueError(f"unknown own-fluctuation shape {shape!r} (use one of {OWN_SHAPES})")
     return (x - x.mean()) / max(float(x.std()), 1e-300)
+
+
+def window_covariance(shape: str, length: int, fs: float, n_windows: int, seed: int) -> np.ndarray:
+    """Covariance of the unit own process over windows of ``length`` samples, each window's mean removed [-].
+
+    Estimated from ``n_windows`` consecutive windows of one long realisation and scaled to a mean variance
+    of 1 over the window, so that a window's own-fluctuation covariance is its own variance times this
+    (the mean is a static regressor, so removing it changes no bound on D).
+
+    Parameters
+    ----------
+    shape : str
+        One of :data:`OWN_SHAPES`.
+    length : int
+        Samples per window.
+    fs : float
+        Sample rate [Hz].
+    n_windows : int
+        Windows averaged.
+    seed : int
+        Seed of the realisation.
+    """
+    from aslm_sim.network import forcing_filter
+
+    sos, gain = forcing_filter(fs)
+    x = own_process(np.random.default_rng(seed), shape, length * n_windows, fs, sos, gain)
+    w = x.reshape(n_windows, length)
+    w = w - w.mean(axis=1, keepdims=True)
+    cov = w.T @ w / n_windows
+    return cov / float(np.mean(np.diag(cov)))

@@ -70,18 +70,27 @@ def _one(w) -> dict:
 
 def stats(cases: list, results: list) -> dict:
     """Per candidate: the accuracy, calibration and flag statistics of the module docstring."""
+    return candidate_stats([c.truth.d for c in cases], results, list(CANDIDATES), WARNING_FLAGS)
+
+
+def candidate_stats(truths: list, results: list, names: list[str], warning_flags: tuple[str, ...]) -> dict:
+    """Per candidate name: μ, σ, median and worst |error|, coverage of ±1.96 SE, windows off by more than 20 %
+    and how many of them carry none of ``warning_flags``, failures and median time.
+
+    ``truths``: D per window; ``results``: per window, {name: (result or WindowError, seconds)}.
+    """
     out = {}
-    for name in CANDIDATES:
+    for name in names:
         ratios, cover, times, unflagged, failed = [], [], [], 0, 0
-        for c, res in zip(cases, results, strict=True):
+        for truth, res in zip(truths, results, strict=True):
             r, dt = res[name]
             times.append(dt)
             if isinstance(r, WindowError):
                 failed += 1
                 continue
-            ratios.append(r.d / c.truth.d)
-            cover.append(np.abs(r.d - c.truth.d) < 1.96 * np.array([r.stderr[p] for p in common.PARAMS]))
-            if np.abs(ratios[-1] - 1).max() > 0.2 and not any(f.startswith(WARNING_FLAGS) for f in r.flags):
+            ratios.append(r.d / truth)
+            cover.append(np.abs(r.d - truth) < 1.96 * np.array([r.stderr[p] for p in common.PARAMS]))
+            if np.abs(ratios[-1] - 1).max() > 0.2 and not any(f.startswith(warning_flags) for f in r.flags):
                 unflagged += 1
         rr = np.array(ratios)
         st = common.ratio_stats(rr)

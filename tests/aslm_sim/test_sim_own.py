@@ -9,7 +9,7 @@ from scipy import signal
 from aslm_core import identify
 from aslm_sim.cases import make_cases
 from aslm_sim.network import forcing_filter
-from aslm_sim.own import OWN_Q_PER_P, OWN_SHAPES, own_process
+from aslm_sim.own import OWN_Q_PER_P, OWN_SHAPES, own_process, window_covariance
 
 # make_cases(3, level=2, seed=5) before the own fluctuation existed (computed with that code): Σ V and Σ P of
 # case 0's noisy window, Σ Q of case 2's clean window.
@@ -65,6 +65,15 @@ def test_every_shape_is_unit_variance_and_shaped_as_named(shape):
         assert slope == pytest.approx(-1.0, abs=0.3)
     if shape == "lowpass":
         assert pxx[f > 8.0].max() < 1e-4 * pxx[f < 1.0].max()
+    if shape == "ramp":
+        assert np.mean(np.abs(np.diff(x, 2)) < 1e-9) > 0.99  # straight lines between few breakpoints
+
+
+def test_window_covariance_is_of_the_demeaned_process_at_unit_variance():
+    cov = window_covariance("lowpass", 200, 100.0, 300, seed=4)
+    assert np.mean(np.diag(cov)) == pytest.approx(1.0)
+    np.testing.assert_allclose(cov.sum(axis=1), 0.0, atol=1e-9)  # each window's mean removed
+    assert cov[0, 5] > 0.5 * cov[0, 0]  # 2 Hz low-passed: correlated over 50 ms
 
 
 def test_unknown_shape_is_a_clear_error():
