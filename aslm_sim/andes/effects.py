@@ -187,12 +187,14 @@ def recording(kind: str, seed: int, *, tf: float = 22.0, tstep: float = 0.01, am
         for ch in ("P", "Q"):
             sim[ch] = np.interp(sim["t"] - drawn["skew_s"], sim["t"], sim[ch])
     rec = {k: v for k, v in resample(sim, FS).items() if k in ("t", "V", "theta", "P", "Q")}
-    rec["meta"] = {"kind": kind, "seed": seed, "drawn": drawn, "motors": sim["motors"],
-                   "switchings": sim.get("switchings"), "tds_s": sim["tds_s"], "andes_version": sim["andes_version"],
-                   "tf": tf, "tstep": tstep, "amp": amp, "tol": tol}
+    meta = json.dumps({"kind": kind, "seed": seed, "drawn": drawn, "motors": sim["motors"],
+                       "switchings": sim.get("switchings"), "tds_s": sim["tds_s"],
+                       "andes_version": sim["andes_version"], "tf": tf, "tstep": tstep, "amp": amp, "tol": tol},
+                      default=float)
+    rec["meta"] = json.loads(meta)  # the same plain types as when read from the cache
     if cache:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp.npz")
-        np.savez(tmp, **{k: rec[k] for k in ("t", "V", "theta", "P", "Q")}, meta=json.dumps(rec["meta"], default=float))
+        np.savez(tmp, **{k: rec[k] for k in ("t", "V", "theta", "P", "Q")}, meta=meta)
         tmp.replace(path)
     return rec

@@ -21,7 +21,7 @@ import numpy as np
 from scipy import signal
 
 __all__ = ["BUS", "CASE", "F0", "FS", "MAIN_SCENARIOS", "MOTOR", "NAMES", "PQ_AT_BUS", "SCENARIOS", "STATIC_PQ",
-           "ZIP_SHARES", "lowpass_noise", "resample", "simulate", "solve_power_flow"]
+           "ZIP_SHARES", "BusLoad", "lowpass_noise", "resample", "simulate", "simulate_load", "solve_power_flow"]
 
 CASE = "ieee14/ieee14_full.xlsx"
 BUS = 9
@@ -44,7 +44,21 @@ NAMES = ("a", "b", "H2", "Tm")
 
 
 def lowpass_noise(n: int, dt: float, fc: float, rng: np.random.Generator, burn: int = 2000) -> np.ndarray:
-    """Unit-variance white noise through a 2nd-order Butterworth low-pass at fc [Hz] (causal, burnt in)."""
+    """Unit-variance white noise through a 2nd-order Butterworth low-pass at fc [Hz] (causal, burnt in).
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    dt : float
+        Sample interval [s].
+    fc : float
+        Cut-off frequency [Hz].
+    rng : numpy.random.Generator
+        Source of the white noise.
+    burn : int
+        Samples drawn and dropped first, so that the filter's start-up transient is gone.
+    """
     sos = signal.butter(2, fc, fs=1.0 / dt, output="sos")
     x = signal.sosfilt(sos, rng.standard_normal(n + burn))[burn:]
     return x / x.std()
@@ -52,6 +66,11 @@ def lowpass_noise(n: int, dt: float, fc: float, rng: np.random.Generator, burn: 
 
 def solve_power_flow(ss) -> None:
     """ANDES power flow started from the motors' low-slip equilibrium (:func:`_init_motor_guess`).
+
+    Parameters
+    ----------
+    ss : andes.System
+        The set-up system (its motors' start is overwritten after ANDES's own initialisation).
 
     Raises
     ------
@@ -344,7 +363,15 @@ class _Relay:
 
 
 def resample(sim: dict, fs: float = FS) -> dict:
-    """Linear interpolation of the ANDES record onto a uniform fs grid from t = 0."""
+    """Linear interpolation of the ANDES record onto a uniform fs grid from t = 0.
+
+    Parameters
+    ----------
+    sim : dict
+        :func:`simulate_load`'s record.
+    fs : float
+        Sample rate of the grid [Hz].
+    """
     t = sim["t"]
     grid = np.arange(0.0, t[-1] + 1e-9, 1.0 / fs)
     return {"t": grid, **{k: np.interp(grid, t, sim[k]) for k in ("V", "theta", "P", "Q", "p_motor", "q_motor")}}
