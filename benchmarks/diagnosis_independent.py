@@ -36,6 +36,7 @@ sys.path.insert(0, str(ROOT))
 
 from aslm_sim.andes.effects import KINDS, cache_dir  # noqa: E402
 from aslm_sim.noise import NOISE_LEVELS, SNR_SPREAD_DB  # noqa: E402
+from benchmarks.diagnosis import _init  # noqa: E402  (the self-test's worker warm-up)
 
 RESULTS = ROOT / "docs" / "results"
 #: Scenario seeds per set.  Confirmation: 10 clean seeds (60 clean cases = 10 × 2 windows × 3 levels) and 4 per
@@ -258,13 +259,6 @@ def main(argv: list[str] | None = None) -> int:
         out_path.write_text(
             json.dumps({"summary": summary, "records": recs}, indent=1, default=float))
     return 0
-
-
-def _init() -> None:
-    os.environ.setdefault("OMP_NUM_THREADS", "1")
-    from aslm_core import warmup
-
-    warmup()
 
 
 if __name__ == "__main__":

@@ -158,16 +158,8 @@ def simulate(scenario: str, *, tf: float, tstep: float, amp: float, seed: int, t
     ----------
     scenario : str
         A key of :data:`SCENARIOS`.
-    tf, tstep : float
-        Simulated time and ANDES's fixed step [s].
-    amp : float
-        Relative std of the ambient noise on the other loads' constant-power part [-].
-    seed : int
-        Seed of the ambient noise.
-    tol : float
-        ANDES's Newton tolerance.
-    numba : bool
-        Let ANDES use its numba-compiled equations.
+    tf, tstep, amp, seed, tol, numba :
+        As in :func:`simulate_load`.
 
     Returns
     -------
