@@ -242,7 +242,9 @@ def main(argv: list[str] | None = None) -> int:
     wall = time.perf_counter() - t0
     out_path = RESULTS / f"diagnosis_independent_{args.set}.json"
     if out_path.exists():  # a run of the other noise mode: keep its records, this run replaces its own mode's
-        kept = [r for r in json.loads(out_path.read_text())["records"] if r["input_noise"] not in modes]
+        ran = {k for k, _, _ in todo}
+        kept = [r for r in json.loads(out_path.read_text())["records"]
+                if r["input_noise"] not in modes or r["kind"] not in ran]
         recs = kept + recs
     summary = {"set": args.set, "seeds": SETS[args.set], "wall_s": wall, "load_avg": os.getloadavg(), "failed": failed,
                "library": list(MODULES), "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),

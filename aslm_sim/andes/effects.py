@@ -132,7 +132,9 @@ def build(kind: str, seed: int) -> tuple[BusLoad, dict]:
         effect = {"own": {"kind": "sine", "amp": _u(rng, 0.03, 0.1), "hz": _u(rng, 0.2, 0.8),
                           "phase": _u(rng, 0.0, 2 * np.pi)}}
     elif kind == "switched_capacitor":
-        effect = {"relay": {"b": _u(rng, 0.01, 0.03), "dv": _u(rng, 0.0005, 0.0015), "delay": _u(rng, 0.2, 1.0)}}
+        # Dead band and delay within the ambient V swing (std ≈ 0.2 %, 2 Hz): the dev set's first ranges
+        # (±0.05–0.15 %, 0.2–1 s) left one relay of two that never switched.
+        effect = {"relay": {"b": _u(rng, 0.01, 0.03), "dv": _u(rng, 0.0003, 0.001), "delay": _u(rng, 0.1, 0.4)}}
     elif kind == "noisy_load":
         effect = {"own": {"kind": "noise", "amp": _u(rng, 0.05, 0.15), "fc": _u(rng, 0.5, 2.0)}}
     motor_data = {**motor, **{k: v for k, v in effect.items() if k in ("rr2", "xr2", "rs", "c1", "c2", "c3")}}
@@ -173,14 +175,16 @@ def recording(kind: str, seed: int, *, tf: float = 22.0, tstep: float = 0.01, am
         ``t`` [s], ``V`` [pu], ``theta`` [rad], ``P``, ``Q`` [pu, 100 MVA] on the uniform grid; ``meta``:
         the kind, seed, drawn magnitudes, the motors' converted D, the relay's switchings, ANDES's run time.
     """
-    key = f"v{CACHE_VERSION}-{kind}-{seed}-tf{tf:g}-h{tstep:g}-a{amp:g}-tol{tol:g}"
+    load, drawn = build(kind, seed)
+    # The drawn data are in the key: a kind whose ranges change is simulated again, the others are not.
+    drawn_crc = zlib.crc32(json.dumps(drawn, sort_keys=True).encode())
+    key = f"v{CACHE_VERSION}-{kind}-{seed}-{drawn_crc:08x}-tf{tf:g}-h{tstep:g}-a{amp:g}-tol{tol:g}"
     path = cache_dir() / f"{key}.npz"
     if cache and path.exists():
         with np.load(path) as z:
             rec = {k: z[k] for k in ("t", "V", "theta", "P", "Q")}
             rec["meta"] = json.loads(str(z["meta"]))
         return rec
-    load, drawn = build(kind, seed)
     sim = simulate_load(load, tf=tf, tstep=tstep, amp=amp, seed=zlib.crc32(f"{kind}/{seed}".encode()), tol=tol)
     if drawn["skew_s"]:
         # The recorder's P and Q run τ late against V and θ: shifted on ANDES's own grid, before resampling.
