@@ -10,7 +10,7 @@ kind                       what ANDES simulates                                 
 ``double_cage``            ``Motor5`` (second rotor cage rr2, xr2)                      ``double_cage_rotor``
 ``stator_resistance``      Motor3 with rs = 0.01–0.04 pu                                ``stator_resistance``
 ``second_motor``           a second Motor3 with other H, rotor resistance and size      ``second_motor``
-``speed_dependent_torque`` Motor3 torque c1 + c2·(1−σ)... slope −(c2 + 2c3) = −k·Tm      ``speed_dependent_torque``
+``speed_dependent_torque`` Motor3 with c2, c3 > 0: dτm/dσ = −(c2 + 2c3) = −k·Tm          ``speed_dependent_torque``
 ``frequency_dependence``   ``FLoad``: P = P0·V^ap·f^bp, Q = Q0·V^aq·f^bq (BusFreq's f)  ``frequency_dependence``
 ``measurement_skew``       the clean scenario, P and Q delayed by τ (linear interp.)    ``measurement_skew``
 ``oscillating_load``       the static load's constant-power part × (1 + A·sin 2πft)     never ``explained``
