@@ -14,7 +14,8 @@ from doc_helpers import undocumented
 import aslm_sim
 
 ROOT = Path(__file__).resolve().parents[2]
-MODULES = ("truth", "network", "noise", "cases", "faults", "fleet", "motors", "effects.apply")
+MODULES = ("truth", "network", "noise", "cases", "faults", "fleet", "motors", "effects.apply", "andes.scenario",
+           "andes.effects")
 
 
 def test_exported_names_resolve_lazily_to_their_modules():

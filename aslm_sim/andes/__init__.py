@@ -1,0 +1,6 @@
+"""ANDES as an independent simulator for the benchmarks: IEEE 14-bus scenarios around one load bus.
+
+:mod:`~aslm_sim.andes.scenario` builds the system (the load bus, ambient noise on the other loads, power
+flow, time-domain simulation, resampling).  ``andes`` is an optional dependency (the ``andes`` extra): these
+modules import it only when a simulation runs, so importing them is cheap and works without it.
+"""

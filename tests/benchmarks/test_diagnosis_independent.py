@@ -1,0 +1,55 @@
+"""The independent-simulator benchmark's bookkeeping (benchmarks/diagnosis_independent.py): sets and scores."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from benchmarks import diagnosis_independent as di  # noqa: E402
+
+
+def test_the_sets_are_disjoint_and_the_confirmation_set_has_the_issues_size():
+    dev = {s for v in di.SETS["dev"].values() for s in v}
+    confirm = {s for v in di.SETS["confirm"].values() for s in v}
+    assert not dev & confirm
+    per_scenario = len(di.WINDOWS) * len(di.LEVELS)
+    assert len(di.SETS["confirm"]["clean"]) * per_scenario >= 60
+    assert len(di.SETS["confirm"]["effect"]) * per_scenario >= 20
+
+
+def test_jobs_are_seed_major_so_that_a_partial_run_covers_every_kind():
+    jobs = di.jobs("confirm")
+    first = jobs[: len(di.KINDS)]
+    assert {k for k, _ in first} == set(di.KINDS) and {s for _, s in first} == {9001}
+    assert sum(k == "clean" for k, _ in jobs) == len(di.SETS["confirm"]["clean"])
+
+
+def _rec(kind: str, verdict: str, cause: str | None, level: int = 1) -> dict:
+    return {"kind": kind, "expected": di.KINDS[kind].expected, "seed": 1, "window": [2.0, 12.0], "level": level,
+            "verdict": verdict, "cause": cause, "cpu_s": 1.0}
+
+
+def test_scores_count_wrong_names_ambiguous_and_unknown_verdicts_apart():
+    recs = [
+        _rec("second_motor", "explained", "second_motor"),
+        _rec("second_motor", "explained", "inverter_der"),  # a wrong name
+        _rec("double_cage", "ambiguous", None),  # a verdict of another branch
+        _rec("double_cage", "explained", "double_cage_rotor"),  # a cause not in today's library
+        _rec("clean", "consistent", None),
+        _rec("clean", "explained", "measurement_skew"),  # a wrong name on a clean case
+        _rec("noisy_load", "unexplained", None),
+        _rec("switched_capacitor", "explained", "second_motor"),  # outside the library: never explained
+        _rec("stator_resistance", "undecided", None),  # unknown verdict
+    ]
+    s = di.summarise(recs, known_causes=("second_motor", "measurement_skew"))
+    assert s["wrong_named_rate"] == pytest.approx(3 / 9)
+    assert s["clean_consistent"] == 0.5 and s["n_clean"] == 2
+    assert s["outside_explained"] == 1 and s["n_outside"] == 2
+    assert s["ambiguous"]["double_cage"] == 1 and s["unknown_verdicts"] == ["undecided"]
+    assert s["right_named"][1]["share"] == pytest.approx(2 / 5)  # second_motor ×2, double_cage ×2, stator
+    assert s["right_named_where_the_cause_is_a_candidate"][1] == 0.5  # only the second motors count
+    assert s["confusion"]["double_cage"] == {"ambiguous": 1, "double_cage_rotor": 1}
+    assert "double_cage_rotor" in di.markdown(s, "test")
