@@ -1,7 +1,7 @@
 """The load's own fluctuation on an independent bench (ANDES), against the Cramér–Rao bound of the process.
 
 ANDES's IEEE 14-bus case with Motor3 + ZIP at bus 9 and grid-side ambient on the other loads (as
-``benchmarks.andes_crosscheck``), and bus 9's own constant-power part fluctuating (:mod:`aslm_sim.andes_own`):
+``benchmarks.andes_crosscheck``), and bus 9's own constant-power part fluctuating (:mod:`aslm_sim.andes.own_fluctuation`):
 shapes ``lowpass`` (2 Hz), ``switching`` (200 small loads: steps), ``pink`` (1/f) and ``ramp`` (slow ramps), at
 std(own ΔP)/std(grid-driven P) set per window so that own/total = 0, 0.5, 0.9.  P and Q get white noise at
 22 dB.  Windows of 10 s, one every 5 s (they overlap by half), the same windows for every estimator:
@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 
 from aslm_core import IdentifyConfig, Window, WindowError, identify  # noqa: E402
 from aslm_core.information import cramer_rao, disturbance_covariance, model_jacobian  # noqa: E402
-from aslm_sim import andes_own  # noqa: E402
+from aslm_sim.andes import own_fluctuation as andes_own  # noqa: E402
 from aslm_sim.own import OWN_Q_PER_P, window_covariance  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.own_fluctuation import candidate_stats  # noqa: E402

@@ -1,4 +1,4 @@
-"""The ANDES own-fluctuation bench (aslm_sim/andes_own.py): it builds, and its windows have the requested ratio.
+"""The ANDES own-fluctuation bench (aslm_sim/andes/own_fluctuation.py): it builds, and its windows have the requested ratio.
 
 Skipped when the optional ``andes`` package is not installed.  Short ANDES runs (12 s grid-side, an 8 s step
 response) cached in a temporary directory.
@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("andes", reason="optional bench: the andes package is not installed")
 
-from aslm_sim import andes_own  # noqa: E402
+from aslm_sim.andes import own_fluctuation as andes_own  # noqa: E402
 
 pytestmark = pytest.mark.slow
 

@@ -1,7 +1,7 @@
 """ANDES as an independent bench for the load's own fluctuation (closed loop through the network).
 
 The system is the ANDES cross-check's (IEEE 14-bus, GENROU machines, Motor3 + ZIP at bus 9, the other loads'
-constant-power parts driven by 2 Hz low-passed noise: :mod:`benchmarks.andes_crosscheck`), and in addition the
+constant-power parts driven by 2 Hz low-passed noise: :mod:`aslm_sim.andes.scenario`), and in addition the
 constant-power part of bus 9's own load moves by an own process ΔP(t) (ΔQ = 0.33·ΔP) through ANDES's
 time-domain perturbation hook, at every step, so that ANDES carries its effect on V and θ.  The recorded
 P and Q are the whole bus load: Motor3 + ZIP + the own ΔP, ΔQ.
@@ -69,7 +69,7 @@ def run(*, tf: float, tstep: float, grid_amp: float, own: np.ndarray | None, see
     """
     import andes
 
-    from benchmarks import andes_crosscheck as ac
+    from aslm_sim.andes import scenario as ac
 
     andes.config_logger(stream_level=logging.ERROR)
     ss = andes.load(andes.get_case(ac.CASE), setup=False, no_output=True, default_config=True)
