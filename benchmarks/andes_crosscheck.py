@@ -90,47 +90,120 @@ def solve_power_flow(ss) -> None:
 
 
 def _init_motor_guess(ss) -> None:
-    """Overwrite ANDES's generic power-flow start of Motor3 (slip 1) with the low-slip equilibrium.
+    """Overwrite ANDES's generic power-flow start of the motors (slip 1) with their low-slip equilibrium.
 
     From ANDES's default start the Newton iteration diverged (KLU segfaulted on this case); starting from
-    the paper's closed-form equilibrium at the initial bus voltage converges in a few iterations.
+    the equilibrium at the initial bus voltage converges in a few iterations.  It is found from the
+    model's own equations (:func:`motor_equilibrium`), so rs, the torque law and Motor5's second cage count.
     """
-    m, bus, dae = ss.Motor3, ss.Bus, ss.dae
-    for i in range(m.n):
-        ub = bus.idx2uid(m.bus.v[i])
-        v, ang = dae.y[bus.v.a[ub]], dae.y[bus.a.a[ub]]
-        va = -v * math.sin(ang) + 1j * v * math.cos(ang)
-        x0, x1, t10, wb = m.x0.v[i], m.x1.v[i], m.T10.v[i], m.wb.v[i]
-        a, b = (x0 / x1 - 1) / (t10 * x1), x0 / (t10 * x1)
-        tm = m.c1.v[i] + m.c2.v[i] + m.c3.v[i]
-        c = 2 * tm * b * b / (a * v * v + math.sqrt(a * a * v**4 - 4 * tm * tm * b * b))
-        e = x1 * a / (b * b + c * c) * (b - 1j * c) * va
-        cur = (va - e) / (1j * x1)
-        s = va * np.conj(cur)
-        for var, val in ((m.slip, c / wb), (m.e1d, e.real), (m.e1q, e.imag)):
-            dae.x[var.a[i]] = val
-        for var, val in ((m.vd, va.real), (m.vq, va.imag), (m.Id, cur.real), (m.Iq, cur.imag),
-                         (m.p, s.real), (m.q, s.imag), (m.te, (e * np.conj(cur)).real), (m.tm, tm)):
-            dae.y[var.a[i]] = val
+    bus, dae = ss.Bus, ss.dae
+    for name in ("Motor3", "Motor5"):
+        m = getattr(ss, name)
+        for i in range(m.n):
+            ub = bus.idx2uid(m.bus.v[i])
+            v, ang = dae.y[bus.v.a[ub]], dae.y[bus.a.a[ub]]
+            va = -v * math.sin(ang) + 1j * v * math.cos(ang)
+            sl, e1, e2, cur, tm = motor_equilibrium(m, i, va)
+            s = va * np.conj(cur)
+            states = [(m.slip, sl), (m.e1d, e1.real), (m.e1q, e1.imag)]
+            if e2 is not None:
+                states += [(m.e2d, e2.real), (m.e2q, e2.imag)]
+            for var, val in states:
+                dae.x[var.a[i]] = val
+            te = ((e1 if e2 is None else e2) * np.conj(cur)).real
+            for var, val in ((m.vd, va.real), (m.vq, va.imag), (m.Id, cur.real), (m.Iq, cur.imag),
+                             (m.p, s.real), (m.q, s.imag), (m.te, te), (m.tm, tm)):
+                dae.y[var.a[i]] = val
+
+
+def motor_equilibrium(m, i: int, va: complex) -> tuple[float, complex, complex | None, complex, float]:
+    """Low-slip equilibrium of ANDES Motor3/Motor5 device ``i`` at the terminal voltage ``va`` (ANDES frame).
+
+    For a slip σ the rotor equations at rest are linear in E', (E'') and I; the slip is the smallest root of
+    τe(σ) = τm(σ) (scan, then bisection).  Returns σ, E', E'' (None for Motor3), I [pu] and τm [pu].
+    """
+    x0, x1, t10, wb, rs = (float(getattr(m, k).v[i]) for k in ("x0", "x1", "T10", "wb", "rs"))
+    five = hasattr(m, "x2")
+    x2, t20 = (float(m.x2.v[i]), float(m.T20.v[i])) if five else (x1, 1.0)
+    aa, bb, c2 = float(m.aa.v[i]), float(m.bb.v[i]), float(m.c2.v[i])
+
+    def solve(sig: float):
+        # Unknowns [E1, E2, I]; Motor3 has E2 = E1.
+        w = 1j * wb * sig
+        a = np.zeros((3, 3), complex)
+        rhs = np.zeros(3, complex)
+        a[0] = [-w - 1 / t10, 0, 1j * (x0 - x1) / t10]
+        if five:
+            a[1] = [-1 / t10 + 1 / t20, -w - 1 / t20, 1j * (x0 - x1) / t10 + 1j * (x1 - x2) / t20]
+        else:
+            a[1] = [1, -1, 0]
+        a[2] = [0, 1, rs + 1j * x2]
+        rhs[2] = va
+        e1, e2, cur = np.linalg.solve(a, rhs)
+        return e1, e2, cur, (e2 * np.conj(cur)).real - (aa + bb * sig + c2 * sig * sig)
+
+    grid = np.geomspace(1e-7, 0.5, 400)
+    lo = 0.0
+    for hi in grid:
+        if solve(hi)[3] > 0:
+            break
+        lo = hi
+    else:
+        raise RuntimeError("no motor equilibrium below slip 0.5")
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if solve(mid)[3] > 0 else (mid, hi)
+    sig = 0.5 * (lo + hi)
+    e1, e2, cur, _ = solve(sig)
+    return sig, e1, (e2 if five else None), cur, aa + bb * sig + c2 * sig * sig
+
+
+def rotor_modes(m, i: int = 0) -> np.ndarray:
+    """The rotor circuits of ANDES Motor5 device ``i`` as the transformed model's modes [[a1, b1], [a2, b2]].
+
+    With rs = 0 the stator current is (V − E'')/(jX''); the rotor equations are then linear in (E', E'')
+    with the same −jωs rotation on both, and F = E''/X'' (the paper's transformed state) is the sum of
+    two modes dF_k/dt = −b_k·F_k + a_k·V − jsω0·F_k: b_k the eigenvalues' negatives, a_k the residues of
+    the transfer function V → F.  The slower mode first [1/s].
+    """
+    x0, x1, x2, t10, t20 = (float(getattr(m, k).v[i]) for k in ("x0", "x1", "x2", "T10", "T20"))
+    g = (x0 - x1) / (x2 * t10)  # j(X − X')·I/T10 = g·(V − E'')
+    h = (x1 - x2) / (x2 * t20)  # j(X' − X'')·I/T20 = h·(V − E'')
+    amat = np.array([[-1 / t10, -g], [-1 / t10 + 1 / t20, -g - 1 / t20 - h]])
+    bvec = np.array([g, g + h])
+    lam, vec = np.linalg.eig(amat)
+    cvec = np.array([0.0, 1.0 / x2]) @ vec
+    res = cvec * np.linalg.solve(vec, bvec)
+    out = sorted(zip(-lam.real, res.real, strict=True))
+    return np.array([[r, b] for b, r in out])
 
 
 def simulate(scenario: str, *, tf: float, tstep: float, amp: float, seed: int, tol: float = 1e-8,
-             numba: bool = True) -> dict:
-    """Run ANDES; return bus-9 signals on ANDES's step grid, the converted truth and run facts."""
+             numba: bool = True, model: str = "Motor3", motor_data: dict | None = None) -> dict:
+    """Run ANDES; return bus-9 signals on ANDES's step grid, the converted truth and run facts.
+
+    ``model`` is the ANDES motor model (``Motor3`` or ``Motor5``); ``motor_data`` overrides entries of
+    :data:`MOTOR` and of the scenario (device base, e.g. ``{"rs": 0.02}`` or Motor5's ``xr2``, ``rr2``).
+    For Motor5 the result also has ``modes``, its two rotor modes in the transformed model
+    (:func:`rotor_modes`; ``truth`` then holds the slower one's a, b).
+    """
     import andes
 
     andes.config_logger(stream_level=logging.ERROR)
     ss = andes.load(andes.get_case(CASE), setup=False, no_output=True, default_config=True, numba=numba)
-    ss.add("Motor3", {"idx": "M1", "name": "M1", "bus": BUS, **MOTOR, **SCENARIOS[scenario]})
+    ss.add(model, {"idx": "M1", "name": "M1", "bus": BUS, **MOTOR, **SCENARIOS[scenario], **(motor_data or {})})
     ss.setup()
     ss.PQ.set("p0", PQ_AT_BUS, STATIC_PQ[0], base="device")
     ss.PQ.set("q0", PQ_AT_BUS, STATIC_PQ[1], base="device")
     for k, v in ZIP_SHARES.items():
         setattr(ss.PQ.config, k, v)
     solve_power_flow(ss)
-    m, pq = ss.Motor3, ss.PQ
+    m, pq = getattr(ss, model), ss.PQ
     x0, x1, t10, M = float(m.x0.v[0]), float(m.x1.v[0]), float(m.T10.v[0]), float(m.M.v[0])
     truth = np.array([(x0 / x1 - 1) / (t10 * x1), x0 / (t10 * x1), M, float(m.tm.v[0])])
+    modes = rotor_modes(m) if model == "Motor5" else None
+    if modes is not None:
+        truth[:2] = modes[0]
     slip0 = float(m.slip.v[0])
 
     ss.TDS.config.tf = tf
@@ -175,7 +248,8 @@ def simulate(scenario: str, *, tf: float, tstep: float, amp: float, seed: int, t
         "p_motor": pm[keep], "q_motor": qm[keep], "truth": truth, "x1": x1, "slip0": slip0,
         "static_truth": {"Pz": zp[0], "Pi": zp[1], "Pp": zp[2], "Qz": zq[0] + 1.0 / x1, "Qi": zq[1], "Qp": zq[2]},
         "tds_s": t_run, "andes_version": andes.__version__,
-        "rs_sys": float(m.rs.v[0]), "tm_slope": float(m.bb.v[0]),
+        "rs_sys": float(m.rs.v[0]), "tm_slope": float(m.bb.v[0]), "x0": x0,
+        "modes": None if modes is None else modes.tolist(),
     }
 
 
