@@ -14,7 +14,7 @@ that share the slip (:mod:`aslm_core.diagnosis.motor_variants`)::
 modes' decay rates [1/s] (for Motor5 the negatives of the eigenvalues of its (E', E'') equations),
 a, a2 their residues [1/s]; the conversion from Motor5/motorw data is
 ``benchmarks.andes_crosscheck.rotor_modes``.  Two nonlinear parameters fitted in the upper stage with D:
-a2 [1/s] in [−a, a] (a2 = 0: one cage; negative allowed so that an absent cage is fitted about zero) and
+a2 [1/s] in [−80, 80] (the paper's bound of a; a2 = 0: one cage; negative allowed so that an absent cage is fitted about zero) and
 b2 [1/s] in [0.2, 400] (at 100 frames/s modes faster than ~1/(2.5·dt) are not resolved as dynamics,
 only through their slip dependence).  Magnitude: a2.
 
@@ -30,6 +30,7 @@ import numpy as np
 from aslm_core.diagnosis.candidates.base import Candidate, Context
 from aslm_core.diagnosis.motor_variants import variant_power
 from aslm_core.diagnosis.segment import Segment
+from aslm_core.params import dynamic_bounds
 
 B2_BOUNDS = (0.2, 400.0)  # [1/s]
 
@@ -48,8 +49,9 @@ class DoubleCageRotor(Candidate):
         return [np.array([0.2 * a, min(5.0 * b, 0.9 * B2_BOUNDS[1])]), np.array([0.2 * a, max(0.2 * b, 0.5)])]
 
     def bounds(self, seg: Segment, ctx: Context):
-        a = float(ctx.d0[0])
-        return np.array([-a, B2_BOUNDS[0]]), np.array([a, B2_BOUNDS[1]])
+        # The second mode may carry more than the first: a2 gets the paper's bound of a itself.
+        a_max = float(dynamic_bounds(float(np.mean(seg.P)))[1][0])
+        return np.array([-a_max, B2_BOUNDS[0]]), np.array([a_max, B2_BOUNDS[1]])
 
     def motor_power(self, seg: Segment, d: np.ndarray, z: np.ndarray):
         return variant_power(seg, d, a2=float(z[0]), b2=float(z[1]))
