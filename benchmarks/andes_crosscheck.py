@@ -260,6 +260,15 @@ def resample(sim: dict, fs: float = FS) -> dict:
     return {"t": grid, **{k: np.interp(grid, t, sim[k]) for k in ("V", "theta", "P", "Q", "p_motor", "q_motor")}}
 
 
+def noisy_window(rec: dict, t0: float, t1: float, snr_db: float, rng: np.random.Generator) -> Window:
+    """The resampled record's [t0, t1] as a Window, white noise added to P and Q at ``snr_db`` (each channel's std)."""
+    sl = (rec["t"] >= t0 - 1e-9) & (rec["t"] <= t1 + 1e-9)
+    P, Q = rec["P"][sl].copy(), rec["Q"][sl].copy()
+    for x in (P, Q):
+        x += rng.standard_normal(x.size) * np.std(x) * 10 ** (-snr_db / 20)
+    return Window(rec["t"][sl], rec["V"][sl], rec["theta"][sl], P, Q, f0=F0, bus=f"andes-bus{BUS}")
+
+
 def conversion_check(rec: dict, sim: dict) -> dict:
     """Drive the identifier's motor model (eq. 4–5, RK4) with truth D on ANDES's V, θ from t = 0 and compare
     with ANDES's Motor3 output: relative RMS error of the fluctuations of P and of Q − V²/X'."""

@@ -337,7 +337,11 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         left = _remaining(analyses, best.name)
         best.remaining_excess_channels = left
         if frac >= config.explained_fraction or not left:
-            tied = [best, *_unseparated(analyses, best, significant[1:], config)]
+            # Rivals: every other candidate that explains the held-out data (score test and penalty), the
+            # magnitude guard aside — a rival whose magnitude is loosely determined still fits as well.
+            rivals = [e for e in entries if e is not best and e.tested and e.score_z > zcrit
+                      and e.penalised_gain is not None and e.penalised_gain > 0]
+            tied = [best, *_unseparated(analyses, best, rivals, config)]
             causes = [e.name for e in tied]
             if len(tied) == 1:
                 verdict, cause = "explained", best.name

@@ -133,7 +133,7 @@ class CandidateEntry(_Part):
     remaining_excess_channels : list of str or None
         Channels still above the noise floor after the candidate; set on the top significant candidate only.
     separation_z : float or None
-        Paired held-out statistic that the top significant candidate explains what this one leaves (N(0, 1) when this one is right) [-]; set on the other significant candidates when the top one explains the mismatch, null otherwise.
+        Paired held-out statistic that the top significant candidate explains what this one leaves (N(0, 1) when this one is right) [-]; set on every other candidate that passes the held-out test and the penalty (its magnitude aside) when the top significant one explains the mismatch, null otherwise.
     separated : bool or None
         Whether the top significant candidate is significantly better than this one (Holm over the rivals); set with separation_z.
     """
