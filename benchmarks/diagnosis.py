@@ -171,8 +171,11 @@ def summarise(recs: list[dict]) -> dict:
 
 def markdown(s: dict) -> str:
     s = {**s, "accuracy": {int(k): v for k, v in s["accuracy"].items()}}  # JSON turns the level keys into str
-    cols = [*LIBRARY_EFFECTS, "ambiguous", "consistent", "unexplained"]
-    short = {**{n: e.label for n, e in EFFECTS.items()}, **{v: v for v in ("ambiguous", "consistent", "unexplained")}}
+    # Candidates without a synthetic effect (issue 12's, proven on ANDES) get a column when they are named.
+    named = sorted({c for row in s["confusion"].values() for c in row} - set(LIBRARY_EFFECTS)
+                   - {"ambiguous", "consistent", "unexplained"})
+    cols = [*LIBRARY_EFFECTS, *named, "ambiguous", "consistent", "unexplained"]
+    short = {**{n: e.label for n, e in EFFECTS.items()}, **{v: v for v in (*named, "ambiguous", "consistent", "unexplained")}}
     lines = ["| true \\ verdict | " + " | ".join(short[c] for c in cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for eff in (*LIBRARY_EFFECTS, *OUTSIDE_EFFECTS, "none", "none_user"):
         row = s["confusion"].get(eff)
