@@ -22,10 +22,13 @@ Method (DESIGN §3)
    second motor, whose torque trades off against the first's) — are
    significant, ranked by the penalised gain.  A Diebold–Mariano
    statistic (HAC variance) is reported alongside.
-5. Verdict: ``explained`` when the top significant candidate removes at least ``explained_fraction`` of
-   the held-out ambient-band residual above the noise expectation; ``unexplained`` when the residual exceeds
-   the expected noise (or a candidate is significant but explains too little) — then only the location is reported;
-   otherwise ``consistent``.
+5. Verdict: the top significant candidate explains the mismatch when it removes at least
+   ``explained_fraction`` of the held-out ambient-band residual above the noise expectation.  It is named
+   (``explained``) only when a paired held-out test separates it from every rival — every other candidate
+   passing the score test and the penalty — with Holm's procedure over the rivals; otherwise the verdict
+   is ``ambiguous`` and ``causes`` lists the unseparated ones, no pick.  ``unexplained`` when the residual
+   exceeds the expected noise (or a candidate is significant but explains too little) — then only the
+   location is reported; otherwise ``consistent``.
 """
 
 from __future__ import annotations
@@ -90,8 +93,8 @@ class DiagnosisConfig:
         Count the plain model's own held-out prediction uncertainty in the score test's variance.
     separation_alpha : float
         Family-wise error rate (Holm) of the paired held-out comparisons of the top significant candidate
-        with the other significant ones [-]: a cause is named only when all of them are rejected,
-        otherwise the verdict is ``ambiguous``.
+        with its rivals (the other candidates passing the score test and the penalty) [-]: a cause is
+        named only when every rival is rejected, otherwise the verdict is ``ambiguous``.
     """
 
     train_fraction: float = 0.65
@@ -341,7 +344,7 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
             # magnitude guard aside — a rival whose magnitude is loosely determined still fits as well.
             rivals = [e for e in entries if e is not best and e.tested and e.score_z > zcrit
                       and e.penalised_gain is not None and e.penalised_gain > 0]
-            tied = [best, *_unseparated(analyses, best, rivals, config)]
+            tied = sorted([best, *_unseparated(analyses, best, rivals, config)], key=lambda e: -e.penalised_gain)
             causes = [e.name for e in tied]
             if len(tied) == 1:
                 verdict, cause = "explained", best.name
@@ -411,7 +414,7 @@ def _separation_z(analyses: list[_WindowAnalysis], best: str, rival: str, config
 
 def _unseparated(analyses: list[_WindowAnalysis], best: CandidateEntry, rivals: list[CandidateEntry],
                  config: DiagnosisConfig) -> list[CandidateEntry]:
-    """The significant rivals the best candidate is not significantly better than on the held-out data.
+    """The rivals the best candidate is not significantly better than on the held-out data.
 
     Each rival gets its paired statistic (:func:`_separation_z`) and one-sided p-value; Holm's step-down
     procedure at ``config.separation_alpha`` over the rivals decides which are separated (family-wise
