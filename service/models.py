@@ -226,7 +226,7 @@ class DiagnosisReportModel(BaseModel):
 
     verdict: Literal["explained", "ambiguous", "consistent", "unexplained"] = Field(description="explained, ambiguous, consistent or unexplained.")
     cause: str | None = Field(description="The named cause when explained; null otherwise (also when ambiguous: no pick).")
-    causes: list[str] = Field(default_factory=list, description="The candidates that explain the mismatch and that the held-out data do not separate, ordered by penalised gain: the one cause when explained, two or more when ambiguous, empty otherwise.")
+    causes: list[str] = Field(description="The candidates that explain the mismatch and that the held-out data do not separate, ordered by penalised gain: the one cause when explained, two or more when ambiguous, empty otherwise.")
     located: LocationModel = Field(description="Where the residual exceeds the expected noise.")
     missing_physics: list[CandidateEntryModel] = Field(description="Every candidate of the library, ranked by penalised gain (untested ones last).")
     fit_before: HeldOutFitModel = Field(description="Held-out fit of the plain model.")
