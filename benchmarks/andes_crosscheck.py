@@ -56,9 +56,19 @@ from aslm_sim.andes.scenario import (  # noqa: F401
     ZIP_SHARES,
     lowpass_noise,
     resample,
+    rotor_modes,
     simulate,
     solve_power_flow,
 )
+
+
+def noisy_window(rec: dict, t0: float, t1: float, snr_db: float, rng: np.random.Generator) -> Window:
+    """The resampled record's [t0, t1] as a Window, white noise added to P and Q at ``snr_db`` (each channel's std)."""
+    sl = (rec["t"] >= t0 - 1e-9) & (rec["t"] <= t1 + 1e-9)
+    P, Q = rec["P"][sl].copy(), rec["Q"][sl].copy()
+    for x in (P, Q):
+        x += rng.standard_normal(x.size) * np.std(x) * 10 ** (-snr_db / 20)
+    return Window(rec["t"][sl], rec["V"][sl], rec["theta"][sl], P, Q, f0=F0, bus=f"andes-bus{BUS}")
 
 
 def conversion_check(rec: dict, sim: dict) -> dict:

@@ -72,7 +72,7 @@ def run_one(job: tuple) -> dict:
     rec = {
         "effect": effect, "level": level, "case": i, "snr_db": base.snr_db, "mode": "user" if user else "identified",
         "input_noise": input_noise,
-        "verdict": rep.verdict, "cause": rep.cause, "top": top.name if top else None,
+        "verdict": rep.verdict, "cause": rep.cause, "causes": rep.causes, "top": top.name if top else None,
         "top_significant": bool(top and top.significant), "fd_plain": ec.fd_plain, "conceal_scale": ec.scale,
         "fit_before": rep.fit_before.to_dict(), "fit_after": rep.fit_after.to_dict(), "elapsed_s": elapsed, "cpu_s": cpu,
         "located": rep.located.channels, "truth": {k: float(v) for k, v in ec.truth.items()},
@@ -158,6 +158,10 @@ def summarise(recs: list[dict]) -> dict:
         "false_explained_cases": [(r["effect"], r["level"], r["case"], r["cause"]) for r in wrong],
         "outside_unexplained": float(np.mean([r["verdict"] == "unexplained" for r in outside])) if outside else float("nan"),
         "outside_named": float(np.mean([r["verdict"] == "explained" for r in outside])) if outside else float("nan"),
+        "ambiguous_rate": float(np.mean([r["verdict"] == "ambiguous" for r in recs])),
+        # An ambiguous verdict names no cause; whether the true one is among those it lists:
+        "ambiguous_with_truth": float(np.mean([r["effect"] in (r.get("causes") or []) for r in recs
+                                               if r["verdict"] == "ambiguous"] or [float("nan")])),
         "improvement_when_explained": imp,
         "time_s": {"median": float(np.median(times)), "p95": float(np.percentile(times, 95)), "max": float(times.max())},
         "n_cases": len(recs),
@@ -167,8 +171,11 @@ def summarise(recs: list[dict]) -> dict:
 
 def markdown(s: dict) -> str:
     s = {**s, "accuracy": {int(k): v for k, v in s["accuracy"].items()}}  # JSON turns the level keys into str
-    cols = [*LIBRARY_EFFECTS, "consistent", "unexplained"]
-    short = {**{n: e.label for n, e in EFFECTS.items()}, "consistent": "consistent", "unexplained": "unexplained"}
+    # Candidates without a synthetic effect (issue 12's, proven on ANDES) get a column when they are named.
+    named = sorted({c for row in s["confusion"].values() for c in row} - set(LIBRARY_EFFECTS)
+                   - {"ambiguous", "consistent", "unexplained"})
+    cols = [*LIBRARY_EFFECTS, *named, "ambiguous", "consistent", "unexplained"]
+    short = {**{n: e.label for n, e in EFFECTS.items()}, **{v: v for v in (*named, "ambiguous", "consistent", "unexplained")}}
     lines = ["| true \\ verdict | " + " | ".join(short[c] for c in cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for eff in (*LIBRARY_EFFECTS, *OUTSIDE_EFFECTS, "none", "none_user"):
         row = s["confusion"].get(eff)
@@ -185,6 +192,8 @@ def markdown(s: dict) -> str:
               f"- clean cases `consistent` (true model as user model): {100 * s['clean_user_consistent']:.1f} %",
               f"- a cause named that is absent (`explained`, wrong name), all cases: {100 * s['false_explained_rate']:.1f} %",
               f"- outside-library effects `unexplained`: {100 * s['outside_unexplained']:.1f} % (named: {100 * s['outside_named']:.1f} %)",
+              f"- `ambiguous`: {100 * s.get('ambiguous_rate', 0.0):.1f} % of all cases; the true cause among those listed in "
+              f"{100 * s.get('ambiguous_with_truth', float('nan')):.0f} % of them",
               f"- time per diagnosis: median {s['time_s']['median']:.2f} s, p95 {s['time_s']['p95']:.2f} s, max {s['time_s']['max']:.2f} s",
               f"- concealed (plain FD ≥ 0.9 on P and Q): {100 * s['concealed_share']:.1f} % of cases; {s['n_cases']} cases", "",
               "| effect (when named) | n | median ΔVar P | median ΔVar Q | ≥50 % on acting channels | in-band ΔVar P | in-band ΔVar Q | ≥50 % in band on acting channels | median excess removed | median ΔFD P | median ΔFD Q | FD raised | parameter error |",

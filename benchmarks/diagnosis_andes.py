@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from aslm_core import Window, warmup
+from aslm_core import warmup
 from aslm_core.diagnosis import diagnose
-from benchmarks.andes_crosscheck import BUS, F0, resample, simulate
+from benchmarks.andes_crosscheck import noisy_window, resample, simulate
 
 RESULTS = Path(__file__).resolve().parent.parent / "docs" / "results" / "diagnosis_andes.json"
 SCENARIOS = ("model", "torque_only", "rs_only", "andes_default")
@@ -51,11 +51,7 @@ def main(argv: list[str] | None = None) -> int:
             for snr in args.snr_db:
                 rng = np.random.default_rng([seed, int(snr * 10)])
                 for t0, t1 in windows:
-                    sl = (rec["t"] >= t0 - 1e-9) & (rec["t"] <= t1 + 1e-9)
-                    P, Q = rec["P"][sl].copy(), rec["Q"][sl].copy()
-                    for x in (P, Q):
-                        x += rng.standard_normal(x.size) * np.std(x) * 10 ** (-snr / 20)
-                    w = Window(rec["t"][sl], rec["V"][sl], rec["theta"][sl], P, Q, f0=F0, bus=f"andes-bus{BUS}")
+                    w = noisy_window(rec, t0, t1, snr, rng)
                     t_ = time.perf_counter()
                     rep = diagnose(w)
                     top = rep.missing_physics[0]

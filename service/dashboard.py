@@ -38,8 +38,9 @@ class DiagnosisEntry(BaseModel):
     """One diagnosis of a bus, in the timeline of its page."""
 
     period: float = Field(description="Period boundary of the diagnosed window, UTC [s]")
-    verdict: str = Field(description="explained, consistent, unexplained or failed")
+    verdict: str = Field(description="explained, ambiguous, consistent, unexplained or failed")
     cause: str | None = Field(description="The named cause when explained")
+    causes: list[str] = Field(description="The candidates the data do not separate when ambiguous (the cause when explained)")
     message: str | None = Field(description="One sentence for people")
     channels: list[str] = Field(description="Channels (P, Q) where the residual exceeds the noise")
     fit_before: dict[str, float] | None = Field(description="Held-out fit of the plain model {fd_p, fd_q, ...}")
@@ -66,6 +67,7 @@ def _entry(payload: str) -> DiagnosisEntry:
     rep = json.loads(payload)
     located = rep.get("located") or {}
     return DiagnosisEntry(period=rep["period"], verdict=rep.get("verdict", "failed"), cause=rep.get("cause"),
+                          causes=rep.get("causes") or [],
                           message=rep.get("message"), channels=located.get("channels") or [],
                           fit_before=rep.get("fit_before"), fit_after=rep.get("fit_after"))
 

@@ -17,7 +17,7 @@ from service.latest import LatestResults
 #: States a row can be in (``state``) and verdicts of its latest diagnosis (``verdict``), counted over
 #: the fleet in this order.
 STATES = ("ok", "stale", "failed", "skipped", "pending")
-VERDICTS = ("explained", "unexplained", "consistent", "failed")
+VERDICTS = ("explained", "ambiguous", "unexplained", "consistent", "failed")
 
 #: A result older than this many periods marks its bus stale (one missed period is tolerated).
 STALE_PERIODS = 2.0
@@ -43,7 +43,7 @@ class FleetRow(BaseModel):
     static: dict[str, float | None] | None = Field(description="Static part (ZIP or exponential)")
     fit: dict[str, float | None] | None = Field(description="Fit degrees {fd_p, fd_q}")
     flags: list[str] = Field(description="Quality flags of the last successful result")
-    verdict: str | None = Field(description="Latest diagnosis verdict: explained, consistent, unexplained, failed")
+    verdict: str | None = Field(description="Latest diagnosis verdict: explained, ambiguous, consistent, unexplained, failed")
     cause: str | None = Field(description="Named cause of an explained verdict")
     diagnosis_period: float | None = Field(description="Period of the latest diagnosis, UTC [s]")
 
@@ -59,7 +59,7 @@ class FleetPage(BaseModel):
     desc: bool
     counts: dict[str, dict[str, int]] = Field(
         description="Over the whole fleet: {state: {ok, stale, failed, skipped, pending}, "
-                    "verdict: {explained, unexplained, consistent, failed}}")
+                    "verdict: {explained, ambiguous, unexplained, consistent, failed}}")
     now: float = Field(description="Server time the ages are counted from, UTC [s]")
     period_s: float = Field(description="Period T in force [s]")
     rows: list[FleetRow]

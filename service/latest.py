@@ -17,7 +17,7 @@ class Verdict(NamedTuple):
     """The headline of a bus's latest diagnosis (what the fleet table and the per-bus gauges show)."""
 
     verdict: str
-    """explained, consistent, unexplained or failed."""
+    """explained, ambiguous, consistent, unexplained or failed."""
     cause: str | None
     """The named cause when explained (else None)."""
     period: float

@@ -117,6 +117,8 @@ class CandidateEntryModel(BaseModel):
     note: str | None = Field(None, description="Why it was not tested (null when tested).")
     explained_fraction: float | None = Field(None, description="Share of the held-out ambient-band excess the candidate removes [-]; set on the top significant candidate only.")
     remaining_excess_channels: list[str] | None = Field(None, description="Channels still above the noise floor after the candidate; set on the top significant candidate only.")
+    separation_z: float | None = Field(None, description="Paired held-out statistic that the top significant candidate explains what this one leaves (N(0, 1) when this one is right) [-]; set on every other candidate that passes the held-out test and the penalty (its magnitude aside) when the top significant one explains the mismatch, null otherwise.")
+    separated: bool | None = Field(None, description="Whether the top significant candidate is significantly better than this one (Holm over the rivals); set with separation_z.")
 
 
 class NoiseFloorModel(BaseModel):
@@ -222,8 +224,9 @@ class ParameterMismatchModel(BaseModel):
 class DiagnosisReportModel(BaseModel):
     """Outcome of a diagnosis (DESIGN §4)."""
 
-    verdict: Literal["explained", "consistent", "unexplained"] = Field(description="explained, consistent or unexplained.")
-    cause: str | None = Field(description="The named cause when explained; null otherwise.")
+    verdict: Literal["explained", "ambiguous", "consistent", "unexplained"] = Field(description="explained, ambiguous, consistent or unexplained.")
+    cause: str | None = Field(description="The named cause when explained; null otherwise (also when ambiguous: no pick).")
+    causes: list[str] = Field(description="The candidates that explain the mismatch and that the held-out data do not separate, ordered by penalised gain: the one cause when explained, two or more when ambiguous, empty otherwise.")
     located: LocationModel = Field(description="Where the residual exceeds the expected noise.")
     missing_physics: list[CandidateEntryModel] = Field(description="Every candidate of the library, ranked by penalised gain (untested ones last).")
     fit_before: HeldOutFitModel = Field(description="Held-out fit of the plain model.")

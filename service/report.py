@@ -159,7 +159,7 @@ def write_report(report: DiagnosisReport, directory: str | Path, *, title: str =
         figs.append(names)
     fb, fa = report.fit_before, report.fit_after
     lines = [f"# Discrepancy diagnosis — {title}", "",
-             f"**Verdict: {report.verdict}**" + (f" — `{report.cause}`" if report.cause else ""), "",
+             f"**Verdict: {report.verdict}**" + (" — " + " | ".join(f"`{c}`" for c in report.causes) if report.causes else ""), "",
              report.message, "",
              "## Fit on held-out data (paper eq. 9)", "",
              "| | FD P | FD Q | RMS P [pu] | RMS Q [pu] |", "|---|---|---|---|---|",

@@ -22,10 +22,13 @@ Method (DESIGN §3)
    second motor, whose torque trades off against the first's) — are
    significant, ranked by the penalised gain.  A Diebold–Mariano
    statistic (HAC variance) is reported alongside.
-5. Verdict: ``explained`` when the top significant candidate removes at least ``explained_fraction`` of
-   the held-out ambient-band residual above the noise expectation; ``unexplained`` when the residual exceeds
-   the expected noise (or a candidate is significant but explains too little) — then only the location is reported;
-   otherwise ``consistent``.
+5. Verdict: the top significant candidate explains the mismatch when it removes at least
+   ``explained_fraction`` of the held-out ambient-band residual above the noise expectation.  It is named
+   (``explained``) only when a paired held-out test separates it from every rival — every other candidate
+   passing the score test and the penalty — with Holm's procedure over the rivals; otherwise the verdict
+   is ``ambiguous`` and ``causes`` lists the unseparated ones, no pick.  ``unexplained`` when the residual
+   exceeds the expected noise (or a candidate is significant but explains too little) — then only the
+   location is reported; otherwise ``consistent``.
 """
 
 from __future__ import annotations
@@ -33,9 +36,10 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy import stats
 
 from aslm_core.diagnosis import engine
 from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
@@ -87,6 +91,10 @@ class DiagnosisConfig:
         Upper edge of the ambient band the fits and held-out tests use [Hz].
     prediction_variance : bool
         Count the plain model's own held-out prediction uncertainty in the score test's variance.
+    separation_alpha : float
+        Family-wise error rate (Holm) of the paired held-out comparisons of the top significant candidate
+        with its rivals (the other candidates passing the score test and the penalty) [-]: a cause is
+        named only when every rival is rejected, otherwise the verdict is ``ambiguous``.
     """
 
     train_fraction: float = 0.65
@@ -97,6 +105,7 @@ class DiagnosisConfig:
     candidates: tuple[str, ...] = tuple(LIBRARY)
     band_hz: float = BAND_HZ
     prediction_variance: bool = True
+    separation_alpha: float = 0.05
 
 
 @dataclass
@@ -112,6 +121,8 @@ class _WindowAnalysis:
     refit_comp: engine.Comparison | None = None
     noise: NoiseModel | None = None
     floors: dict | None = None
+    weights: NoiseModel | None = None  # the fits' noise model (test_noise is ``noise``)
+    probes: dict = field(default_factory=dict)  # candidate → its input-noise draws (None: not modelled)
 
 
 def _plain_d(seg: Segment, previous, config: DiagnosisConfig) -> np.ndarray:
@@ -162,7 +173,7 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
     located = Location.from_locate(locate(rp, rq, seg.t[win], seg.fs, drivers, floors))
     g0 = (test_noise.probes_p, test_noise.probes_q) if test_noise.has_inputs else None
     pcov = engine.prediction_cov(_PLAIN, seg, ctx, plain, noise) if config.prediction_variance else None
-    fits, comps = {}, {}
+    fits, comps, probes = {}, {}, {}
     for name in config.candidates:
         cand = LIBRARY[name]
         if cand.not_applicable(ctx):
@@ -170,9 +181,11 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
         f = engine.fit_candidate(cand, seg, ctx, noise, d_start=plain.d)
         fits[name] = f
         g1 = _probes(seg, noise, cand, ctx, f) if g0 is not None else None
+        probes[name] = g1
         comps[name] = engine.compare(seg, plain, f, cand.n_params, test_noise, config.lag_s,
                                      probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
-    out = _WindowAnalysis(seg, ctx, sig, plain, located, fits, comps, noise=test_noise, floors=floors)
+    out = _WindowAnalysis(seg, ctx, sig, plain, located, fits, comps, noise=test_noise, floors=floors,
+                          weights=noise, probes=probes)
     if not ctx.free:
         ictx = Context("identified", _plain_d(seg, None, config))
         re = engine.fit_candidate(_PLAIN, seg, ictx, noise)
@@ -317,17 +330,30 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
     before = _mean_fit([_held_out_fit(a.seg, a.plain) for a in analyses])
     located = _locations(analyses)
     mismatch = bool(located.channels)
-    best = next((e for e in entries if e.significant), None)
-    verdict, cause, after, message = "consistent", None, before, "residual consistent with the noise floor"
+    significant = [e for e in entries if e.significant]
+    best = significant[0] if significant else None
+    verdict, cause, causes, after = "consistent", None, [], before
+    message = "residual consistent with the noise floor"
     if best is not None:
         frac = _explained_fraction(analyses, best.name)
         best.explained_fraction = frac
         left = _remaining(analyses, best.name)
         best.remaining_excess_channels = left
         if frac >= config.explained_fraction or not left:
-            verdict, cause = "explained", best.name
-            after = _mean_fit([_held_out_fit(a.seg, a.fits[cause]) for a in analyses])
-            message = f"{cause} explains {100 * frac:.0f} % of the held-out excess residual variance"
+            # Rivals: every other candidate that explains the held-out data (score test and penalty), the
+            # magnitude guard aside — a rival whose magnitude is loosely determined still fits as well.
+            rivals = [e for e in entries if e is not best and e.tested and e.score_z > zcrit
+                      and e.penalised_gain is not None and e.penalised_gain > 0]
+            tied = sorted([best, *_unseparated(analyses, best, rivals, config)], key=lambda e: -e.penalised_gain)
+            causes = [e.name for e in tied]
+            if len(tied) == 1:
+                verdict, cause = "explained", best.name
+                after = _mean_fit([_held_out_fit(a.seg, a.fits[cause]) for a in analyses])
+                message = f"{cause} explains {100 * frac:.0f} % of the held-out excess residual variance"
+            else:
+                verdict = "ambiguous"
+                message = (f"{' and '.join(causes)} explain the held-out excess about equally (the paired held-out "
+                           f"test does not separate them), so no single cause is named")
         else:
             verdict = "unexplained"
             message = (f"a real mismatch (in {', '.join(located.channels) or 'the held-out fit'}); the best "
@@ -349,7 +375,7 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         )
     series = [_series(a, cause) for a in analyses]
     return DiagnosisReport(
-        verdict=verdict, cause=cause, located=located, missing_physics=entries, fit_before=before,
+        verdict=verdict, cause=cause, causes=causes, located=located, missing_physics=entries, fit_before=before,
         fit_after=after, model=plain_model,
         noise=NoiseSummary(
             sigma_p=float(np.mean([a.sig[0] for a in analyses])), sigma_q=float(np.mean([a.sig[1] for a in analyses])),
@@ -363,6 +389,53 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         message=message, elapsed_s=time.perf_counter() - t0, mode=a0.ctx.mode,
         parameter_mismatch=mismatch_info, series=series,
     )
+
+
+def _separation_z(analyses: list[_WindowAnalysis], best: str, rival: str, config: DiagnosisConfig) -> float:
+    """Paired held-out statistic that ``best`` explains what ``rival`` leaves, Stouffer-combined over windows.
+
+    The score test of step 5 with the rival in the plain model's place: R = the rival's held-out residual,
+    D = best − rival (both fitted on the same training samples, so D is independent of the held-out noise),
+    z = Dᵀ·C⁻¹·R/√(Dᵀ·C⁻¹·D) with C the noise plus the rival's own prediction error, corrected for the
+    input noise both carry.  N(0, 1) when the rival is right; large when the best one is and the rival not.
+    """
+    zs = []
+    for a in analyses:
+        fb, fr = a.fits[best], a.fits[rival]
+        if not (fb.ok and fr.ok):
+            return -math.inf
+        cov = engine.prediction_cov(LIBRARY[rival], a.seg, a.ctx, fr, a.weights) if config.prediction_variance else None
+        gb, gr = a.probes.get(best), a.probes.get(rival)
+        c = engine.compare(a.seg, fr, fb, 0, a.noise, config.lag_s,
+                           probes=(gr, gb) if gb is not None and gr is not None else None, plain_cov=cov)
+        zs.append(c.score_z)
+    return float(sum(zs) / math.sqrt(len(zs)))
+
+
+def _unseparated(analyses: list[_WindowAnalysis], best: CandidateEntry, rivals: list[CandidateEntry],
+                 config: DiagnosisConfig) -> list[CandidateEntry]:
+    """The rivals the best candidate is not significantly better than on the held-out data.
+
+    Each rival gets its paired statistic (:func:`_separation_z`) and one-sided p-value; Holm's step-down
+    procedure at ``config.separation_alpha`` over the rivals decides which are separated (family-wise
+    error over the comparisons).  Rivals keep their order (penalised gain).
+    """
+    if not rivals:
+        return []
+    pvals = {}
+    for e in rivals:
+        e.separation_z = _separation_z(analyses, best.name, e.name, config)
+        pvals[e.name] = float(stats.norm.sf(e.separation_z)) if math.isfinite(e.separation_z) else 1.0
+        e.separated = False
+    m = len(rivals)
+    for j, name in enumerate(sorted(pvals, key=pvals.get)):
+        if pvals[name] > config.separation_alpha / (m - j):
+            break
+        next(e for e in rivals if e.name == name).separated = True
+    for e in rivals:  # JSON has no infinity
+        if not math.isfinite(e.separation_z):
+            e.separation_z = None
+    return [e for e in rivals if not e.separated]
 
 
 def _explained_fraction(analyses: list[_WindowAnalysis], name: str) -> float:

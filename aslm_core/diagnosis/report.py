@@ -132,6 +132,10 @@ class CandidateEntry(_Part):
         Share of the held-out ambient-band excess the candidate removes [-]; set on the top significant candidate only.
     remaining_excess_channels : list of str or None
         Channels still above the noise floor after the candidate; set on the top significant candidate only.
+    separation_z : float or None
+        Paired held-out statistic that the top significant candidate explains what this one leaves (N(0, 1) when this one is right) [-]; set on every other candidate that passes the held-out test and the penalty (its magnitude aside) when the top significant one explains the mismatch, null otherwise.
+    separated : bool or None
+        Whether the top significant candidate is significantly better than this one (Holm over the rivals); set with separation_z.
     """
 
     name: str
@@ -153,6 +157,8 @@ class CandidateEntry(_Part):
     note: str | None = None
     explained_fraction: float | None = None
     remaining_excess_channels: list[str] | None = None
+    separation_z: float | None = None
+    separated: bool | None = None
 
 
 @dataclass
@@ -429,9 +435,11 @@ class DiagnosisReport(_Part):
     Attributes
     ----------
     verdict : str
-        explained, consistent or unexplained.
+        explained, ambiguous, consistent or unexplained.
     cause : str or None
-        The named cause when explained; null otherwise.
+        The named cause when explained; null otherwise (also when ambiguous: no pick).
+    causes : list of str
+        The candidates that explain the mismatch and that the held-out data do not separate, ordered by penalised gain: the one cause when explained, two or more when ambiguous, empty otherwise.
     located : Location
         Where the residual exceeds the expected noise.
     missing_physics : list of CandidateEntry
@@ -460,6 +468,7 @@ class DiagnosisReport(_Part):
 
     verdict: str
     cause: str | None
+    causes: list[str]
     located: Location
     missing_physics: list[CandidateEntry]
     fit_before: HeldOutFit

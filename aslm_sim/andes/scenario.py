@@ -21,7 +21,8 @@ import numpy as np
 from scipy import signal
 
 __all__ = ["BUS", "CASE", "F0", "FS", "MAIN_SCENARIOS", "MOTOR", "NAMES", "PQ_AT_BUS", "SCENARIOS", "STATIC_PQ",
-           "ZIP_SHARES", "BusLoad", "lowpass_noise", "resample", "simulate", "simulate_load", "solve_power_flow"]
+           "ZIP_SHARES", "BusLoad", "lowpass_noise", "motor_equilibrium", "resample", "rotor_modes", "simulate",
+           "simulate_load", "solve_power_flow"]
 
 CASE = "ieee14/ieee14_full.xlsx"
 BUS = 9
@@ -90,35 +91,95 @@ def solve_power_flow(ss) -> None:
 
 
 def _init_motor_guess(ss) -> None:
-    """Overwrite ANDES's generic power-flow start of the motors (slip 1) with the low-slip equilibrium.
+    """Overwrite ANDES's generic power-flow start of the motors (slip 1) with their low-slip equilibrium.
 
     From ANDES's default start the Newton iteration diverged (KLU segfaulted on this case); starting from
-    the paper's closed-form equilibrium at the initial bus voltage converges in a few iterations.  A
-    ``Motor5``'s second cage starts at the first cage's voltage (the third-order equilibrium), close enough
-    for Newton.
+    the equilibrium at the initial bus voltage converges in a few iterations.  It is found from the
+    model's own equations (:func:`motor_equilibrium`), so rs, the torque law and Motor5's second cage count.
     """
     bus, dae = ss.Bus, ss.dae
     for m in (ss.Motor3, ss.Motor5):
-        second_cage = m is ss.Motor5
         for i in range(m.n):
             ub = bus.idx2uid(m.bus.v[i])
             v, ang = dae.y[bus.v.a[ub]], dae.y[bus.a.a[ub]]
             va = -v * math.sin(ang) + 1j * v * math.cos(ang)
-            x0, x1, t10, wb = m.x0.v[i], m.x1.v[i], m.T10.v[i], m.wb.v[i]
-            a, b = (x0 / x1 - 1) / (t10 * x1), x0 / (t10 * x1)
-            tm = m.c1.v[i] + m.c2.v[i] + m.c3.v[i]
-            c = 2 * tm * b * b / (a * v * v + math.sqrt(a * a * v**4 - 4 * tm * tm * b * b))
-            e = x1 * a / (b * b + c * c) * (b - 1j * c) * va
-            cur = (va - e) / (1j * x1)
+            sl, e1, e2, cur, tm = motor_equilibrium(m, i, va)
             s = va * np.conj(cur)
-            states = [(m.slip, c / wb), (m.e1d, e.real), (m.e1q, e.imag)]
-            if second_cage:
-                states += [(m.e2d, e.real), (m.e2q, e.imag)]
+            states = [(m.slip, sl), (m.e1d, e1.real), (m.e1q, e1.imag)]
+            if e2 is not None:
+                states += [(m.e2d, e2.real), (m.e2q, e2.imag)]
             for var, val in states:
                 dae.x[var.a[i]] = val
+            te = ((e1 if e2 is None else e2) * np.conj(cur)).real
             for var, val in ((m.vd, va.real), (m.vq, va.imag), (m.Id, cur.real), (m.Iq, cur.imag),
-                             (m.p, s.real), (m.q, s.imag), (m.te, (e * np.conj(cur)).real), (m.tm, tm)):
+                             (m.p, s.real), (m.q, s.imag), (m.te, te), (m.tm, tm)):
                 dae.y[var.a[i]] = val
+
+
+def motor_equilibrium(m, i: int, va: complex) -> tuple[float, complex, complex | None, complex, float]:
+    """Low-slip equilibrium of ANDES Motor3/Motor5 device ``i`` at the terminal voltage ``va`` (ANDES frame).
+
+    For a slip σ the rotor equations at rest are linear in E', (E'') and I; the slip is the smallest root of
+    τe(σ) = τm(σ) (scan, then bisection).
+
+    Returns
+    -------
+    tuple
+        σ [-], E' [pu], E'' [pu] (None for Motor3), I [pu] and τm [pu], all on the system base.
+    """
+    x0, x1, t10, wb, rs = (float(getattr(m, k).v[i]) for k in ("x0", "x1", "T10", "wb", "rs"))
+    five = hasattr(m, "x2")
+    x2, t20 = (float(m.x2.v[i]), float(m.T20.v[i])) if five else (x1, 1.0)
+    aa, bb, c2 = float(m.aa.v[i]), float(m.bb.v[i]), float(m.c2.v[i])
+
+    def solve(sig: float):
+        # Unknowns [E1, E2, I]; Motor3 has E2 = E1.
+        w = 1j * wb * sig
+        a = np.zeros((3, 3), complex)
+        rhs = np.zeros(3, complex)
+        a[0] = [-w - 1 / t10, 0, 1j * (x0 - x1) / t10]
+        if five:
+            a[1] = [-1 / t10 + 1 / t20, -w - 1 / t20, 1j * (x0 - x1) / t10 + 1j * (x1 - x2) / t20]
+        else:
+            a[1] = [1, -1, 0]
+        a[2] = [0, 1, rs + 1j * x2]
+        rhs[2] = va
+        e1, e2, cur = np.linalg.solve(a, rhs)
+        return e1, e2, cur, (e2 * np.conj(cur)).real - (aa + bb * sig + c2 * sig * sig)
+
+    lo = 0.0
+    for hi in np.geomspace(1e-7, 0.5, 400):
+        if solve(hi)[3] > 0:
+            break
+        lo = hi
+    else:
+        raise RuntimeError("no motor equilibrium below slip 0.5")
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if solve(mid)[3] > 0 else (mid, hi)
+    sig = 0.5 * (lo + hi)
+    e1, e2, cur, _ = solve(sig)
+    return sig, e1, (e2 if five else None), cur, aa + bb * sig + c2 * sig * sig
+
+
+def rotor_modes(m, i: int = 0) -> np.ndarray:
+    """The rotor circuits of ANDES Motor5 device ``i`` as the transformed model's modes [[a1, b1], [a2, b2]].
+
+    With rs = 0 the stator current is (V − E'')/(jX''); the rotor equations are then linear in (E', E'')
+    with the same −jωs rotation on both, and F = E''/X'' (the paper's transformed state) is the sum of
+    two modes dF_k/dt = −b_k·F_k + a_k·V − jsω0·F_k: b_k the eigenvalues' negatives, a_k the residues of
+    the transfer function V → F.  The slower mode first [1/s].
+    """
+    x0, x1, x2, t10, t20 = (float(getattr(m, k).v[i]) for k in ("x0", "x1", "x2", "T10", "T20"))
+    g = (x0 - x1) / (x2 * t10)  # j(X − X')·I/T10 = g·(V − E'')
+    h = (x1 - x2) / (x2 * t20)  # j(X' − X'')·I/T20 = h·(V − E'')
+    amat = np.array([[-1 / t10, -g], [-1 / t10 + 1 / t20, -g - 1 / t20 - h]])
+    bvec = np.array([g, g + h])
+    lam, vec = np.linalg.eig(amat)
+    cvec = np.array([0.0, 1.0 / x2]) @ vec
+    res = cvec * np.linalg.solve(vec, bvec)
+    out = sorted(zip(-lam.real, res.real, strict=True))
+    return np.array([[r, b] for b, r in out])
 
 
 @dataclass(frozen=True)
@@ -151,8 +212,8 @@ class BusLoad:
 
 
 def simulate(scenario: str, *, tf: float, tstep: float, amp: float, seed: int, tol: float = 1e-8,
-             numba: bool = True) -> dict:
-    """Run one of :data:`SCENARIOS` (one ``Motor3`` with :data:`MOTOR` data and a ZIP load at bus 9).
+             numba: bool = True, model: str = "Motor3", motor_data: dict | None = None) -> dict:
+    """Run one of :data:`SCENARIOS` (one motor with :data:`MOTOR` data and a ZIP load at bus 9).
 
     Parameters
     ----------
@@ -160,14 +221,25 @@ def simulate(scenario: str, *, tf: float, tstep: float, amp: float, seed: int, t
         A key of :data:`SCENARIOS`.
     tf, tstep, amp, seed, tol, numba :
         As in :func:`simulate_load`.
+    model : str
+        The ANDES motor model, ``"Motor3"`` or ``"Motor5"``.
+    motor_data : dict, optional
+        Overrides of :data:`MOTOR` and the scenario (device base, e.g. ``{"rs": 0.02}`` or Motor5's ``xr2``,
+        ``rr2``).
 
     Returns
     -------
     dict
-        :func:`simulate_load`'s record.
+        :func:`simulate_load`'s record; for Motor5 also ``modes``, its two rotor modes in the transformed
+        model (:func:`rotor_modes`), and ``truth`` then holds the slower one's a, b.
     """
-    load = BusLoad(motors=(("Motor3", {**MOTOR, **SCENARIOS[scenario]}),))
-    return simulate_load(load, tf=tf, tstep=tstep, amp=amp, seed=seed, tol=tol, numba=numba)
+    load = BusLoad(motors=((model, {**MOTOR, **SCENARIOS[scenario], **(motor_data or {})}),))
+    out = simulate_load(load, tf=tf, tstep=tstep, amp=amp, seed=seed, tol=tol, numba=numba)
+    modes = out["motors"][0].get("modes")
+    out["modes"] = modes
+    if modes is not None:
+        out["truth"][:2] = modes[0]
+    return out
 
 
 def simulate_load(load: BusLoad, *, tf: float, tstep: float, amp: float, seed: int, tol: float = 1e-8,
@@ -276,8 +348,8 @@ def simulate_load(load: BusLoad, *, tf: float, tstep: float, amp: float, seed: i
     if first is not None:
         if load.fload is None:  # the identifier's convention: Qz includes the motor's V²/X'
             static_truth["Qz"] = static_truth["Qz"] + 1.0 / first["x1"]
-        out.update(truth=np.array(first["d"]), x1=first["x1"], slip0=first["slip0"], rs_sys=first["rs_sys"],
-                   tm_slope=first["tm_slope"])
+        out.update(truth=np.array(first["d"]), x0=first["x0"], x1=first["x1"], slip0=first["slip0"],
+                   rs_sys=first["rs_sys"], tm_slope=first["tm_slope"])
     if relay is not None:
         out["switchings"] = relay.switchings
     return out
@@ -297,8 +369,8 @@ def _motor_facts(m, model: str, i: int) -> dict:
     """A motor's D converted to the paper's form (docs/andes_crosscheck.md) and its power-flow facts."""
     x0, x1, t10 = float(m.x0.v[i]), float(m.x1.v[i]), float(m.T10.v[i])
     d = [(x0 / x1 - 1) / (t10 * x1), x0 / (t10 * x1), float(m.M.v[i]), float(m.tm.v[i])]
-    return {"model": model, "d": d, "x1": x1, "slip0": float(m.slip.v[i]), "rs_sys": float(m.rs.v[i]),
-            "tm_slope": float(m.bb.v[i])}
+    return {"model": model, "d": d, "x0": x0, "x1": x1, "slip0": float(m.slip.v[i]), "rs_sys": float(m.rs.v[i]),
+            "tm_slope": float(m.bb.v[i]), "modes": rotor_modes(m, i).tolist() if model == "Motor5" else None}
 
 
 def _own_factors(own: dict | None, n: int, tstep: float, rng: np.random.Generator):

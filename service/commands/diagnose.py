@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _human(path: str, report: DiagnosisReport, report_path: str | None) -> str:
     fb, fa = report.fit_before, report.fit_after
-    lines = [f"{path}: {report.verdict}" + (f" — {report.cause}" if report.cause else ""), f"  {report.message}",
+    lines = [f"{path}: {report.verdict}" + (f" — {' | '.join(report.causes)}" if report.causes else ""), f"  {report.message}",
              f"  held-out FD before: P {fb.fd_p:.4f}  Q {fb.fd_q:.4f}   after: P {fa.fd_p:.4f}  Q {fa.fd_q:.4f}"]
     loc = report.located
     if loc.channels:

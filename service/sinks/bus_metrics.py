@@ -19,7 +19,7 @@ from service.latest import LatestResults, verdict_of
 from service.models import BusResult, PeriodSummary
 
 #: Value of ``aslm_diagnosis_verdict`` for each verdict (Grafana's value mappings use the same table).
-VERDICT_CODES = {"consistent": 0, "explained": 1, "unexplained": 2, "failed": 3}
+VERDICT_CODES = {"consistent": 0, "explained": 1, "unexplained": 2, "failed": 3, "ambiguous": 4}
 #: Value of ``aslm_bus_status`` for the latest result's status.
 STATUS_CODES = {"ok": 0, "skipped": 1, "failed": 2}
 
@@ -28,7 +28,7 @@ FAMILIES = {
     "aslm_parameter": "Latest identified D of the bus, label name: a [1/s], b [1/s], H2 [s], Tm [pu]",
     "aslm_parameter_stderr": "Standard error of the latest identified D, same units",
     "aslm_fit_degree": "Fit degree of the latest identification (paper eq. 9), label channel: p, q [-]",
-    "aslm_diagnosis_verdict": "Latest diagnosis verdict: 0 consistent, 1 explained, 2 unexplained, 3 failed",
+    "aslm_diagnosis_verdict": "Latest diagnosis verdict: 0 consistent, 1 explained, 2 unexplained, 3 failed, 4 ambiguous",
     "aslm_bus_result_period_timestamp_seconds": "Period of the latest successful result, UTC [s]",
     "aslm_bus_status": "Status of the latest result: 0 ok, 1 skipped, 2 failed",
 }

@@ -5,7 +5,7 @@
   const PARAMS = ["a", "b", "H2", "Tm"];
   const UNITS = { a: "1/s", b: "1/s", H2: "s", Tm: "pu" };
   const STATES = ["ok", "stale", "failed", "skipped", "pending"];
-  const VERDICTS = ["explained", "unexplained", "consistent", "failed"];
+  const VERDICTS = ["explained", "ambiguous", "unexplained", "consistent", "failed"];
   const SPANS = [[3600, "1 h"], [6 * 3600, "6 h"], [86400, "24 h"], [7 * 86400, "7 d"], [30 * 86400, "30 d"]];
   const ui = {
     timer: null, busy: false, again: false, charts: {}, bus: null, span: 86400,
@@ -276,7 +276,7 @@
     drawHistory(history);
     drawPlayback(pb);
     $("#diagnoses tbody").replaceChildren(...diagnoses.map((e) => el("tr", {}, [
-      utc(e.period), el("span", { class: `verdict ${e.verdict}` }, e.verdict), e.cause || "–", e.channels.join(" ") || "–",
+      utc(e.period), el("span", { class: `verdict ${e.verdict}` }, e.verdict), e.cause || (e.causes || []).join(" | ") || "–", e.channels.join(" ") || "–",
       e.fit_before ? `${fmt(e.fit_before.fd_p)} → ${fmt(e.fit_after && e.fit_after.fd_p)}` : "–",
       e.fit_before ? `${fmt(e.fit_before.fd_q)} → ${fmt(e.fit_after && e.fit_after.fd_q)}` : "–",
       e.message || "",

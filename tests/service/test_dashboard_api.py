@@ -121,7 +121,8 @@ def test_fleet_rows_carry_the_last_known_values_state_and_verdict(dash):
     assert rows["new"]["dynamic"] is None and rows["new"]["age_s"] is None
     assert rows["old"]["age_s"] == pytest.approx(3 * view.period_s, abs=5.0)
     assert page["counts"] == {"state": {"ok": 1, "stale": 1, "failed": 1, "skipped": 1, "pending": 1},
-                              "verdict": {"explained": 1, "unexplained": 1, "consistent": 0, "failed": 0}}
+                              "verdict": {"explained": 1, "ambiguous": 0, "unexplained": 1, "consistent": 0,
+                                          "failed": 0}}
 
 
 def test_fleet_filters_sorts_and_pages_on_the_server(dash):

@@ -19,6 +19,8 @@ MODULES: tuple[str, ...] = (
     "motor_stator_dynamics",
     "measurement_skew",
     "inverter_der",
+    "stator_resistance",
+    "double_cage_rotor",
 )
 
 

@@ -18,6 +18,8 @@ locate = importlib.import_module("aslm_core.diagnosis.locate")
 playback = importlib.import_module("aslm_core.diagnosis.playback")
 report = importlib.import_module("aslm_core.diagnosis.report")
 
+ANDES_PROVEN = {"stator_resistance", "double_cage_rotor"}
+
 
 def test_exported_names():
     assert set(diag.__all__) == {"DiagnosisConfig", "DiagnosisReport", "Playback", "diagnose", "diagnose_dict",
@@ -38,7 +40,9 @@ def test_every_candidate_module_is_registered_and_documents_equations_units_sign
     on_disk = {p.stem for p in folder.glob("*.py")} - {"__init__", "base"}
     assert set(candidates.MODULES) == on_disk
     assert list(LIBRARY) == list(candidates.MODULES)
-    assert set(LIBRARY) == set(LIBRARY_EFFECTS)  # every candidate has a concealed effect to find
+    # Every candidate has a concealed effect to find, except those whose truth an independent simulator
+    # writes (ANDES Motor3 with rs, Motor5): test_diagnosis_andes_candidates.py; the issue-12 benchmark.
+    assert set(LIBRARY) - ANDES_PROVEN == set(LIBRARY_EFFECTS)
     for name, cand in LIBRARY.items():
         doc = inspect.getmodule(type(cand)).__doc__
         assert "Notes" in doc and "Signature" in doc and "[" in doc, name
