@@ -122,6 +122,15 @@ def motor_equilibrium(m, i: int, va: complex) -> tuple[float, complex, complex |
     For a slip σ the rotor equations at rest are linear in E', (E'') and I; the slip is the smallest root of
     τe(σ) = τm(σ) (scan, then bisection).
 
+    Parameters
+    ----------
+    m : andes model
+        ``ss.Motor3`` or ``ss.Motor5`` after setup (its parameters on the system base).
+    i : int
+        Index of the device within the model.
+    va : complex
+        Terminal voltage phasor in ANDES's frame [pu].
+
     Returns
     -------
     tuple
@@ -168,7 +177,19 @@ def rotor_modes(m, i: int = 0) -> np.ndarray:
     With rs = 0 the stator current is (V − E'')/(jX''); the rotor equations are then linear in (E', E'')
     with the same −jωs rotation on both, and F = E''/X'' (the paper's transformed state) is the sum of
     two modes dF_k/dt = −b_k·F_k + a_k·V − jsω0·F_k: b_k the eigenvalues' negatives, a_k the residues of
-    the transfer function V → F.  The slower mode first [1/s].
+    the transfer function V → F.
+
+    Parameters
+    ----------
+    m : andes model
+        ``ss.Motor5`` after setup (its parameters on the system base).
+    i : int
+        Index of the device within the model.
+
+    Returns
+    -------
+    numpy.ndarray
+        [[a1, b1], [a2, b2]] [1/s], the slower mode first.
     """
     x0, x1, x2, t10, t20 = (float(getattr(m, k).v[i]) for k in ("x0", "x1", "x2", "T10", "T20"))
     g = (x0 - x1) / (x2 * t10)  # j(X − X')·I/T10 = g·(V − E'')
