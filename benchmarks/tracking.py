@@ -29,7 +29,7 @@ Seeds are fixed in advance (one block per part); the detector's threshold is set
 rate before any run (no tuning).
 
     .venv/bin/python -m benchmarks.tracking [--quick] [--parts pooled step ...] [--calibrate]
-    .venv/bin/python -m benchmarks.tracking --parts andes_step [--andes-runs 16]
+    .venv/bin/python -m benchmarks.tracking --parts andes_step [--andes-runs 20]
 """
 
 from __future__ import annotations
@@ -411,7 +411,7 @@ def main() -> None:
     p.add_argument("--parts", nargs="+", default=[*SEEDS, "service_cost"],
                    choices=[*SEEDS, "service_cost", "andes_step"],
                    help="run these parts only (their results replace those parts in the JSON file)")
-    p.add_argument("--andes-runs", type=int, default=None, help="ANDES runs of andes_step (default 16; --quick 2)")
+    p.add_argument("--andes-runs", type=int, default=None, help="ANDES runs of andes_step (default 20; --quick 2)")
     args = p.parse_args()
     q = args.quick
     if args.calibrate:
@@ -431,7 +431,7 @@ def main() -> None:
                                  for snr in (22.0, 14.0)],
         "drift": lambda: part_drift(3 if q else 10, (4, 16), 22.0, config.false_alarms_per_day),
         "service_cost": lambda: part_service_cost(50 if q else 500, 20),
-        "andes_step": lambda: part_andes_step(args.andes_runs or (2 if q else 16), config),
+        "andes_step": lambda: part_andes_step(args.andes_runs or (2 if q else 20), config),
     }
     for part in args.parts:
         t0 = time.time()
