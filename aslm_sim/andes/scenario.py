@@ -122,6 +122,15 @@ def motor_equilibrium(m, i: int, va: complex) -> tuple[float, complex, complex |
     For a slip σ the rotor equations at rest are linear in E', (E'') and I; the slip is the smallest root of
     τe(σ) = τm(σ) (scan, then bisection).
 
+    Parameters
+    ----------
+    m : andes Motor3 or Motor5 model
+        The system's motor model (its parameters on the system base).
+    i : int
+        Device index within the model.
+    va : complex
+        Terminal voltage in ANDES's frame, vd + j·vq [pu].
+
     Returns
     -------
     tuple
@@ -169,6 +178,13 @@ def rotor_modes(m, i: int = 0) -> np.ndarray:
     with the same −jωs rotation on both, and F = E''/X'' (the paper's transformed state) is the sum of
     two modes dF_k/dt = −b_k·F_k + a_k·V − jsω0·F_k: b_k the eigenvalues' negatives, a_k the residues of
     the transfer function V → F.  The slower mode first [1/s].
+
+    Parameters
+    ----------
+    m : andes Motor5 model
+        The system's Motor5 model (its parameters on the system base).
+    i : int
+        Device index within the model.
     """
     x0, x1, x2, t10, t20 = (float(getattr(m, k).v[i]) for k in ("x0", "x1", "x2", "T10", "T20"))
     g = (x0 - x1) / (x2 * t10)  # j(X − X')·I/T10 = g·(V − E'')
