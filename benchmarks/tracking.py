@@ -45,6 +45,7 @@ import time  # noqa: E402
 import zlib  # noqa: E402
 from dataclasses import replace  # noqa: E402
 from statistics import NormalDist  # noqa: E402
+from typing import TYPE_CHECKING  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -55,6 +56,9 @@ from aslm_sim.cases import make_cases  # noqa: E402
 from aslm_sim.network import draw_network  # noqa: E402
 from aslm_sim.truth import random_truth  # noqa: E402
 from benchmarks import common  # noqa: E402
+
+if TYPE_CHECKING:
+    from aslm_sim.andes.scenario import BusLoad
 
 SEEDS = {"pooled": 1801, "step": 1802, "false_alarms": 1803, "drift": 1804}
 #: Development seeds: the calibration of the standard errors' scale (``--calibrate``), never reported on.
@@ -247,7 +251,7 @@ def part_calibrate(n_buses: int, n_periods: int, snr_db: float, config: TrackerC
             "scale": float(np.quantile(z.ravel(), 1.0 - tail) / h)}
 
 
-def andes_step_load(seed: int, share: float, t_switch: float):
+def andes_step_load(seed: int, share: float, t_switch: float) -> BusLoad:
     """Bus 9's load of one ``andes_step`` run: the clean scenario's motor and a second one switched on.
 
     Parameters
@@ -277,6 +281,21 @@ def andes_step_truth(motors: list[dict]) -> tuple[np.ndarray, np.ndarray]:
 
     Two motors at one bus with the same per-unit data and slip are one motor of their summed size: a, H2
     and Tm add on the system base, b = X/(Td0·X') is the same for both.
+
+    Parameters
+    ----------
+    motors : list of dict
+        :func:`aslm_sim.andes.scenario.simulate_load`'s ``motors`` (each with ``d``), the first two used.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        D = [a [1/s], b [1/s], H2 [s], Tm [pu]] before and after.
+
+    Raises
+    ------
+    ValueError
+        The two motors' b differ: they are not one motor scaled.
     """
     d1, d2 = np.array(motors[0]["d"]), np.array(motors[1]["d"])
     if not math.isclose(d1[1], d2[1], rel_tol=1e-9):
@@ -318,7 +337,23 @@ def andes_step_record(seed: int, cfg: dict) -> dict:
 
 def part_andes_step(n_runs: int, config: TrackerConfig, cfg: dict = ANDES_STEP) -> dict:
     """ANDES runs with a second motor switched on at a known time: detection delay, alarms before it, and
-    the tracked D before and after against ANDES's converted truth."""
+    the tracked D before and after against ANDES's converted truth.
+
+    Parameters
+    ----------
+    n_runs : int
+        Runs (run i seeded from ``[cfg["seed"], i]``).
+    config : TrackerConfig
+        The tracker's settings (the service's).
+    cfg : dict
+        :data:`ANDES_STEP`'s keys.
+
+    Returns
+    -------
+    dict
+        Shares detected within 2 periods and by the end, delays [periods after the first window past the
+        switch], alarms before it, tracked/true ratios before and after, per-window σ, and every run.
+    """
     from benchmarks.andes_crosscheck import noisy_window
 
     nb, w = cfg["n_before"], cfg["window_s"]
