@@ -17,6 +17,9 @@ service does (3 random starts plus the previous window's D as warm start); the t
    of the tracked Tm behind the truth (the shift minimising the RMS between them) for k = 4 and 16.
 5. ``service_cost``: time of the service's ``tracking`` sink per bus and period (500 buses × 20 periods,
    SQLite in a temporary file, no publication).
+   ``joint_cost`` (not in the default parts): the CPU of refitting the joint pooled fit each period
+   (k = 16, started from the windows' median or from the previous period's joint D) against one window's
+   warm-started identification, 20 buses at 14 dB: what the joint fit would cost in the service.
 6. ``andes_step`` (not in the default parts: it needs the optional ``andes`` package and ~2 min of CPU per
    run): the same step on an independent simulator.  ANDES's IEEE 14-bus case with bus 9's motor drawn as
    in the clean diagnosis scenario (:func:`aslm_sim.andes.effects.build`) and a second Motor3, identical
@@ -404,6 +407,45 @@ def part_andes_step(n_runs: int, config: TrackerConfig, cfg: dict = ANDES_STEP) 
             "runs": runs}
 
 
+def part_joint_cost(n_buses: int, k: int) -> dict:
+    """Worker CPU of the joint pooled fit as the service would run it, against one window's identification.
+
+    Per bus (stationary, 14 dB, k + 1 windows): the joint fit on windows 1..k started from their
+    estimates' median (as the ``pooled`` part), the same fit started from the previous pool's joint D
+    (windows 0..k−1: what a service refitting each period would have), and the warm-started
+    identification of window k; thread CPU time [s], the three interleaved per bus.
+    """
+    rows = {"joint_from_median": [], "joint_from_previous": [], "window_warm": []}
+    iters = {"joint_from_median": [], "joint_from_previous": []}
+    deltas = []
+    for bus in range(n_buses):
+        windows, _ = bus_windows(SEEDS["pooled"] + 100, bus, np.ones(k + 1), 14.0)
+        d, _ = estimates(windows)
+        if not np.all(np.isfinite(d)):
+            continue
+        try:
+            previous = identify_pooled(windows[:k], start=np.median(d[:k], axis=0))
+            c0 = time.thread_time()
+            from_median = identify_pooled(windows[1:], start=np.median(d[1:], axis=0))
+            c1 = time.thread_time()
+            from_previous = identify_pooled(windows[1:], start=previous.d)
+            c2 = time.thread_time()
+            identify(windows[k], warm_start=d[k - 1])
+            c3 = time.thread_time()
+        except WindowError:
+            continue
+        rows["joint_from_median"].append(c1 - c0)
+        rows["joint_from_previous"].append(c2 - c1)
+        rows["window_warm"].append(c3 - c2)
+        iters["joint_from_median"].append(from_median.iterations)
+        iters["joint_from_previous"].append(from_previous.iterations)
+        deltas.append(np.max(np.abs(from_previous.d / from_median.d - 1.0)))
+    return {"k": k, "n_buses": len(deltas), "cpu_s_median": {key: float(np.median(v)) for key, v in rows.items()},
+            "cpu_s": rows, "iterations_median": {key: float(np.median(v)) for key, v in iters.items()},
+            "max_rel_diff_of_the_two_joint_fits": float(np.max(deltas)),
+            "load_avg": [round(x, 2) for x in os.getloadavg()]}
+
+
 def part_service_cost(n_buses: int, n_periods: int) -> dict:
     """Time of the service's tracking sink per bus and period: tracker update, model, SQLite row, put."""
     import tempfile
@@ -444,7 +486,7 @@ def main() -> None:
     p = common.parser(__doc__.splitlines()[0])
     p.add_argument("--calibrate", action="store_true", help="only the development-seed calibration of se_scale")
     p.add_argument("--parts", nargs="+", default=[*SEEDS, "service_cost"],
-                   choices=[*SEEDS, "service_cost", "andes_step"],
+                   choices=[*SEEDS, "service_cost", "andes_step", "joint_cost"],
                    help="run these parts only (their results replace those parts in the JSON file)")
     p.add_argument("--andes-runs", type=int, default=None, help="ANDES runs of andes_step (default 20; --quick 2)")
     args = p.parse_args()
@@ -467,6 +509,7 @@ def main() -> None:
         "drift": lambda: part_drift(3 if q else 10, (4, 16), 22.0, config.false_alarms_per_day),
         "service_cost": lambda: part_service_cost(50 if q else 500, 20),
         "andes_step": lambda: part_andes_step(args.andes_runs or (2 if q else 20), config),
+        "joint_cost": lambda: part_joint_cost(3 if q else 20, 16),
     }
     for part in args.parts:
         t0 = time.time()
