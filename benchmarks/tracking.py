@@ -17,11 +17,22 @@ service does (3 random starts plus the previous window's D as warm start); the t
    of the tracked Tm behind the truth (the shift minimising the RMS between them) for k = 4 and 16.
 5. ``service_cost``: time of the service's ``tracking`` sink per bus and period (500 buses × 20 periods,
    SQLite in a temporary file, no publication).
+   ``joint_cost`` (not in the default parts): the CPU of refitting the joint pooled fit each period
+   (k = 16, started from the windows' median or from the previous period's joint D) against one window's
+   warm-started identification, 20 buses at 14 dB: what the joint fit would cost in the service.
+6. ``andes_step`` (not in the default parts: it needs the optional ``andes`` package and ~2 min of CPU per
+   run): the same step on an independent simulator.  ANDES's IEEE 14-bus case with bus 9's motor drawn as
+   in the clean diagnosis scenario (:func:`aslm_sim.andes.effects.build`) and a second Motor3, identical
+   per unit and 20 % of its size, switched on by ANDES's ``Toggle`` after 8 windows; 4 windows after it.
+   One continuous run per seed; each period is one 10 s window of it (22 dB on P and Q), identified and
+   tracked as above; the truth before and after is ANDES's motor data converted to D (the two motors have
+   the same slip, so together they are one motor 1.2× the size: a, H2, Tm × 1.2, b unchanged).
 
 Seeds are fixed in advance (one block per part); the detector's threshold is set from its false-alarm
 rate before any run (no tuning).
 
     .venv/bin/python -m benchmarks.tracking [--quick] [--parts pooled step ...] [--calibrate]
+    .venv/bin/python -m benchmarks.tracking --parts andes_step [--andes-runs 20]
 """
 
 from __future__ import annotations
@@ -34,7 +45,10 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
 import json  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
+import zlib  # noqa: E402
+from dataclasses import replace  # noqa: E402
 from statistics import NormalDist  # noqa: E402
+from typing import TYPE_CHECKING  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -46,6 +60,9 @@ from aslm_sim.network import draw_network  # noqa: E402
 from aslm_sim.truth import random_truth  # noqa: E402
 from benchmarks import common  # noqa: E402
 
+if TYPE_CHECKING:
+    from aslm_sim.andes.scenario import BusLoad
+
 SEEDS = {"pooled": 1801, "step": 1802, "false_alarms": 1803, "drift": 1804}
 #: Development seeds: the calibration of the standard errors' scale (``--calibrate``), never reported on.
 DEV_SEED = 2801
@@ -53,6 +70,11 @@ PERIOD_S = 900.0
 PERIODS_PER_DAY = 96
 STEP = 1.2
 DRIFT_AMPLITUDE = 0.2
+#: The ANDES runs of ``andes_step`` (seed of run i: [seed, i]): windows before and after the switch, their
+#: length, the settling time before the first window and between the switch and the next window [s], the
+#: second motor's size relative to the first, ANDES's step [s] and the ambient amplitude on the other loads.
+ANDES_STEP = {"seed": 1805, "n_before": 8, "n_after": 4, "window_s": 10.0, "lead_s": 2.0, "gap_s": 2.0,
+              "share": STEP - 1.0, "snr_db": 22.0, "tstep": 0.01, "amp": 0.15}
 
 
 def bus_windows(seed: int, bus: int, factors: np.ndarray, snr_db: float) -> tuple[list, np.ndarray]:
@@ -232,6 +254,198 @@ def part_calibrate(n_buses: int, n_periods: int, snr_db: float, config: TrackerC
             "scale": float(np.quantile(z.ravel(), 1.0 - tail) / h)}
 
 
+def andes_step_load(seed: int, share: float, t_switch: float) -> BusLoad:
+    """Bus 9's load of one ``andes_step`` run: the clean scenario's motor and a second one switched on.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the drawn motor (:func:`aslm_sim.andes.effects.build`, kind ``clean``).
+    share : float
+        Size of the second motor relative to the first [-]; its data are the first's per unit on its own
+        base, its torque c1 (system base) scaled with its size, so both run at the same slip.
+    t_switch : float
+        When ANDES's ``Toggle`` switches it on [s].
+
+    Returns
+    -------
+    aslm_sim.andes.scenario.BusLoad
+    """
+    from aslm_sim.andes import effects
+
+    load, _ = effects.build("clean", seed)
+    model, data = load.motors[0]
+    second = {**data, "Sn": data["Sn"] * share, "c1": data["c1"] * share, "u": 0}
+    return replace(load, motors=(load.motors[0], (model, second)), toggles=((1, t_switch),))
+
+
+def andes_step_truth(motors: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+    """D before and after the second motor switches on, from ANDES's converted motor data.
+
+    Two motors at one bus with the same per-unit data and slip are one motor of their summed size: a, H2
+    and Tm add on the system base, b = X/(Td0·X') is the same for both.
+
+    Parameters
+    ----------
+    motors : list of dict
+        :func:`aslm_sim.andes.scenario.simulate_load`'s ``motors`` (each with ``d``), the first two used.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        D = [a [1/s], b [1/s], H2 [s], Tm [pu]] before and after.
+
+    Raises
+    ------
+    ValueError
+        The two motors' b differ: they are not one motor scaled.
+    """
+    d1, d2 = np.array(motors[0]["d"]), np.array(motors[1]["d"])
+    if not math.isclose(d1[1], d2[1], rel_tol=1e-9):
+        raise ValueError("the two motors differ per unit: their sum is not one motor")
+    return d1, np.array([d1[0] + d2[0], d1[1], d1[2] + d2[2], d1[3] + d2[3]])
+
+
+def andes_step_record(seed: int, cfg: dict) -> dict:
+    """One ``andes_step`` run at 100 Hz (``t``, ``V``, ``theta``, ``P``, ``Q``) and its ``meta``; cached.
+
+    ANDES's runs are kept in :func:`aslm_sim.andes.effects.cache_dir` keyed by the seed and ``cfg``: a part
+    re-run for its report does not simulate again.
+    """
+    from aslm_sim.andes import effects
+    from aslm_sim.andes.scenario import resample, simulate_load
+
+    w = cfg["window_s"]
+    t_switch = cfg["lead_s"] + cfg["n_before"] * w
+    tf = t_switch + cfg["gap_s"] + cfg["n_after"] * w
+    key = zlib.crc32(json.dumps({**cfg, "seed": seed}, sort_keys=True).encode())
+    path = effects.cache_dir() / f"tracking-step-{seed}-{key:08x}.npz"
+    if path.exists():
+        with np.load(path) as z:
+            rec = {k: z[k] for k in ("t", "V", "theta", "P", "Q")}
+            rec["meta"] = json.loads(str(z["meta"]))
+        return rec
+    sim = simulate_load(andes_step_load(seed, cfg["share"], t_switch), tf=tf, tstep=cfg["tstep"], amp=cfg["amp"],
+                        seed=seed)
+    rec = {k: v for k, v in resample(sim).items() if k in ("t", "V", "theta", "P", "Q")}
+    meta = json.dumps({"seed": seed, "t_switch": t_switch, "tf": tf, "motors": sim["motors"], "tds_s": sim["tds_s"],
+                       "andes_version": sim["andes_version"], "load_avg": os.getloadavg()}, default=float)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, **rec, meta=meta)
+    tmp.replace(path)
+    rec["meta"] = json.loads(meta)
+    return rec
+
+
+def part_andes_step(n_runs: int, config: TrackerConfig, cfg: dict = ANDES_STEP) -> dict:
+    """ANDES runs with a second motor switched on at a known time: detection delay, alarms before it, and
+    the tracked D before and after against ANDES's converted truth.
+
+    Parameters
+    ----------
+    n_runs : int
+        Runs (run i seeded from ``[cfg["seed"], i]``).
+    config : TrackerConfig
+        The tracker's settings (the service's).
+    cfg : dict
+        :data:`ANDES_STEP`'s keys.
+
+    Returns
+    -------
+    dict
+        Shares detected within 2 periods and by the end, delays [periods after the first window past the
+        switch], alarms before it, tracked/true ratios before and after, per-window σ, and every run.
+    """
+    from benchmarks.andes_crosscheck import noisy_window
+
+    nb, w = cfg["n_before"], cfg["window_s"]
+    runs = []
+    for i in range(n_runs):
+        seed = int(np.random.SeedSequence([cfg["seed"], i]).generate_state(1)[0])
+        rec = andes_step_record(seed, cfg)
+        before, after = andes_step_truth(rec["meta"]["motors"])
+        t_switch = rec["meta"]["t_switch"]
+        starts = [cfg["lead_s"] + j * w for j in range(nb)]
+        starts += [t_switch + cfg["gap_s"] + j * w for j in range(cfg["n_after"])]
+        rng = np.random.default_rng([seed, 1])
+        windows = [noisy_window(rec, t0, t0 + w, cfg["snr_db"], rng) for t0 in starts]
+        d, se = estimates(windows)
+        tracked, events = track(d, se, config)
+        truth = np.array([before] * nb + [after] * cfg["n_after"])
+        after_ev = [e for e in events if e.detected_t >= nb * PERIOD_S]
+        runs.append({
+            "seed": seed, "truth_before": before.tolist(), "truth_after": after.tolist(),
+            "delay": after_ev[0].detected_t / PERIOD_S - nb if after_ev else math.inf,
+            "alarms_before": sum(1 for e in events if e.detected_t < nb * PERIOD_S),
+            "events": [{"t": e.t / PERIOD_S, "detected": e.detected_t / PERIOD_S, **e.evidence} for e in events],
+            "ratio_windows": (d / truth).tolist(), "stderr_rel": (se / truth).tolist(),
+            "tracked_before": (tracked[nb - 1] / before).tolist(), "tracked_after": (tracked[-1] / after).tolist(),
+            "tds_s": rec["meta"]["tds_s"], "andes_version": rec["meta"]["andes_version"],
+            "load_avg_sim": rec["meta"]["load_avg"],
+        })
+        print(f"andes_step run {i}: delay {runs[-1]['delay']}, alarms before {runs[-1]['alarms_before']}", flush=True)
+    delays = np.array([r["delay"] for r in runs])
+
+    def stats(key: str) -> dict:
+        r = np.array([x[key] for x in runs])
+        return {"mean": dict(zip(common.PARAMS, r.mean(axis=0).tolist(), strict=True)),
+                "std": dict(zip(common.PARAMS, r.std(axis=0, ddof=1).tolist() if len(r) > 1 else [math.nan] * 4,
+                                strict=True)),
+                "max_abs_err": dict(zip(common.PARAMS, np.abs(r - 1.0).max(axis=0).tolist(), strict=True))}
+
+    win = np.array([x["ratio_windows"] for x in runs])
+    return {"settings": cfg, "n_runs": n_runs, "detected_within_2": float(np.mean(delays <= 1.0)),
+            "detected_by_end": float(np.mean(np.isfinite(delays))),
+            "delay_histogram": {str(int(k)): int(np.sum(delays == k)) for k in np.unique(delays[np.isfinite(delays)])},
+            "alarms_before": int(sum(r["alarms_before"] for r in runs)), "periods_before": n_runs * nb,
+            "tracked_before": stats("tracked_before"), "tracked_after": stats("tracked_after"),
+            "window_sigma": {"before": dict(zip(common.PARAMS, np.nanstd(win[:, :nb], axis=(0, 1), ddof=1).tolist(),
+                                                strict=True)),
+                             "after": dict(zip(common.PARAMS, np.nanstd(win[:, nb:], axis=(0, 1), ddof=1).tolist(),
+                                               strict=True))},
+            "runs": runs}
+
+
+def part_joint_cost(n_buses: int, k: int) -> dict:
+    """Worker CPU of the joint pooled fit as the service would run it, against one window's identification.
+
+    Per bus (stationary, 14 dB, k + 1 windows): the joint fit on windows 1..k started from their
+    estimates' median (as the ``pooled`` part), the same fit started from the previous pool's joint D
+    (windows 0..k−1: what a service refitting each period would have), and the warm-started
+    identification of window k; thread CPU time [s], the three interleaved per bus.
+    """
+    rows = {"joint_from_median": [], "joint_from_previous": [], "window_warm": []}
+    iters = {"joint_from_median": [], "joint_from_previous": []}
+    deltas = []
+    for bus in range(n_buses):
+        windows, _ = bus_windows(SEEDS["pooled"] + 100, bus, np.ones(k + 1), 14.0)
+        d, _ = estimates(windows)
+        if not np.all(np.isfinite(d)):
+            continue
+        try:
+            previous = identify_pooled(windows[:k], start=np.median(d[:k], axis=0))
+            c0 = time.thread_time()
+            from_median = identify_pooled(windows[1:], start=np.median(d[1:], axis=0))
+            c1 = time.thread_time()
+            from_previous = identify_pooled(windows[1:], start=previous.d)
+            c2 = time.thread_time()
+            identify(windows[k], warm_start=d[k - 1])
+            c3 = time.thread_time()
+        except WindowError:
+            continue
+        rows["joint_from_median"].append(c1 - c0)
+        rows["joint_from_previous"].append(c2 - c1)
+        rows["window_warm"].append(c3 - c2)
+        iters["joint_from_median"].append(from_median.iterations)
+        iters["joint_from_previous"].append(from_previous.iterations)
+        deltas.append(np.max(np.abs(from_previous.d / from_median.d - 1.0)))
+    return {"k": k, "n_buses": len(deltas), "cpu_s_median": {key: float(np.median(v)) for key, v in rows.items()},
+            "cpu_s": rows, "iterations_median": {key: float(np.median(v)) for key, v in iters.items()},
+            "max_rel_diff_of_the_two_joint_fits": float(np.max(deltas)),
+            "load_avg": [round(x, 2) for x in os.getloadavg()]}
+
+
 def part_service_cost(n_buses: int, n_periods: int) -> dict:
     """Time of the service's tracking sink per bus and period: tracker update, model, SQLite row, put."""
     import tempfile
@@ -271,8 +485,10 @@ def part_service_cost(n_buses: int, n_periods: int) -> dict:
 def main() -> None:
     p = common.parser(__doc__.splitlines()[0])
     p.add_argument("--calibrate", action="store_true", help="only the development-seed calibration of se_scale")
-    p.add_argument("--parts", nargs="+", default=[*SEEDS, "service_cost"], choices=[*SEEDS, "service_cost"],
+    p.add_argument("--parts", nargs="+", default=[*SEEDS, "service_cost"],
+                   choices=[*SEEDS, "service_cost", "andes_step", "joint_cost"],
                    help="run these parts only (their results replace those parts in the JSON file)")
+    p.add_argument("--andes-runs", type=int, default=None, help="ANDES runs of andes_step (default 20; --quick 2)")
     args = p.parse_args()
     q = args.quick
     if args.calibrate:
@@ -292,6 +508,8 @@ def main() -> None:
                                  for snr in (22.0, 14.0)],
         "drift": lambda: part_drift(3 if q else 10, (4, 16), 22.0, config.false_alarms_per_day),
         "service_cost": lambda: part_service_cost(50 if q else 500, 20),
+        "andes_step": lambda: part_andes_step(args.andes_runs or (2 if q else 20), config),
+        "joint_cost": lambda: part_joint_cost(3 if q else 20, 16),
     }
     for part in args.parts:
         t0 = time.time()

@@ -223,6 +223,11 @@ class BusLoad:
     relay : dict or None
         A capacitor bank ``b`` [pu on 100 MVA] switched by a voltage relay: in below V0 − ``dv``, out above
         V0 + ``dv`` [pu] (V0 the power-flow voltage), each after ``delay`` [s] beyond the threshold.
+    toggles : tuple of (int, float)
+        (index into ``motors``, time [s]): ANDES's ``Toggle`` flips that motor's status ``u`` at that time,
+        a load change at a known time.  A motor given ``"u": 0`` in its data is off until its toggle;
+        while off, ANDES freezes its states at the power-flow start (its low-slip equilibrium at the
+        initial bus voltage, :func:`solve_power_flow`), so it connects running, not from standstill.
     """
 
     motors: tuple = ()
@@ -230,6 +235,7 @@ class BusLoad:
     fload: dict | None = None
     own: dict | None = None
     relay: dict | None = None
+    toggles: tuple = ()
 
 
 def simulate(scenario: str, *, tf: float, tstep: float, amp: float, seed: int, tol: float = 1e-8,
@@ -299,6 +305,8 @@ def simulate_load(load: BusLoad, *, tf: float, tstep: float, amp: float, seed: i
         ss.add("FLoad", {"idx": "FL9", "name": "FL9", "pq": PQ_AT_BUS, **load.fload})
     if load.relay is not None:
         ss.add("Shunt", {"idx": "SW9", "name": "SW9", "bus": BUS, "Sn": 100.0, "Vn": 138.0, "b": 0.0, "g": 0.0})
+    for j, (k, t_switch) in enumerate(load.toggles):
+        ss.add("Toggle", {"idx": f"TG{j + 1}", "model": load.motors[k][0], "dev": f"M{k + 1}", "t": float(t_switch)})
     ss.setup()
     ss.PQ.set("p0", PQ_AT_BUS, load.static_pq[0], base="device")
     ss.PQ.set("q0", PQ_AT_BUS, load.static_pq[1], base="device")
@@ -389,7 +397,11 @@ def _motor_slots(motors: tuple) -> list[tuple[str, int]]:
 def _motor_facts(m, model: str, i: int) -> dict:
     """A motor's D converted to the paper's form (docs/andes_crosscheck.md) and its power-flow facts."""
     x0, x1, t10 = float(m.x0.v[i]), float(m.x1.v[i]), float(m.T10.v[i])
-    d = [(x0 / x1 - 1) / (t10 * x1), x0 / (t10 * x1), float(m.M.v[i]), float(m.tm.v[i])]
+    tm = float(m.tm.v[i])
+    if not m.u.v[i]:  # off at the power flow (ANDES's τm is 0 there): its torque law at its start slip
+        sl = float(m.slip.v[i])
+        tm = float(m.aa.v[i] + m.bb.v[i] * sl + m.c2.v[i] * sl * sl)
+    d = [(x0 / x1 - 1) / (t10 * x1), x0 / (t10 * x1), float(m.M.v[i]), tm]
     return {"model": model, "d": d, "x0": x0, "x1": x1, "slip0": float(m.slip.v[i]), "rs_sys": float(m.rs.v[i]),
             "tm_slope": float(m.bb.v[i]), "modes": rotor_modes(m, i).tolist() if model == "Motor5" else None}
 

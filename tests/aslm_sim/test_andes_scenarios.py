@@ -69,3 +69,25 @@ def test_every_kind_builds_and_runs_a_short_simulation(kind, tmp_path, monkeypat
     for ch in ("t", "V", "theta", "P", "Q"):
         np.testing.assert_array_equal(again[ch], rec[ch])
     assert again["meta"] == rec["meta"]
+
+
+def test_a_toggled_motor_is_absent_until_its_time_then_adds_its_share():
+    # A second motor identical per unit, 20 % of the first's size, off until ANDES's Toggle at 0.3 s.
+    m1 = {**scenario.MOTOR, **scenario.SCENARIOS["model"]}
+    m2 = {**m1, "Sn": 0.2 * m1["Sn"], "c1": 0.2 * m1["c1"], "u": 0}
+    alone = scenario.simulate_load(scenario.BusLoad(motors=(("Motor3", m1),)), tf=0.8, tstep=0.01, amp=0.15,
+                                   seed=3, numba=False)
+    both = scenario.simulate_load(scenario.BusLoad(motors=(("Motor3", m1), ("Motor3", m2)), toggles=((1, 0.3),)),
+                                  tf=0.8, tstep=0.01, amp=0.15, seed=3, numba=False)
+    first, second = both["motors"]
+    # Off at the power flow, its D still converts (Tm from its torque law, not ANDES's τm = 0 while off).
+    np.testing.assert_allclose(second["d"], np.array(first["d"]) * [0.2, 1.0, 0.2, 0.2], rtol=1e-9)
+    np.testing.assert_allclose(first["d"], alone["motors"][0]["d"], rtol=1e-12)
+    # Before the step that lands on the switch (ANDES shortens it to hit 0.3 s) the runs are the same.
+    pre = both["t"] < 0.3 - 0.015
+    np.testing.assert_array_equal(both["t"][pre], alone["t"][: pre.sum()])
+    for ch in ("V", "theta", "P", "Q"):
+        np.testing.assert_allclose(both[ch][pre], alone[ch][: pre.sum()], rtol=1e-9, atol=1e-12, err_msg=ch)
+    late = both["t"] > 0.6
+    share = both["p_motor"][late].mean() / alone["p_motor"][alone["t"] > 0.6].mean()
+    assert share == pytest.approx(1.2, abs=0.02)
