@@ -42,7 +42,7 @@ from aslm_core.result import IdentifyConfig
 from aslm_core.window import Window
 
 __all__ = ["cramer_rao", "disturbance_covariance", "fisher_information", "input_jacobian", "input_noise_covariance",
-           "input_posterior_covariance", "model_jacobian", "relative_bound", "stationary_input_covariance"]
+           "input_posterior_covariance", "model_jacobian", "model_response", "relative_bound", "stationary_input_covariance"]
 
 
 def fisher_information(jac: np.ndarray, nuisance: np.ndarray | None, cov: np.ndarray) -> np.ndarray:
@@ -126,6 +126,26 @@ def model_jacobian(window: Window, d: np.ndarray, config: IdentifyConfig | None 
     nuisance : ndarray, shape (2l, 2m)
         Block-diagonal static regressors of P and Q.
     """
+    _, jac, nuisance, _ = model_response(window, d, config, skip_s)
+    return jac, nuisance
+
+
+def model_response(window: Window, d: np.ndarray, config: IdentifyConfig | None = None,
+                   skip_s: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The motor's [P; Q] over a window's regression samples with its D-Jacobian, the static regressors and
+    the measured [P; Q] there (:func:`model_jacobian`'s parameters).
+
+    Returns
+    -------
+    model : ndarray, shape (2l,)
+        Stacked P_im, Q_im [pu].
+    jac : ndarray, shape (2l, 4)
+        ∂model/∂D [pu per unit of each parameter].
+    nuisance : ndarray, shape (2l, 2m)
+        Block-diagonal static regressors of P and Q (orthonormal columns).
+    measured : ndarray, shape (2l,)
+        Stacked measured P, Q [pu].
+    """
     config = config or IdentifyConfig()
     if skip_s is not None:
         config = replace(config, skip_s=skip_s)
@@ -139,7 +159,8 @@ def model_jacobian(window: Window, d: np.ndarray, config: IdentifyConfig | None 
     phi = pb.basis
     zero = np.zeros_like(phi)
     jac = np.vstack([pb._dp[pb.k0:], pb._dq[pb.k0:]])
-    return jac, np.block([[phi, zero], [zero, phi]])
+    return (np.concatenate([pb._p[pb.k0:], pb._q[pb.k0:]]), jac, np.block([[phi, zero], [zero, phi]]),
+            np.concatenate([pb.p_meas, pb.q_meas]))
 
 
 def relative_bound(bound: np.ndarray, d: np.ndarray) -> np.ndarray:

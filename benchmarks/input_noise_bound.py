@@ -21,10 +21,12 @@ import os
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
+import dataclasses  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
+from scipy import linalg  # noqa: E402
 
 from aslm_core import IdentifyConfig, WindowError, identify  # noqa: E402
 from aslm_core.information import (  # noqa: E402
@@ -33,6 +35,7 @@ from aslm_core.information import (  # noqa: E402
     input_noise_covariance,
     input_posterior_covariance,
     model_jacobian,
+    model_response,
     stationary_input_covariance,
 )
 from aslm_sim.cases import make_cases  # noqa: E402
@@ -62,69 +65,94 @@ def long_inputs(case, long_s: float) -> tuple[np.ndarray, np.ndarray]:
     return lc.clean.V, lc.clean.theta
 
 
-def window_bounds(by_level: dict, long_s: float) -> dict:
-    """Relative bound variances (var/D²) of one window per level, class and kind (module docstring)."""
+def oracle_inputs(w, prior: np.ndarray, noise_var: tuple[float, float]):
+    """The window with V, θ replaced by E[x | x_m] under the true prior (the perfect Wiener smoother)."""
+    n = w.V.size
+    xm = np.r_[w.V - w.V.mean(), w.theta - w.theta.mean()]
+    sn = np.repeat(np.asarray(noise_var, dtype=np.float64), n)
+    xhat = xm - sn * linalg.cho_solve(linalg.cho_factor(prior + np.diag(sn), lower=True), xm)
+    return dataclasses.replace(w, V=xhat[:n] + w.V.mean(), theta=xhat[n:] + w.theta.mean())
+
+
+def gls(w, d0: np.ndarray, s: np.ndarray, iters: int = 20) -> np.ndarray:
+    """Gauss–Newton on D of the residuals whitened by S (the static part projected out after whitening),
+    from d0: the estimator the bound describes when S is known."""
+    chol = linalg.cholesky(s, lower=True)
+    d = np.array(d0, dtype=np.float64)
+    for _ in range(iters):
+        model, jac, nuis, meas = model_response(w, d, MODEL)
+        white = linalg.solve_triangular(chol, np.column_stack([meas - model, jac, nuis]), lower=True)
+        q, _ = np.linalg.qr(white[:, 5:])
+        white -= q @ (q.T @ white)
+        step = np.linalg.lstsq(white[:, 1:5], white[:, 0], rcond=None)[0]
+        while not np.all(np.abs(step) < 0.5 * np.abs(d)):  # keep D positive; the steps near the end are tiny
+            step *= 0.5
+        d += step
+        if np.all(np.abs(step) < 1e-7 * np.abs(d)):
+            break
+    return d
+
+
+def window_bounds(by_level: dict, rngs: dict, long_s: float) -> tuple[dict, dict]:
+    """One window: relative bound variances (var/D²) per level, class and kind (module docstring), and
+    D/D_real per level and class of the default identifier and of the oracle GLS (S and E[x | x_m] known)."""
     case = by_level[LEVELS[0]]
     clean, d = case.clean, case.truth.d
     jac, nuis = model_jacobian(clean, d, MODEL)
     a = input_jacobian(clean, d, *static_coefficients(case.truth), config=MODEL)
     n = clean.V.size
     prior = stationary_input_covariance(*long_inputs(case, long_s), n)
-    added = {}
+    added, var = {}, {}
     for cls, v_rel, th in INPUT_NOISE[1:]:
-        var = ((v_rel * float(np.mean(clean.V))) ** 2, th**2)
+        var[cls] = ((v_rel * float(np.mean(clean.V))) ** 2, th**2)
         for kind in KINDS:
-            p_x = input_posterior_covariance(var, n, prior if kind == "structural" else None)
+            p_x = input_posterior_covariance(var[cls], n, prior if kind == "structural" else None)
             added[cls, kind] = input_noise_covariance((0.0, 0.0), a, p_x)
     l = jac.shape[0] // 2
-    out = {}
+    out, est = {}, {}
     for level, c in by_level.items():
         white = (float(np.var(c.window.P - clean.P)), float(np.var(c.window.Q - clean.Q)))
-        sv = np.repeat(white, l)
-        rel = {"exact": np.diag(cramer_rao(jac, nuis, np.diag(sv))) / d**2}
+        sv = np.diag(np.repeat(white, l))
+        rel = {"exact": np.diag(cramer_rao(jac, nuis, sv)) / d**2}
         for (cls, kind), s in added.items():
-            s = s.copy()
-            s[np.diag_indices_from(s)] += sv
-            rel[f"{cls}|{kind}"] = np.diag(cramer_rao(jac, nuis, s)) / d**2
+            rel[f"{cls}|{kind}"] = np.diag(cramer_rao(jac, nuis, s + sv)) / d**2
         out[level] = rel
-    return out
-
-
-def estimator_ratios(cases_by_level: dict, n: int) -> dict:
-    """The default's D_opt/D_real per level and class on the supplement's noise draws of the first n windows."""
-    out = {}
-    for level, cs in cases_by_level.items():
-        out[level] = {}
+        est[level] = {}
         for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
-            rng = np.random.default_rng([CONFIRM_SEED, level, k])  # as benchmarks.input_noise.run_level
-            rows = []
-            for c in cs[:n]:
-                try:
-                    rows.append(identify(with_input_noise(c.window, c.clean, v_rel, th, rng), config=IdentifyConfig()
-                                         ).d / c.truth.d)
-                except WindowError:
-                    rows.append(np.full(4, np.nan))
-            out[level][cls] = np.array(rows)
-    return out
+            w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])
+            try:
+                d0 = identify(w, config=IdentifyConfig()).d
+            except WindowError:
+                est[level][cls] = (np.full(4, np.nan), np.full(4, np.nan))
+                continue
+            s, wx = (sv, w) if cls == "none" else (added[cls, "structural"] + sv, oracle_inputs(w, prior, var[cls]))
+            try:
+                d1 = gls(wx, d0, s)
+            except ValueError:  # the model left its equilibrium set on a wild start
+                d1 = np.full(4, np.nan)
+            est[level][cls] = (d0 / d, d1 / d)
+    return out, est
 
 
-def summary(bounds: list[dict], ratios: dict, supplement: dict | None) -> dict:
-    """Per level and class: RMS relative bounds, the default's σ here and in the supplement, and σ / bound."""
+def summary(bounds: list[dict], ests: list[dict], supplement: dict | None) -> dict:
+    """Per level and class: RMS relative bounds, the default's and the oracle GLS's σ on these windows, the
+    default's σ in the supplement (300 windows), and σ / bound."""
     out = {}
     for level in LEVELS:
         out[level] = {}
         for cls, _, _ in INPUT_NOISE:
             keys = ["exact"] if cls == "none" else [f"{cls}|{k}" for k in KINDS]
-            r = ratios[level][cls]
-            ok = np.all(np.isfinite(r), axis=1)
-            sig = np.std(r[ok], axis=0, ddof=1)
-            row = {"n": int(ok.sum()), "sigma": dict(zip(common.PARAMS, sig.tolist(), strict=True)),
-                   "intervals": common.bootstrap_mu_sigma(r[ok])["sigma"]}
+            row = {}
+            for j, name in enumerate(("default", "gls")):
+                r = np.array([e[level][cls][j] for e in ests])
+                ok = np.all(np.isfinite(r), axis=1)
+                row[f"n_{name}"] = int(ok.sum())
+                row[f"mu_{name}"] = dict(zip(common.PARAMS, np.mean(r[ok], axis=0).tolist(), strict=True))
+                row[f"sigma_{name}"] = dict(zip(common.PARAMS, np.std(r[ok], axis=0, ddof=1).tolist(), strict=True))
+                row[f"sigma_{name}_ci"] = common.bootstrap_mu_sigma(r[ok])["sigma"]
             for key in keys:
                 rms = np.sqrt(np.mean([b[level][key] for b in bounds], axis=0))
-                name = key.split("|")[-1]
-                row[f"bound_{name}"] = dict(zip(common.PARAMS, rms.tolist(), strict=True))
-                row[f"sigma_over_{name}"] = dict(zip(common.PARAMS, (sig / rms).tolist(), strict=True))
+                row[f"bound_{key.split('|')[-1]}"] = dict(zip(common.PARAMS, rms.tolist(), strict=True))
             if supplement is not None:
                 row["sigma_supplement_300"] = supplement["levels"][str(level)][cls]["default"]["sigma"]
             out[level][cls] = row
@@ -136,18 +164,21 @@ def _f(d: dict, fmt: str = "{:.3f}") -> str:
 
 
 HEAD = ["DL", "input noise", "n", "bound exact a / b / H2 / Tm", "bound structural", "bound functional",
-        "σ default (these windows)", "σ default (supplement, 300)", "σ / structural bound"]
+        "σ default", "σ default (supplement, 300)", "σ default / bound", "σ oracle GLS", "σ oracle GLS / bound"]
 
 
 def table(summ: dict) -> list[list]:
     rows = []
     for level, per in summ.items():
         for cls, row in per.items():
-            exact = summ[level]["none"]["bound_exact"]
-            rows.append([level, cls, row["n"], _f(exact), _f(row["bound_structural"]) if cls != "none" else "–",
-                         _f(row["bound_functional"]) if cls != "none" else "–", _f(row["sigma"]),
+            b = np.array([row["bound_structural" if cls != "none" else "bound_exact"][p] for p in common.PARAMS])
+            ratio = {name: dict(zip(common.PARAMS, np.array([row[f"sigma_{name}"][p] for p in common.PARAMS]) / b,
+                                    strict=True)) for name in ("default", "gls")}
+            rows.append([level, cls, row["n_default"], _f(per["none"]["bound_exact"]),
+                         _f(row["bound_structural"]) if cls != "none" else "–",
+                         _f(row["bound_functional"]) if cls != "none" else "–", _f(row["sigma_default"]),
                          _f(row["sigma_supplement_300"]) if "sigma_supplement_300" in row else "–",
-                         _f(row["sigma_over_structural" if cls != "none" else "sigma_over_exact"], "{:.2f}")])
+                         _f(ratio["default"], "{:.2f}"), _f(row["sigma_gls"]), _f(ratio["gls"], "{:.2f}")])
     return rows
 
 
@@ -160,7 +191,7 @@ def target_rows(summ: dict) -> list[list]:
     rows = []
     for level, per in summ.items():
         exact = per["none"]["bound_exact"]
-        sig_exact = per["none"].get("sigma_supplement_300", per["none"]["sigma"])
+        sig_exact = per["none"].get("sigma_supplement_300", per["none"]["sigma_default"])
         for cls, (_, sig) in TARGETS.items():
             b = per[cls]["bound_structural"]
             cells = []
@@ -172,33 +203,44 @@ def target_rows(summ: dict) -> list[list]:
     return rows
 
 
+def record(bounds: list[dict], ests: list[dict], args, t_all: float) -> dict:
+    """The JSON of the windows done so far."""
+    path = common.RESULTS / "input_noise_supplement.json"
+    supplement = json.loads(path.read_text()) if path.exists() else None
+    return {"machine": common.machine(), "n": len(bounds), "seed": CONFIRM_SEED, "long_s": args.long_s,
+            "long_seed": LONG_SEED, "quick": args.quick, "summary": summary(bounds, ests, supplement),
+            "per_window_relative_variance": bounds, "per_window_ratio": ests,
+            "total_s": time.perf_counter() - t_all, "load_avg_at_end": list(os.getloadavg())}
+
+
 def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None, help="windows (default 100; --quick 4)")
     ap.add_argument("--long-s", type=float, default=300.0, help="length of each long clean realisation [s]")
     args = ap.parse_args(argv)
     n = args.n or (4 if args.quick else 100)
+    name = "input_noise_bound" + ("_quick" if args.quick else "")
     t_all = time.perf_counter()
     cases = {level: common.cases(n, level=level, seed=CONFIRM_SEED) for level in LEVELS}
-    bounds = []
+    rngs = {(level, k): np.random.default_rng([CONFIRM_SEED, level, k])  # as benchmarks.input_noise.run_level
+            for level in LEVELS for k in range(len(INPUT_NOISE))}
+    identify(cases[2][0].window)  # numba compilation outside the loop
+    bounds, ests = [], []
     for i in range(n):
-        bounds.append(window_bounds({level: cases[level][i] for level in LEVELS}, args.long_s))
+        b, e = window_bounds({level: cases[level][i] for level in LEVELS}, rngs, args.long_s)
+        bounds.append(b)
+        ests.append(e)
         if (i + 1) % 10 == 0:
             print(f"{i + 1} windows ({time.perf_counter() - t_all:.0f} s)", flush=True)
-    t_bound = time.perf_counter() - t_all
-    ratios = estimator_ratios(cases, n)
-    path = common.RESULTS / "input_noise_supplement.json"
-    supplement = json.loads(path.read_text()) if path.exists() else None
-    summ = summary(bounds, ratios, supplement)
-    out = {"machine": common.machine(), "n": n, "seed": CONFIRM_SEED, "long_s": args.long_s,
-           "long_seed": LONG_SEED, "quick": args.quick, "summary": summ,
-           "per_window_relative_variance": bounds, "bound_s": t_bound,
-           "total_s": time.perf_counter() - t_all, "load_avg_at_end": list(os.getloadavg())}
+        if (i + 1) % 50 == 0 and i + 1 < n and not args.no_write:  # a checkpoint: long runs on a shared machine
+            common.write_json(name, record(bounds, ests, args, t_all))
+    out = record(bounds, ests, args, t_all)
+    summ = out["summary"]
     print(f"**Bound and spread** ({n} windows, seed {CONFIRM_SEED}):\n\n" + common.md_table(HEAD, table(summ)))
     print("\n**Targets against the structural bound**:\n\n"
           + common.md_table(["DL", "input noise"] + list(common.PARAMS), target_rows(summ)))
     if not args.no_write:
-        common.write_json("input_noise_bound" + ("_quick" if args.quick else ""), out)
+        common.write_json(name, out)
     return out
 
 
