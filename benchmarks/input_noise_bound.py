@@ -8,8 +8,12 @@ the same load and network (``--long-s`` seconds, another excitation draw;
 disturbance covariance S = Σ_v + A·P_x·Aᵀ, Σ_v the white P and Q noise actually injected: **structural**
 (P_x what a perfect Wiener smoother leaves) and **functional** (P_x = Σ_n, no prior); and the exact-input
 bound (S = Σ_v).  Reported: RMS over the windows of the relative bound of a, b, H2, Tm, i.e.
-√(mean of var/D²), next to the default identifier's σ of D_opt/D_real on the same windows and noise draws
-(those of ``benchmarks.input_noise --supplement``; 3 starts).
+√(mean of var/D²), next to the σ of D_opt/D_real on the same windows and noise draws (those of
+``benchmarks.input_noise --supplement``) of the default identifier (3 starts) and of an **oracle GLS**:
+Gauss–Newton from the default's D on the residuals whitened by the true S (structural), with V and θ
+replaced by their conditional mean under the true prior — the efficient estimator when S is known, i.e.
+how much of the gap between the default and the bound an S-weighted estimator could close (exact
+inputs: S = Σ_v, the inputs as measured).  The JSON is written every 50 windows (a checkpoint).
 
     .venv/bin/python -m benchmarks.input_noise_bound [--n 100] [--long-s 300]
 """
