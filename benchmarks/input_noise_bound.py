@@ -27,6 +27,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
 
 import dataclasses  # noqa: E402
 import json  # noqa: E402
+import math  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
@@ -34,7 +35,6 @@ from scipy import linalg  # noqa: E402
 
 from aslm_core import IdentifyConfig, WindowError, identify  # noqa: E402
 from aslm_core.information import (  # noqa: E402
-    cramer_rao,
     input_jacobian,
     input_noise_covariance,
     input_posterior_covariance,
@@ -78,10 +78,17 @@ def oracle_inputs(w, prior: np.ndarray, noise_var: tuple[float, float]):
     return dataclasses.replace(w, V=xhat[:n] + w.V.mean(), theta=xhat[n:] + w.theta.mean())
 
 
-def gls(w, d0: np.ndarray, s: np.ndarray, iters: int = 20) -> np.ndarray:
-    """Gauss–Newton on D of the residuals whitened by S (the static part projected out after whitening),
-    from d0: the estimator the bound describes when S is known."""
-    chol = linalg.cholesky(s, lower=True)
+def bound(jac: np.ndarray, nuis: np.ndarray, chol: np.ndarray) -> np.ndarray:
+    """:func:`aslm_core.information.cramer_rao` from S's Cholesky factor (shared with :func:`gls` here)."""
+    jw = linalg.solve_triangular(chol, jac, lower=True)
+    q, _ = np.linalg.qr(linalg.solve_triangular(chol, nuis, lower=True))
+    jw -= q @ (q.T @ jw)
+    return np.linalg.inv(jw.T @ jw)
+
+
+def gls(w, d0: np.ndarray, chol: np.ndarray, iters: int = 20) -> np.ndarray:
+    """Gauss–Newton on D of the residuals whitened by S = chol·cholᵀ (the static part projected out after
+    whitening), from d0: the estimator the bound describes when S is known.  NaN when it diverges."""
     d = np.array(d0, dtype=np.float64)
     for _ in range(iters):
         model, jac, nuis, meas = model_response(w, d, MODEL)
@@ -89,8 +96,12 @@ def gls(w, d0: np.ndarray, s: np.ndarray, iters: int = 20) -> np.ndarray:
         q, _ = np.linalg.qr(white[:, 5:])
         white -= q @ (q.T @ white)
         step = np.linalg.lstsq(white[:, 1:5], white[:, 0], rcond=None)[0]
-        while not np.all(np.abs(step) < 0.5 * np.abs(d)):  # keep D positive; the steps near the end are tiny
-            step *= 0.5
+        if not np.all(np.isfinite(step)):
+            return np.full(4, np.nan)
+        # Keep D positive: a long step is halved until each parameter moves by less than half of itself.
+        shrink = np.max(np.abs(step) / (0.5 * np.abs(d)))
+        if shrink >= 1.0:
+            step /= 2.0 ** math.ceil(math.log2(shrink) + 1e-9)
         d += step
         if np.all(np.abs(step) < 1e-7 * np.abs(d)):
             break
@@ -106,20 +117,25 @@ def window_bounds(by_level: dict, rngs: dict, long_s: float) -> tuple[dict, dict
     a = input_jacobian(clean, d, *static_coefficients(case.truth), config=MODEL)
     n = clean.V.size
     prior = stationary_input_covariance(*long_inputs(case, long_s), n)
+    # Functional: A·Σ_n·Aᵀ = σ_V²·A_V·A_Vᵀ + σ_θ²·A_θ·A_θᵀ, the two products shared by the classes.
+    per_input = (a[:, :n] @ a[:, :n].T, a[:, n:] @ a[:, n:].T)
     added, var = {}, {}
     for cls, v_rel, th in INPUT_NOISE[1:]:
         var[cls] = ((v_rel * float(np.mean(clean.V))) ** 2, th**2)
-        for kind in KINDS:
-            p_x = input_posterior_covariance(var[cls], n, prior if kind == "structural" else None)
-            added[cls, kind] = input_noise_covariance((0.0, 0.0), a, p_x)
+        added[cls, "functional"] = var[cls][0] * per_input[0] + var[cls][1] * per_input[1]
+        added[cls, "structural"] = input_noise_covariance((0.0, 0.0), a, input_posterior_covariance(var[cls], n, prior))
     l = jac.shape[0] // 2
     out, est = {}, {}
     for level, c in by_level.items():
-        white = (float(np.var(c.window.P - clean.P)), float(np.var(c.window.Q - clean.Q)))
-        sv = np.diag(np.repeat(white, l))
-        rel = {"exact": np.diag(cramer_rao(jac, nuis, sv)) / d**2}
+        sv = np.repeat([float(np.var(c.window.P - clean.P)), float(np.var(c.window.Q - clean.Q))], l)
+        chol = {"none": np.diag(np.sqrt(sv))}
+        rel = {"exact": np.diag(bound(jac, nuis, chol["none"])) / d**2}
         for (cls, kind), s in added.items():
-            rel[f"{cls}|{kind}"] = np.diag(cramer_rao(jac, nuis, s + sv)) / d**2
+            s = s + np.diag(sv)
+            c_s = linalg.cholesky(s, lower=True)
+            rel[f"{cls}|{kind}"] = np.diag(bound(jac, nuis, c_s)) / d**2
+            if kind == "structural":
+                chol[cls] = c_s
         out[level] = rel
         est[level] = {}
         for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
@@ -129,10 +145,9 @@ def window_bounds(by_level: dict, rngs: dict, long_s: float) -> tuple[dict, dict
             except WindowError:
                 est[level][cls] = (np.full(4, np.nan), np.full(4, np.nan))
                 continue
-            s, wx = (sv, w) if cls == "none" else (added[cls, "structural"] + sv, oracle_inputs(w, prior, var[cls]))
             try:
-                d1 = gls(wx, d0, s)
-            except ValueError:  # the model left its equilibrium set on a wild start
+                d1 = gls(w if cls == "none" else oracle_inputs(w, prior, var[cls]), d0, chol[cls])
+            except ValueError:  # the model left its equilibrium set on a wild step
                 d1 = np.full(4, np.nan)
             est[level][cls] = (d0 / d, d1 / d)
     return out, est
@@ -168,21 +183,26 @@ def _f(d: dict, fmt: str = "{:.3f}") -> str:
 
 
 HEAD = ["DL", "input noise", "n", "bound exact a / b / H2 / Tm", "bound structural", "bound functional",
-        "σ default", "σ default (supplement, 300)", "σ default / bound", "σ oracle GLS", "σ oracle GLS / bound"]
+        "σ default", "σ default / bound", "σ default, supplement (300)", "its / bound", "σ oracle GLS",
+        "σ oracle GLS / bound"]
 
 
 def table(summ: dict) -> list[list]:
+    """One row per level and class; "bound" is the structural one (the exact-input one for exact inputs)."""
     rows = []
     for level, per in summ.items():
         for cls, row in per.items():
-            b = np.array([row["bound_structural" if cls != "none" else "bound_exact"][p] for p in common.PARAMS])
-            ratio = {name: dict(zip(common.PARAMS, np.array([row[f"sigma_{name}"][p] for p in common.PARAMS]) / b,
-                                    strict=True)) for name in ("default", "gls")}
+            b = row["bound_structural" if cls != "none" else "bound_exact"]
+
+            def over(sig: dict, b: dict = b) -> str:
+                return " / ".join(f"{sig[p] / b[p]:.2f}" for p in common.PARAMS)
+
+            sup = row.get("sigma_supplement_300")
             rows.append([level, cls, row["n_default"], _f(per["none"]["bound_exact"]),
                          _f(row["bound_structural"]) if cls != "none" else "–",
                          _f(row["bound_functional"]) if cls != "none" else "–", _f(row["sigma_default"]),
-                         _f(row["sigma_supplement_300"]) if "sigma_supplement_300" in row else "–",
-                         _f(ratio["default"], "{:.2f}"), _f(row["sigma_gls"]), _f(ratio["gls"], "{:.2f}")])
+                         over(row["sigma_default"]), _f(sup) if sup else "–", over(sup) if sup else "–",
+                         _f(row["sigma_gls"]), over(row["sigma_gls"])])
     return rows
 
 
@@ -207,6 +227,13 @@ def target_rows(summ: dict) -> list[list]:
     return rows
 
 
+def report(summ: dict, n: int) -> None:
+    """Print the tables."""
+    print(f"**Bound and spread** ({n} windows, seed {CONFIRM_SEED}):\n\n" + common.md_table(HEAD, table(summ)))
+    print("\n**Targets against the structural bound**:\n\n"
+          + common.md_table(["DL", "input noise"] + list(common.PARAMS), target_rows(summ)))
+
+
 def record(bounds: list[dict], ests: list[dict], args, t_all: float) -> dict:
     """The JSON of the windows done so far."""
     path = common.RESULTS / "input_noise_supplement.json"
@@ -221,9 +248,14 @@ def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None, help="windows (default 100; --quick 4)")
     ap.add_argument("--long-s", type=float, default=300.0, help="length of each long clean realisation [s]")
+    ap.add_argument("--report", action="store_true", help="print the tables of the JSON written before; no run")
     args = ap.parse_args(argv)
     n = args.n or (4 if args.quick else 100)
     name = "input_noise_bound" + ("_quick" if args.quick else "")
+    if args.report:
+        out = json.loads((common.RESULTS / f"{name}.json").read_text())
+        report(out["summary"], out["n"])
+        return out
     t_all = time.perf_counter()
     cases = {level: common.cases(n, level=level, seed=CONFIRM_SEED) for level in LEVELS}
     rngs = {(level, k): np.random.default_rng([CONFIRM_SEED, level, k])  # as benchmarks.input_noise.run_level
@@ -239,10 +271,7 @@ def main(argv=None) -> dict:
         if (i + 1) % 50 == 0 and i + 1 < n and not args.no_write:  # a checkpoint: long runs on a shared machine
             common.write_json(name, record(bounds, ests, args, t_all))
     out = record(bounds, ests, args, t_all)
-    summ = out["summary"]
-    print(f"**Bound and spread** ({n} windows, seed {CONFIRM_SEED}):\n\n" + common.md_table(HEAD, table(summ)))
-    print("\n**Targets against the structural bound**:\n\n"
-          + common.md_table(["DL", "input noise"] + list(common.PARAMS), target_rows(summ)))
+    report(out["summary"], n)
     if not args.no_write:
         common.write_json(name, out)
     return out
