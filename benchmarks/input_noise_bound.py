@@ -88,7 +88,7 @@ def bound(jac: np.ndarray, nuis: np.ndarray, chol: np.ndarray) -> np.ndarray:
 
 def gls(w, d0: np.ndarray, chol: np.ndarray, iters: int = 20) -> np.ndarray:
     """Gauss–Newton on D of the residuals whitened by S = chol·cholᵀ (the static part projected out after
-    whitening), from d0: the estimator the bound describes when S is known.  NaN when it diverges."""
+    whitening), from d0 (> 0): the estimator the bound describes when S is known.  NaN when it diverges."""
     d = np.array(d0, dtype=np.float64)
     for _ in range(iters):
         model, jac, nuis, meas = model_response(w, d, MODEL)
@@ -100,6 +100,8 @@ def gls(w, d0: np.ndarray, chol: np.ndarray, iters: int = 20) -> np.ndarray:
             return np.full(4, np.nan)
         # Keep D positive: a long step is halved until each parameter moves by less than half of itself.
         shrink = np.max(np.abs(step) / (0.5 * np.abs(d)))
+        if not np.isfinite(shrink):
+            return np.full(4, np.nan)
         if shrink >= 1.0:
             step /= 2.0 ** math.ceil(math.log2(shrink) + 1e-9)
         d += step
@@ -146,7 +148,9 @@ def window_bounds(by_level: dict, rngs: dict, long_s: float) -> tuple[dict, dict
                 est[level][cls] = (np.full(4, np.nan), np.full(4, np.nan))
                 continue
             try:
-                d1 = gls(w if cls == "none" else oracle_inputs(w, prior, var[cls]), d0, chol[cls])
+                # From the default's D; a parameter it put at 0 (its box's edge) starts at the truth.
+                d1 = gls(w if cls == "none" else oracle_inputs(w, prior, var[cls]), np.where(d0 > 0, d0, d),
+                         chol[cls])
             except ValueError:  # the model left its equilibrium set on a wild step
                 d1 = np.full(4, np.nan)
             est[level][cls] = (d0 / d, d1 / d)
