@@ -42,6 +42,7 @@ from aslm_core.information import (  # noqa: E402
     model_response,
     stationary_input_covariance,
 )
+from aslm_core.preprocess import prepare  # noqa: E402
 from aslm_sim.cases import make_cases  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise import CONFIRM_SEED, INPUT_NOISE, TARGETS, with_input_noise  # noqa: E402
@@ -110,9 +111,16 @@ def gls(w, d0: np.ndarray, chol: np.ndarray, iters: int = 20) -> np.ndarray:
     return d
 
 
-def window_bounds(by_level: dict, rngs: dict, long_s: float) -> tuple[dict, dict]:
+def wiener_inputs(w):
+    """The window with V, θ replaced by the default's own Wiener smoother's (from the window's spectra)."""
+    prep = prepare(w, input_smoother="wiener")
+    return dataclasses.replace(w, V=prep.V, theta=prep.theta)
+
+
+def window_bounds(by_level: dict, rngs: dict, long_s: float, gls_inputs: str = "oracle") -> tuple[dict, dict]:
     """One window: relative bound variances (var/D²) per level, class and kind (module docstring), and
-    D/D_real per level and class of the default identifier and of the oracle GLS (S and E[x | x_m] known)."""
+    D/D_real per level and class of the default identifier and of the oracle GLS (S known; V, θ by
+    ``gls_inputs``: "oracle", E[x | x_m] under the true prior, or "wiener", the default's own smoother)."""
     case = by_level[LEVELS[0]]
     clean, d = case.clean, case.truth.d
     jac, nuis = model_jacobian(clean, d, MODEL)
@@ -149,8 +157,11 @@ def window_bounds(by_level: dict, rngs: dict, long_s: float) -> tuple[dict, dict
                 continue
             try:
                 # From the default's D; a parameter it put at 0 (its box's edge) starts at the truth.
-                d1 = gls(w if cls == "none" else oracle_inputs(w, prior, var[cls]), np.where(d0 > 0, d0, d),
-                         chol[cls])
+                if cls == "none":
+                    wx = w
+                else:
+                    wx = oracle_inputs(w, prior, var[cls]) if gls_inputs == "oracle" else wiener_inputs(w)
+                d1 = gls(wx, np.where(d0 > 0, d0, d), chol[cls])
             except ValueError:  # the model left its equilibrium set on a wild step
                 d1 = np.full(4, np.nan)
             est[level][cls] = (d0 / d, d1 / d)
@@ -258,7 +269,8 @@ def record(bounds: list[dict], ests: list[dict], args, t_all: float) -> dict:
     path = common.RESULTS / "input_noise_supplement.json"
     supplement = json.loads(path.read_text()) if path.exists() else None
     return {"machine": common.machine(), "n": len(bounds), "seed": CONFIRM_SEED, "long_s": args.long_s,
-            "long_seed": LONG_SEED, "quick": args.quick, "summary": summary(bounds, ests, supplement),
+            "long_seed": LONG_SEED, "quick": args.quick, "gls_inputs": args.gls_inputs,
+            "summary": summary(bounds, ests, supplement),
             "per_window_relative_variance": bounds, "per_window_ratio": ests,
             "total_s": time.perf_counter() - t_all, "load_avg_at_end": list(os.getloadavg())}
 
@@ -267,10 +279,13 @@ def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None, help="windows (default 100; --quick 4)")
     ap.add_argument("--long-s", type=float, default=300.0, help="length of each long clean realisation [s]")
+    ap.add_argument("--gls-inputs", choices=("oracle", "wiener"), default="oracle",
+                    help="V, θ of the GLS: the true prior's conditional mean, or the default's Wiener smoother")
     ap.add_argument("--report", action="store_true", help="print the tables of the JSON written before; no run")
     args = ap.parse_args(argv)
     n = args.n or (4 if args.quick else 100)
-    name = "input_noise_bound" + ("_quick" if args.quick else "")
+    name = ("input_noise_bound" + ("_wiener_inputs" if args.gls_inputs == "wiener" else "")
+            + ("_quick" if args.quick else ""))
     if args.report:  # the summary recomputed from the per-window figures (JSON keys are strings)
         out = json.loads((common.RESULTS / f"{name}.json").read_text())
         bounds = [{int(k): {key: np.array(v) for key, v in b.items()} for k, b in w.items()}
@@ -290,7 +305,7 @@ def main(argv=None) -> dict:
     identify(cases[2][0].window)  # numba compilation outside the loop
     bounds, ests = [], []
     for i in range(n):
-        b, e = window_bounds({level: cases[level][i] for level in LEVELS}, rngs, args.long_s)
+        b, e = window_bounds({level: cases[level][i] for level in LEVELS}, rngs, args.long_s, args.gls_inputs)
         bounds.append(b)
         ests.append(e)
         if (i + 1) % 10 == 0:
