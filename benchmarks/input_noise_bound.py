@@ -15,7 +15,11 @@ replaced by their conditional mean under the true prior — the efficient estima
 how much of the gap between the default and the bound an S-weighted estimator could close (exact
 inputs: S = Σ_v, the inputs as measured).  The JSON is written every 50 windows (a checkpoint).
 
-    .venv/bin/python -m benchmarks.input_noise_bound [--n 100] [--long-s 300]
+    .venv/bin/python -m benchmarks.input_noise_bound [--n 100] [--long-s 300] [--gls-inputs oracle|wiener]
+    .venv/bin/python -m benchmarks.input_noise_bound --report    # the tables of the JSON written before
+
+``--gls-inputs wiener``: the GLS on the default's own Wiener-smoothed V and θ instead of the oracle's
+(JSON ``input_noise_bound_wiener_inputs``).
 """
 
 from __future__ import annotations
