@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from aslm_core import disturbance, excitation, motor, optimize, static
+from aslm_core import disturbance, excitation, instrumental, motor, optimize, static
 from aslm_core.errors import NoEquilibriumError, WindowError
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import Prepared, prepare
@@ -323,14 +323,17 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
             final, final_problem = r, longer
     cov_d = None
     extra: dict[str, float] = {}
-    if config.disturbance == "ar":
-        pem = disturbance.fit(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
+    if config.disturbance in ("ar", "ar_iv"):
+        fit_pem = disturbance.fit if config.disturbance == "ar" else instrumental.fit
+        pem = fit_pem(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
         final_problem.evaluations += pem["evaluations"]
         if math.isfinite(pem["cost"]):
             it = final["iterations"] if final is not best else 0
             final = {**pem, "iterations": pem["iterations"] + it}
             cov_d = pem["cov"]
             extra = {"ar_order_p": float(len(pem["polys"][0]) - 1), "ar_order_q": float(len(pem["polys"][1]) - 1)}
+            if "strength" in pem:
+                extra.update(iv_strength_p=pem["strength"][0], iv_strength_q=pem["strength"][1])
     return _result(final_problem, window, best, runs, prep, config, t_start, final=final, cov_d=cov_d,
                    extra_quality=extra)
 

@@ -13,7 +13,7 @@ Integrator = Literal["rk4", "euler"]
 Objective = Literal["paper", "ml", "ssq"]
 StaticModel = Literal["zip", "exponential"]
 InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
-Disturbance = Literal["none", "ar"]
+Disturbance = Literal["none", "ar", "ar_iv"]
 StderrMethod = Literal["spectral", "ar1"]
 
 
@@ -65,12 +65,15 @@ class IdentifyConfig:
         Longest run of missing samples repaired by interpolation.
     min_duration_s : float
         Shortest window accepted [s].
-    disturbance : {"none", "ar"}
+    disturbance : {"none", "ar", "ar_iv"}
         Noise model of P and Q.  ``none``: white (output error).  ``ar``: the load's own fluctuation as
         an AR process per channel (order by BIC, up to ``ar_max_order``) estimated from the output-error
         residuals, then D by the prediction-error criterion on the whitened residuals, the AR models
         re-estimated at that optimum and the fit repeated (:mod:`aslm_core.disturbance`); standard errors
-        from the whitened Jacobian.  See docs/numerics.md.
+        from the whitened Jacobian.  ``ar_iv``: the same AR models, D and the static part by instrumental
+        variables (the whitened regressors lagged by 1 and 2 samples, so the own fluctuation's same-sample
+        effect on V and θ does not bias them; :mod:`aslm_core.instrumental`); standard errors from the IV
+        covariance.  See docs/numerics.md.
     ar_max_order : int
         Longest AR noise model tried [samples].
     coarse_to_fine : bool
