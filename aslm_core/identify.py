@@ -37,6 +37,12 @@ COARSE_XTOL = 1e-3
 # misfit): the coloured residual's std above this fraction of P's ambient std.  At own/clean std 0.9 the
 # median error of D is 11-20 % with every estimator tried (docs/numerics.md).
 UNEXPLAINED_RATIO = 0.7
+# Flag an output-error window (no disturbance model) whose own fluctuation is a sizeable share of P's
+# ambient std: output error then treats a coloured, V-correlated disturbance as white noise, and its standard
+# errors do not cover the resulting bias.  Tuned on the ANDES bench's development windows (own seed 1, 350
+# windows): every output-error window off by more than 20 % without another warning flag had ``own_ratio_p``
+# 0.42-0.53, every window without own fluctuation 0.00 (docs/numerics.md).
+OWN_UNMODELLED_RATIO = 0.3
 # Width of the frequency average of the residual's periodogram in the spectral standard errors [Hz].
 SE_SMOOTH_HZ = 0.5
 # Flag a window whose V moves by less than this multiple of its white PMU noise (``input_ratio_v``): the
@@ -424,6 +430,8 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         flags.append("poor_fit")
     if extra["own_ratio_p"] > UNEXPLAINED_RATIO:
         flags.append("unexplained_fluctuation")
+    if config.disturbance == "none" and extra["own_ratio_p"] > OWN_UNMODELLED_RATIO:
+        flags.append("own_fluctuation_unmodelled")
     if prep.noise.get("input_ratio_v", math.inf) < INPUT_RATIO_MIN:
         flags.append("input_noise_too_large")
     # Ambient signal = measured variance minus what the fit leaves (the noise estimate), eq. 10.
