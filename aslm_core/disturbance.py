@@ -162,7 +162,7 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
     """Prediction-error fit of D from an output-error optimum d0, the AR noise models re-estimated at the end.
 
     The AR polynomials come from the output-error residuals at the current D; the fit then minimises the
-    whitened criterion; this repeats ``reestimate`` times (once more if the first move was large).
+    whitened criterion; this repeats ``reestimate`` times.
 
     Returns
     -------
@@ -170,6 +170,18 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
     :func:`aslm_core.identify.levenberg_marquardt`), ``polys`` (the last A(q) of P and Q), ``cov``
     (4×4 covariance of D from the whitened Jacobian, inverse Fisher information) and ``resid`` (the
     whitened residuals of P and Q).
+    """
+    return passes(problem, d0, lambda pb, polys, d: Whitened(pb, polys), max_iter=max_iter, xtol=xtol,
+                  margin=margin, reestimate=reestimate, max_order=max_order)
+
+
+def passes(problem, d0: np.ndarray, make, *, max_iter: int, xtol: float, margin: float, reestimate: int,
+           max_order: int, finish=None) -> dict:
+    """``reestimate`` passes of: AR models from the output-error residual at D, then a fit of D with them.
+
+    ``make(problem, polys, d)`` builds the pass's criterion (as :class:`Whitened`; None: stop);
+    ``finish(criterion, state)`` may add entries to the pass's result.  Returns the last pass's result (as
+    :func:`fit`) with the iterations and evaluations of all passes.
     """
     d = problem.into_feasible(d0)
     total_it = 0
@@ -181,12 +193,16 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
         if r is None:
             break
         polys = (ar_whitener(r[0], max_order), ar_whitener(r[1], max_order))
-        wp = Whitened(problem, polys)
+        wp = make(problem, polys, d)
+        if wp is None:
+            break
         state = constrained_lm(wp, d, max_iter, xtol, margin)
         total_it += state["iterations"]
         evals += wp.evaluations
         d = state["d"]
         state["polys"] = polys
+        if finish is not None:
+            finish(wp, state)
     if not state:
         return {"d": d, "cost": math.inf, "iterations": 0, "evaluations": evals, "status": "failed"}
     state["iterations"], state["evaluations"] = total_it, evals

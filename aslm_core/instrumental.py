@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.stats import chi2
 
 from aslm_core import disturbance
 
@@ -71,7 +72,7 @@ class Instrumented:
     d_ref : ndarray
         D at which the instruments (and the channel weights) are computed.
     lags : int
-        Instrument lags 1 … ``lags`` [samples].
+        Number of instrument lags, from :data:`FIRST_LAG` on.
     """
 
     def __init__(self, problem, polys: tuple[np.ndarray, np.ndarray], d_ref: np.ndarray, lags: int = IV_LAGS) -> None:
@@ -85,6 +86,7 @@ class Instrumented:
         if zs is None:
             raise ValueError("the instruments' reference D cannot be simulated")
         self.bases = [_orthonormal(instruments(zf, lags)) for zf in zs]
+        self.n_static = zs[0].shape[1] - 5  # static regressors, estimated in the instrument space too
         # Channel variances from the structural (not the projected) residual at d_ref: ε = y − Φβ̂ with β̂ the
         # 2SLS static part, since ‖P_Z·ε‖² is a small share of ‖ε‖² when the instrument is weak.
         self.var = []
@@ -148,27 +150,22 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
     Returns
     -------
     dict as :func:`aslm_core.disturbance.fit` (d, cost, iterations, evaluations, status, polys, cov, resid),
-    and ``strength`` (per channel, the instruments' smallest kept share of D's information) [-].
+    ``strength`` (per channel, the instruments' smallest kept share of D's information) [-], ``overid`` (Sargan's
+    over-identification statistic over its degrees of freedom: near 1 when the instruments are valid) [-] and
+    ``overid_p`` (its χ² upper-tail probability) [-].
     """
-    d = problem.into_feasible(d0)
-    total_it, evals = 0, 0
-    state: dict = {}
-    for _ in range(max(reestimate, 1)):
-        r = problem.residuals(d, jacobian=False)
-        evals += 1
-        if r is None:
-            break
-        polys = (disturbance.ar_whitener(r[0], max_order), disturbance.ar_whitener(r[1], max_order))
+    def make(pb, polys, d):
         try:
-            wp = Instrumented(problem, polys, d, lags)
+            return Instrumented(pb, polys, d, lags)
         except ValueError:
-            break
-        state = disturbance.constrained_lm(wp, d, max_iter, xtol, margin)
-        total_it += state["iterations"]
-        evals += wp.evaluations
-        d = state["d"]
-        state.update(polys=polys, strength=wp.strength)
-    if not state:
-        return {"d": d, "cost": math.inf, "iterations": 0, "evaluations": evals, "status": "failed"}
-    state["iterations"], state["evaluations"] = total_it, evals
-    return state
+            return None
+
+    def finish(wp: Instrumented, state: dict) -> None:
+        # Sargan's statistic: 2·cost is χ² with (instruments − parameters) degrees of freedom when the
+        # instruments are uncorrelated with the innovations; far above it, they are not (the IV is biased).
+        dof = max(sum(q.shape[1] - wp.n_static for q in wp.bases) - len(state["d"]), 1)
+        stat = 2.0 * state["cost"] if math.isfinite(state["cost"]) else math.inf
+        state.update(strength=wp.strength, overid=stat / dof, overid_p=float(chi2.sf(stat, dof)))
+
+    return disturbance.passes(problem, d0, make, max_iter=max_iter, xtol=xtol, margin=margin,
+                              reestimate=reestimate, max_order=max_order, finish=finish)

@@ -137,13 +137,17 @@ class IdentificationResult:
         ``_q`` (that std over the measured ambient std) [-], ``input_ratio_v``, ``input_ratio_theta`` (the
         inputs' ambient std over their white PMU noise std) [-], ``rk4_substeps`` (RK4 steps per sample);
         with a disturbance model ``ar_order_p``, ``_q`` (the AR orders) and, for ``ar_iv``, ``iv_strength_p``, ``_q`` (the smallest share of D's whitened information that the
-        instruments keep: 1 = all, near 0 = a weak instrument and large standard errors) [-].
+        instruments keep: 1 = all, near 0 = a weak instrument and large standard errors) [-], ``iv_overid``
+        (Sargan's over-identification statistic over its degrees of freedom: ~1 for valid instruments) [-]
+        and ``iv_overid_p`` (its χ² upper-tail probability) [-].
     flags : list of str
         Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``,
         ``static_split_unidentifiable`` (a static coefficient's standard error above 10 % of the load),
         ``unexplained_fluctuation`` (``own_ratio_p`` above 0.7: P moves mostly for reasons V and θ do not
         explain), ``own_fluctuation_unmodelled`` (``disturbance="none"`` and ``own_ratio_p`` above 0.3: the
         white-noise fit's D and standard errors are not to be trusted; ``disturbance="ar_iv"`` models it),
+        ``iv_instruments_rejected`` (``ar_iv``: ``iv_overid`` above 3, the instruments are correlated with the
+        innovations and the IV estimate is biased),
         ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
         variation and D is not trustworthy).
     static_stderr : dict

@@ -46,7 +46,7 @@ CANDIDATES = {
 }
 #: Flags that tell the user a window's D is not to be trusted.
 WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "unexplained_fluctuation", "low_excitation",
-                 "equilibrium_constraint_active", "own_fluctuation_unmodelled")
+                 "equilibrium_constraint_active", "own_fluctuation_unmodelled", "iv_instruments_rejected")
 
 
 def own_cases(n: int, ratio: float, shape: str, base: list) -> list:

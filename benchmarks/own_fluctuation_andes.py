@@ -56,11 +56,11 @@ CANDIDATES = {"output error": IdentifyConfig(), "AR disturbance (PEM)": Identify
               "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv")}
 #: Every flag that tells the user not to trust a window's D (today's flags).
 WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "unexplained_fluctuation", "low_excitation",
-                 "equilibrium_constraint_active", "own_fluctuation_unmodelled")
+                 "equilibrium_constraint_active", "own_fluctuation_unmodelled", "iv_instruments_rejected")
 F0 = 60.0
 #: Per-window quality entries kept in the JSON (to develop flags on).
-QUALITY_KEYS = ("own_ratio_p", "own_ratio_q", "excitation_share_p", "iv_strength_p", "iv_strength_q", "ar_order_p",
-                "static_cond")
+QUALITY_KEYS = ("own_ratio_p", "own_ratio_q", "excitation_share_p", "iv_strength_p", "iv_strength_q", "iv_overid",
+                "ar_order_p", "static_cond")
 
 
 def _bound(w: dict, truth: np.ndarray, own_cov: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
