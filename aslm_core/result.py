@@ -71,7 +71,7 @@ class IdentifyConfig:
         residuals, then D by the prediction-error criterion on the whitened residuals, the AR models
         re-estimated at that optimum and the fit repeated (:mod:`aslm_core.disturbance`); standard errors
         from the whitened Jacobian.  ``ar_iv``: the same AR models, D and the static part by instrumental
-        variables (the whitened regressors lagged by 1 and 2 samples, so the own fluctuation's same-sample
+        variables (the whitened regressors lagged by 2 and 3 samples, so the own fluctuation's same-sample
         effect on V and θ does not bias them; :mod:`aslm_core.instrumental`); standard errors from the IV
         covariance.  See docs/numerics.md.
     ar_max_order : int
