@@ -93,30 +93,62 @@ class Whitened:
         self.pb = problem
         self.polys = polys
         self.skip = max(len(a) for a in polys) - 1
-        self.phi = problem.basis  # its span is the static regressors'; A(q) maps spans to spans
         self.evaluations = 0
 
     def residuals(self, d: np.ndarray):
         """Whitened, projected residuals and Jacobians of P and Q (lists), or None when the simulation fails."""
-        pb = self.pb
         self.evaluations += 1
-        ok = motor.simulate_kernel(pb.vd, pb.vq, pb.vdm, pb.vqm, np.asarray(d, dtype=np.float64), pb.dt, pb.omega0,
-                                   pb.rk4, True, pb._p, pb._q, pb._dp, pb._dq, pb._x, True, pb.k0, pb.p_meas,
-                                   pb.q_meas, pb._dp)
-        if not ok:
+        zs = whitened_columns(self.pb, self.polys, d, self.skip)
+        if zs is None:
             return None
         es, js = [], []
-        for c in range(2):
-            meas = pb.p_meas if c == 0 else pb.q_meas
-            model, grad = (pb._p, pb._dp) if c == 0 else (pb._q, pb._dq)
-            z = np.column_stack([meas - model[pb.k0:], -grad[pb.k0:], self.phi])
-            zf = signal.lfilter(self.polys[c], [1.0], z, axis=0)[self.skip:]
+        for zf in zs:
             basis, _ = np.linalg.qr(zf[:, 5:])
             zf5 = zf[:, :5]
             proj = zf5 - basis @ (basis.T @ zf5)
             es.append(proj[:, 0])
             js.append(proj[:, 1:])
         return es, js
+
+    def cost(self, es: list[np.ndarray]) -> float:
+        """The prediction-error criterion of whitened residuals."""
+        return _cost(es)
+
+    def weights(self, es: list[np.ndarray]) -> list[float]:
+        """Per-channel weights of the normal equations: l/‖e_c‖² (IRLS for one unknown variance per channel)."""
+        l = es[0].size
+        return [l / max(float(e @ e), 1e-300) for e in es]
+
+
+def whitened_columns(pb, polys: tuple[np.ndarray, np.ndarray], d: np.ndarray, skip: int) -> list[np.ndarray] | None:
+    """Per channel, the AR-filtered columns [residual, ∂residual/∂D (4), static basis] over the regression samples.
+
+    Parameters
+    ----------
+    pb : aslm_core.identify.Problem
+    polys : tuple of ndarray
+        A(q) of P and of Q.
+    d : ndarray
+        D = [a, b, H2, Tm].
+    skip : int
+        Leading filtered samples dropped (the filter's start-up).
+
+    Returns
+    -------
+    list of two (l − skip, 5 + n_basis) arrays [pu], or None when the simulation fails.
+    """
+    ok = motor.simulate_kernel(pb.vd, pb.vq, pb.vdm, pb.vqm, np.asarray(d, dtype=np.float64), pb.dt, pb.omega0,
+                               pb.rk4, True, pb._p, pb._q, pb._dp, pb._dq, pb._x, True, pb.k0, pb.p_meas,
+                               pb.q_meas, pb._dp)
+    if not ok:
+        return None
+    out = []
+    for c in range(2):
+        meas = pb.p_meas if c == 0 else pb.q_meas
+        model, grad = (pb._p, pb._dp) if c == 0 else (pb._q, pb._dq)
+        z = np.column_stack([meas - model[pb.k0:], -grad[pb.k0:], pb.basis])
+        out.append(signal.lfilter(polys[c], [1.0], z, axis=0)[skip:])
+    return out
 
 
 def _cost(es: list[np.ndarray]) -> float:
@@ -130,7 +162,7 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
     """Prediction-error fit of D from an output-error optimum d0, the AR noise models re-estimated at the end.
 
     The AR polynomials come from the output-error residuals at the current D; the fit then minimises the
-    whitened criterion; this repeats ``reestimate`` times (once more if the first move was large).
+    whitened criterion; this repeats ``reestimate`` times.
 
     Returns
     -------
@@ -138,6 +170,18 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
     :func:`aslm_core.identify.levenberg_marquardt`), ``polys`` (the last A(q) of P and Q), ``cov``
     (4×4 covariance of D from the whitened Jacobian, inverse Fisher information) and ``resid`` (the
     whitened residuals of P and Q).
+    """
+    return passes(problem, d0, lambda pb, polys, d: Whitened(pb, polys), max_iter=max_iter, xtol=xtol,
+                  margin=margin, reestimate=reestimate, max_order=max_order)
+
+
+def passes(problem, d0: np.ndarray, make, *, max_iter: int, xtol: float, margin: float, reestimate: int,
+           max_order: int, finish=None) -> dict:
+    """``reestimate`` passes of: AR models from the output-error residual at D, then a fit of D with them.
+
+    ``make(problem, polys, d)`` builds the pass's criterion (as :class:`Whitened`; None: stop);
+    ``finish(criterion, state)`` may add entries to the pass's result.  Returns the last pass's result (as
+    :func:`fit`) with the iterations and evaluations of all passes.
     """
     d = problem.into_feasible(d0)
     total_it = 0
@@ -149,20 +193,29 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
         if r is None:
             break
         polys = (ar_whitener(r[0], max_order), ar_whitener(r[1], max_order))
-        wp = Whitened(problem, polys)
-        state = _lm(wp, d, max_iter, xtol, margin)
+        wp = make(problem, polys, d)
+        if wp is None:
+            break
+        state = constrained_lm(wp, d, max_iter, xtol, margin)
         total_it += state["iterations"]
         evals += wp.evaluations
         d = state["d"]
         state["polys"] = polys
+        if finish is not None:
+            finish(wp, state)
     if not state:
         return {"d": d, "cost": math.inf, "iterations": 0, "evaluations": evals, "status": "failed"}
     state["iterations"], state["evaluations"] = total_it, evals
     return state
 
 
-def _lm(wp: Whitened, d0: np.ndarray, max_iter: int, xtol: float, margin: float) -> dict:
-    """Constrained Levenberg–Marquardt on the whitened criterion (the kernel's QP step, IRLS weights l/‖e‖²)."""
+def constrained_lm(wp, d0: np.ndarray, max_iter: int, xtol: float, margin: float) -> dict:
+    """Constrained Levenberg–Marquardt on a weighted least-squares criterion (the kernel's QP step).
+
+    ``wp`` gives ``residuals(d)`` → (residuals, Jacobians) per channel or None, ``cost(residuals)`` and
+    ``weights(residuals)`` (per channel, for the normal equations and the final Fisher information).
+    Returns d, cost, iterations, status, ``cov`` (the inverse of Σ_c w_c·J_cᵀJ_c) and ``resid``.
+    """
     pb = wp.pb
     lower, upper, vmin = pb.lower, pb.upper, pb.v_min
     d = d0.copy()
@@ -171,7 +224,7 @@ def _lm(wp: Whitened, d0: np.ndarray, max_iter: int, xtol: float, margin: float)
         return {"d": d, "cost": math.inf, "iterations": 0, "status": "failed", "cov": np.full((4, 4), np.inf),
                 "resid": None}
     es, js = out
-    cost = _cost(es)
+    cost = wp.cost(es)
     lam = 1e-3
     step = np.empty(4)
     work, vec, ivec = np.empty((4, 4)), np.empty((3, 4)), np.empty((3, 4), dtype=np.int64)
@@ -179,8 +232,7 @@ def _lm(wp: Whitened, d0: np.ndarray, max_iter: int, xtol: float, margin: float)
     it = 0
     while it < max_iter:
         it += 1
-        l = es[0].size
-        w = [l / max(float(e @ e), 1e-300) for e in es]
+        w = wp.weights(es)
         g = sum(wc * (j.T @ e) for wc, j, e in zip(w, js, es, strict=True))
         A = sum(wc * (j.T @ j) for wc, j in zip(w, js, strict=True))
         gc = np.array([vmin * vmin * (1.0 - margin), -2.0 * d[3], 0.0, -2.0 * d[1]])
@@ -199,9 +251,9 @@ def _lm(wp: Whitened, d0: np.ndarray, max_iter: int, xtol: float, margin: float)
                     lam *= 4.0
                     continue
             out = wp.residuals(trial)
-            if out is not None and _cost(out[0]) < cost:
+            if out is not None and wp.cost(out[0]) < cost:
                 moved = float(np.max(np.abs(trial - d) / (np.abs(d) + 1e-3)))
-                d, (es, js), cost = trial, out, _cost(out[0])
+                d, (es, js), cost = trial, out, wp.cost(out[0])
                 lam = max(lam / 3.0, 1e-9)
                 accepted = True
                 break
@@ -212,8 +264,7 @@ def _lm(wp: Whitened, d0: np.ndarray, max_iter: int, xtol: float, margin: float)
         if moved < xtol:
             status = "converged"
             break
-    l = es[0].size
-    fisher = sum((l / max(float(e @ e), 1e-300)) * (j.T @ j) for e, j in zip(es, js, strict=True))
+    fisher = sum(wc * (j.T @ j) for wc, j in zip(wp.weights(es), js, strict=True))
     try:
         cov = np.linalg.inv(fisher)
     except np.linalg.LinAlgError:

@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from aslm_core import disturbance, excitation, motor, optimize, static
+from aslm_core import disturbance, excitation, instrumental, motor, optimize, static
 from aslm_core.errors import NoEquilibriumError, WindowError
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import Prepared, prepare
@@ -37,6 +37,18 @@ COARSE_XTOL = 1e-3
 # misfit): the coloured residual's std above this fraction of P's ambient std.  At own/clean std 0.9 the
 # median error of D is 11-20 % with every estimator tried (docs/numerics.md).
 UNEXPLAINED_RATIO = 0.7
+# Flag an output-error window (no disturbance model) whose own fluctuation is a sizeable share of P's
+# ambient std: output error then treats a coloured, V-correlated disturbance as white noise, and its standard
+# errors do not cover the resulting bias.  Tuned on the ANDES bench's development windows (own seed 1, 350
+# windows): every output-error window off by more than 20 % without another warning flag had ``own_ratio_p``
+# 0.42-0.53, every window without own fluctuation 0.00 (docs/numerics.md).
+OWN_UNMODELLED_RATIO = 0.3
+# Flag an ``ar_iv`` window whose instruments fail Sargan's over-identification test: its statistic over its
+# degrees of freedom (``iv_overid``, ~1 when the instruments are uncorrelated with the innovations) above this.
+# Tuned on development windows: at most 2.7 on the 450 ANDES windows (own seed 1, where the IV is consistent),
+# 1.8 on synthetic windows without own fluctuation; 3.6-12.6 on 6 of the 8 synthetic switching windows at 0.5
+# that were off by more than 20 % without another flag (docs/numerics.md).
+IV_OVERID_MAX = 3.0
 # Width of the frequency average of the residual's periodogram in the spectral standard errors [Hz].
 SE_SMOOTH_HZ = 0.5
 # Flag a window whose V moves by less than this multiple of its white PMU noise (``input_ratio_v``): the
@@ -323,14 +335,18 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
             final, final_problem = r, longer
     cov_d = None
     extra: dict[str, float] = {}
-    if config.disturbance == "ar":
-        pem = disturbance.fit(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
+    if config.disturbance in ("ar", "ar_iv"):
+        fit_pem = disturbance.fit if config.disturbance == "ar" else instrumental.fit
+        pem = fit_pem(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
         final_problem.evaluations += pem["evaluations"]
         if math.isfinite(pem["cost"]):
             it = final["iterations"] if final is not best else 0
             final = {**pem, "iterations": pem["iterations"] + it}
             cov_d = pem["cov"]
             extra = {"ar_order_p": float(len(pem["polys"][0]) - 1), "ar_order_q": float(len(pem["polys"][1]) - 1)}
+            if "strength" in pem:
+                extra.update(iv_strength_p=pem["strength"][0], iv_strength_q=pem["strength"][1],
+                             iv_overid=pem["overid"], iv_overid_p=pem["overid_p"])
     return _result(final_problem, window, best, runs, prep, config, t_start, final=final, cov_d=cov_d,
                    extra_quality=extra)
 
@@ -421,6 +437,10 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         flags.append("poor_fit")
     if extra["own_ratio_p"] > UNEXPLAINED_RATIO:
         flags.append("unexplained_fluctuation")
+    if config.disturbance == "none" and extra["own_ratio_p"] > OWN_UNMODELLED_RATIO:
+        flags.append("own_fluctuation_unmodelled")
+    if (extra_quality or {}).get("iv_overid", 0.0) > IV_OVERID_MAX:
+        flags.append("iv_instruments_rejected")
     if prep.noise.get("input_ratio_v", math.inf) < INPUT_RATIO_MIN:
         flags.append("input_noise_too_large")
     # Ambient signal = measured variance minus what the fit leaves (the noise estimate), eq. 10.

@@ -13,7 +13,7 @@ Integrator = Literal["rk4", "euler"]
 Objective = Literal["paper", "ml", "ssq"]
 StaticModel = Literal["zip", "exponential"]
 InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
-Disturbance = Literal["none", "ar"]
+Disturbance = Literal["none", "ar", "ar_iv"]
 StderrMethod = Literal["spectral", "ar1"]
 
 
@@ -65,12 +65,15 @@ class IdentifyConfig:
         Longest run of missing samples repaired by interpolation.
     min_duration_s : float
         Shortest window accepted [s].
-    disturbance : {"none", "ar"}
+    disturbance : {"none", "ar", "ar_iv"}
         Noise model of P and Q.  ``none``: white (output error).  ``ar``: the load's own fluctuation as
         an AR process per channel (order by BIC, up to ``ar_max_order``) estimated from the output-error
         residuals, then D by the prediction-error criterion on the whitened residuals, the AR models
         re-estimated at that optimum and the fit repeated (:mod:`aslm_core.disturbance`); standard errors
-        from the whitened Jacobian.  See docs/numerics.md.
+        from the whitened Jacobian.  ``ar_iv``: the same AR models, D and the static part by instrumental
+        variables (the whitened regressors lagged by 2 and 3 samples, so the own fluctuation's same-sample
+        effect on V and θ does not bias them; :mod:`aslm_core.instrumental`); standard errors from the IV
+        covariance.  See docs/numerics.md.
     ar_max_order : int
         Longest AR noise model tried [samples].
     coarse_to_fine : bool
@@ -132,12 +135,20 @@ class IdentificationResult:
         (the model's share of the measured ambient variance, white floor removed) [-], ``own_std_p``,
         ``_q`` (std of the residual's coloured part: the load's own fluctuation) [pu] and ``own_ratio_p``,
         ``_q`` (that std over the measured ambient std) [-], ``input_ratio_v``, ``input_ratio_theta`` (the
-        inputs' ambient std over their white PMU noise std) [-], ``rk4_substeps`` (RK4 steps per sample).
+        inputs' ambient std over their white PMU noise std) [-], ``rk4_substeps`` (RK4 steps per sample);
+        with a disturbance model ``ar_order_p``, ``_q`` (the AR orders) and, for ``ar_iv``, ``iv_strength_p``, ``_q`` (the smallest share of D's whitened information that the
+        instruments keep: 1 = all, near 0 = a weak instrument and large standard errors) [-], ``iv_overid``
+        (Sargan's over-identification statistic over its degrees of freedom: ~1 for valid instruments) [-]
+        and ``iv_overid_p`` (its χ² upper-tail probability) [-].
     flags : list of str
         Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``,
         ``static_split_unidentifiable`` (a static coefficient's standard error above 10 % of the load),
         ``unexplained_fluctuation`` (``own_ratio_p`` above 0.7: P moves mostly for reasons V and θ do not
-        explain), ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
+        explain), ``own_fluctuation_unmodelled`` (``disturbance="none"`` and ``own_ratio_p`` above 0.3: the
+        white-noise fit's D and standard errors are not to be trusted; ``disturbance="ar_iv"`` models it),
+        ``iv_instruments_rejected`` (``ar_iv``: ``iv_overid`` above 3, the instruments are correlated with the
+        innovations and the IV estimate is biased),
+        ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
         variation and D is not trustworthy).
     static_stderr : dict
         Standard errors of the ``static`` coefficients [pu or -] (D taken as known).

@@ -41,9 +41,12 @@ CANDIDATES = {
     "Wiener V/θ + adaptive low-pass": IdentifyConfig(input_smoother="wiener_lowpass"),
     "AR disturbance (PEM)": IdentifyConfig(disturbance="ar"),
     "Wiener V/θ + AR disturbance": IdentifyConfig(input_smoother="wiener", disturbance="ar"),
+    "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv"),
+    "Wiener V/θ + AR disturbance (IV)": IdentifyConfig(input_smoother="wiener", disturbance="ar_iv"),
 }
 #: Flags that tell the user a window's D is not to be trusted.
-WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts")
+WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "unexplained_fluctuation", "low_excitation",
+                 "equilibrium_constraint_active", "own_fluctuation_unmodelled", "iv_instruments_rejected")
 
 
 def own_cases(n: int, ratio: float, shape: str, base: list) -> list:

@@ -5,7 +5,7 @@ ANDES's IEEE 14-bus case with Motor3 + ZIP at bus 9 and grid-side ambient on the
 shapes ``lowpass`` (2 Hz), ``switching`` (200 small loads: steps), ``pink`` (1/f) and ``ramp`` (slow ramps), at
 std(own ΔP)/std(grid-driven P) set per window so that own/total = 0, 0.5, 0.9.  P and Q get white noise at
 22 dB.  Windows of 10 s, one every 5 s (they overlap by half), the same windows for every estimator:
-output error (today's default) and ``disturbance="ar"``.
+output error (today's default), ``disturbance="ar"`` and ``disturbance="ar_iv"``.
 
 Per level and shape: median and worst |error|, bias μ − 1, σ of D_opt/D_real, coverage of ±1.96 SE, windows off
 by more than 20 % and how many of them carry no warning flag, and σ over the Cramér–Rao bound
@@ -15,6 +15,12 @@ the process), ``crb_sep`` with each channel's own spectrum only (the bound for e
 channels separately, as ``ar`` does).
 
     .venv/bin/python -m benchmarks.own_fluctuation_andes [--n 50] [--shapes lowpass switching pink ramp]
+        [--own-seed 1] [--candidates ...]
+
+``--own-seed`` draws the own process and the white noise from another seed on the same (cached) grid-side run:
+new windows without new ANDES time.  Seed 1 (:data:`SEED`) is the development set the estimators and flags were
+tuned on; :data:`CONFIRM_OWN_SEEDS` were fixed before any run on them.  Results go to
+``docs/results/own_fluctuation_andes.json`` (seed 1) or ``own_fluctuation_andes_own<seed>.json``.
 
 ANDES runs are cached in ``~/.cache/aslm/andes_own`` (the grid-side run of 261 s takes 10–30 min here).
 """
@@ -44,11 +50,17 @@ LENGTH_S, START_S, STRIDE_S = 10.0, 5.0, 5.0
 SNR_DB = 22.0
 RATIOS = (0.0, 0.5, 0.9)
 SHAPES = ("lowpass", "switching", "pink", "ramp")
-CANDIDATES = {"output error": IdentifyConfig(), "AR disturbance (PEM)": IdentifyConfig(disturbance="ar")}
+#: Own-process seeds of the confirmation run, fixed before it (the development windows are seed 1's).
+CONFIRM_OWN_SEEDS = (11,)
+CANDIDATES = {"output error": IdentifyConfig(), "AR disturbance (PEM)": IdentifyConfig(disturbance="ar"),
+              "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv")}
 #: Every flag that tells the user not to trust a window's D (today's flags).
 WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "unexplained_fluctuation", "low_excitation",
-                 "equilibrium_constraint_active")
+                 "equilibrium_constraint_active", "own_fluctuation_unmodelled", "iv_instruments_rejected")
 F0 = 60.0
+#: Per-window quality entries kept in the JSON (to develop flags on).
+QUALITY_KEYS = ("own_ratio_p", "own_ratio_q", "excitation_share_p", "iv_strength_p", "iv_strength_q", "iv_overid",
+                "ar_order_p", "static_cond")
 
 
 def _bound(w: dict, truth: np.ndarray, own_cov: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -67,9 +79,9 @@ def _bound(w: dict, truth: np.ndarray, own_cov: np.ndarray | None) -> tuple[np.n
     return out[0], out[1]
 
 
-def stats(truth: np.ndarray, results: list[dict], bounds: np.ndarray) -> dict:
+def stats(truth: np.ndarray, results: list[dict], bounds: np.ndarray, names: list[str]) -> dict:
     """Per candidate: accuracy, calibration, flags, and σ over the bound (``bounds``: (2, windows, 4))."""
-    out = candidate_stats([truth] * len(results), results, list(CANDIDATES), WARNING_FLAGS)
+    out = candidate_stats([truth] * len(results), results, names, WARNING_FLAGS)
     crb = np.sqrt(bounds.mean(axis=1))  # (2, 4): the RMS of the per-window bounds
     for st in out.values():
         sigma = np.array([st["sigma"][k] for k in common.PARAMS])
@@ -86,11 +98,12 @@ def stats(truth: np.ndarray, results: list[dict], bounds: np.ndarray) -> dict:
     return out
 
 
-def _identify_all(w: dict) -> dict:
+def _identify_all(w: dict, names: list[str]) -> dict:
     """Every candidate on one window, in turn, with its wall time [s]."""
     win = Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=F0, bus="andes-ieee14-bus9")
     out = {}
-    for name, cfg in CANDIDATES.items():
+    for name in names:
+        cfg = CANDIDATES[name]
         t0 = time.perf_counter()
         try:
             out[name] = (identify(win, config=cfg), time.perf_counter() - t0)
@@ -131,43 +144,54 @@ def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None, help="windows per level (default 50; --quick: 6)")
     ap.add_argument("--shapes", nargs="+", default=list(SHAPES), choices=SHAPES)
+    ap.add_argument("--own-seed", type=int, default=SEED, help="seed of the own process and the P/Q noise")
+    ap.add_argument("--candidates", nargs="+", default=list(CANDIDATES), choices=list(CANDIDATES))
     args = ap.parse_args(argv)
+    names = args.candidates
     n = args.n or (6 if args.quick else 50)
     t_all = time.perf_counter()
     grid = andes_own.grid_recording(tf=TF, tstep=TSTEP, seed=SEED, fs=FS)
     truth = grid["truth"]
-    out = {"machine": common.machine(), "n_per_level": n, "seed": SEED, "snr_db": SNR_DB, "truth": truth,
+    out = {"machine": common.machine(), "n_per_level": n, "seed": SEED, "own_seed": args.own_seed, "snr_db": SNR_DB,
+           "truth": truth,
            "windows": {"length_s": LENGTH_S, "start_s": START_S, "stride_s": STRIDE_S, "tf": TF, "tstep": TSTEP},
-           "candidates": {k: v.to_dict() for k, v in CANDIDATES.items()}, "runs": []}
+           "candidates": {k: CANDIDATES[k].to_dict() for k in names}, "runs": []}
     l_reg = int(round(LENGTH_S * FS)) + 1 - int(round(FS))
     table = []
     for si, shape in enumerate(args.shapes):
-        own = andes_own.own_recording(shape, tf=TF, tstep=TSTEP, seed=SEED)
+        own = andes_own.own_recording(shape, tf=TF, tstep=TSTEP, seed=args.own_seed)
         own_cov = window_covariance(shape, l_reg, FS, 600, seed=SEED + 100)
         for ri, ratio in enumerate(RATIOS):
             if ratio == 0.0 and si > 0:
                 continue  # no own fluctuation: the shape does not matter
-            ws = windows(grid, own, ratio, n, np.random.default_rng([SEED, ri, SHAPES.index(shape)]))
-            results = [_identify_all(w) for w in ws]
+            ws = windows(grid, own, ratio, n, np.random.default_rng([args.own_seed, ri, SHAPES.index(shape)]))
+            results = [_identify_all(w, names) for w in ws]
             bounds = np.array([_bound(w, truth, own_cov) for w in ws]).transpose(1, 0, 2)
-            per = stats(truth, results, bounds)
+            per = stats(truth, results, bounds, names)
             achieved = [w["own_ratio"] for w in ws]
             label = shape if ratio > 0 else "–"
             out["runs"].append({"shape": label, "ratio": ratio, "achieved_ratio": achieved, "stats": per,
                                 "flags": {name: [r[name][0].flags if not isinstance(r[name][0], WindowError) else
-                                                 ["error"] for r in results] for name in CANDIDATES},
+                                                 ["error"] for r in results] for name in names},
                                 "errors": {name: [(r[name][0].d / truth - 1).tolist()
                                                   if not isinstance(r[name][0], WindowError) else None
-                                                  for r in results] for name in CANDIDATES},
+                                                  for r in results] for name in names},
+                                "stderr": {name: [[r[name][0].stderr[k] / t for k, t in zip(common.PARAMS, truth, strict=True)]
+                                                  if not isinstance(r[name][0], WindowError) else None
+                                                  for r in results] for name in names},
+                                "quality": {name: [{k: r[name][0].quality.get(k, math.nan) for k in QUALITY_KEYS}
+                                                   if not isinstance(r[name][0], WindowError) else None
+                                                   for r in results] for name in names},
                                 "own_ratio_p": {name: [r[name][0].quality.get("own_ratio_p", math.nan)
                                                        if not isinstance(r[name][0], WindowError) else None
-                                                       for r in results] for name in CANDIDATES}})
+                                                       for r in results] for name in names}})
             table.extend(rows(ratio, label, per))
             print(f"{shape} {ratio}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
     out["total_s"] = time.perf_counter() - t_all
     print(common.md_table(HEAD, table))
     if not args.no_write:
-        common.write_json("own_fluctuation_andes" + ("_quick" if args.quick else ""), out)
+        name = "own_fluctuation_andes" + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
+        common.write_json(name + ("_quick" if args.quick else ""), out)
     return out
 
 
