@@ -121,6 +121,11 @@ def write_json(name: str, obj: dict) -> Path:
     return path
 
 
+def read_json(name: str) -> dict:
+    """A run of record written by :func:`write_json` (``docs/results/<name>.json``)."""
+    return json.loads((RESULTS / f"{name}.json").read_text())
+
+
 def _default(o):
     if isinstance(o, np.integer):
         return int(o)

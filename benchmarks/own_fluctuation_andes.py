@@ -38,6 +38,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from aslm_core import IdentifyConfig, Window, WindowError, identify  # noqa: E402
+from aslm_core.identify import OWN_UNMODELLED_RATIO  # noqa: E402
 from aslm_core.information import cramer_rao, disturbance_covariance, model_jacobian  # noqa: E402
 from aslm_sim.andes import own_fluctuation as andes_own  # noqa: E402
 from aslm_sim.own import OWN_Q_PER_P, window_covariance  # noqa: E402
@@ -140,13 +141,48 @@ def rows(ratio: float, shape: str, per: dict) -> list[list]:
             for name, st in per.items()]
 
 
+GATE_HEAD = ["own/total", "shape", "windows switched", "median |err| a / b / H2 / Tm [%]", "worst [%]",
+             "bias μ−1 a / b / H2 / Tm [%]", "±1.96 SE cover [%]", "off > 20 % (unflagged)"]
+
+
+def gated_row(run: dict, fallback: str = "output error", model: str = "AR disturbance (IV)") -> list:
+    """One row of the gated composite: ``fallback``'s window where its ``own_ratio_p`` is at most
+    :data:`aslm_core.identify.OWN_UNMODELLED_RATIO`, ``model``'s window otherwise (both as recorded in ``run``).
+
+    The gate is the threshold of the ``own_fluctuation_unmodelled`` flag, fixed on the development windows; the
+    composite is what a default "output error unless the window's own fluctuation is sizeable" would give.
+    """
+    picked, switched = [], 0
+    for i, ratio in enumerate(run["own_ratio_p"][fallback]):
+        use = model if ratio is not None and ratio > OWN_UNMODELLED_RATIO else fallback
+        switched += use == model
+        if run["errors"][use][i] is not None:
+            picked.append((run["errors"][use][i], run["stderr"][use][i], run["flags"][use][i]))
+    err = np.array([e for e, _, _ in picked])
+    se = np.array([s for _, s, _ in picked])
+    off = [np.max(np.abs(e)) > 0.2 for e, _, _ in picked]
+    unflagged = sum(o and not any(f.startswith(WARNING_FLAGS) for f in fl) for o, (_, _, fl) in zip(off, picked, strict=True))
+    return [f"{run['ratio']:g}", run["shape"], f"{switched} / {len(run['own_ratio_p'][fallback])}",
+            " / ".join(f"{100 * v:.1f}" for v in np.median(np.abs(err), axis=0)), f"{100 * np.abs(err).max():.0f}",
+            " / ".join(f"{100 * v:+.1f}" for v in err.mean(axis=0)),
+            " / ".join(f"{100 * v:.0f}" for v in np.mean(np.abs(err) <= 1.96 * se, axis=0)),
+            f"{sum(off)} ({unflagged})"]
+
+
 def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None, help="windows per level (default 50; --quick: 6)")
     ap.add_argument("--shapes", nargs="+", default=list(SHAPES), choices=SHAPES)
     ap.add_argument("--own-seed", type=int, default=SEED, help="seed of the own process and the P/Q noise")
     ap.add_argument("--candidates", nargs="+", default=list(CANDIDATES), choices=list(CANDIDATES))
+    ap.add_argument("--gate", action="store_true",
+                    help="print the gated composite from the run of record's JSON (no identification)")
     args = ap.parse_args(argv)
+    if args.gate:
+        name = "own_fluctuation_andes" + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
+        recorded = common.read_json(name)
+        print(common.md_table(GATE_HEAD, [gated_row(run) for run in recorded["runs"]]))
+        return recorded
     names = args.candidates
     n = args.n or (6 if args.quick else 50)
     t_all = time.perf_counter()
