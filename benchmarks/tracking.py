@@ -44,6 +44,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
 
 import json  # noqa: E402
 import math  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 import zlib  # noqa: E402
 from dataclasses import replace  # noqa: E402
@@ -64,8 +65,13 @@ if TYPE_CHECKING:
     from aslm_sim.andes.scenario import BusLoad
 
 SEEDS = {"pooled": 1801, "step": 1802, "false_alarms": 1803, "drift": 1804}
+#: The long false-alarm run (``false_alarms_weeks``, issue 18's "enough periods"), fixed before it ran: seed
+#: (bus i of SNR s: windows from [seed + s, i]), buses, periods per bus (672 = one week at T = 15 min).
+FALSE_ALARMS_WEEKS = {"seed": 1806, "n_buses": 52, "n_periods": 7 * 96}
 #: Development seeds: the calibration of the standard errors' scale (``--calibrate``), never reported on.
 DEV_SEED = 2801
+#: Parts run only when named in ``--parts``.
+EXTRA_PARTS = ("service_cost", "andes_step", "joint_cost", "false_alarms_weeks")
 PERIOD_S = 900.0
 PERIODS_PER_DAY = 96
 STEP = 1.2
@@ -180,21 +186,42 @@ def part_step(n_buses: int, config: TrackerConfig, snr_db: float) -> dict:
             "false_alarms_before_step": early}
 
 
-def part_false_alarms(n_buses: int, n_periods: int, config: TrackerConfig, snr_db: float) -> dict:
-    """Alarms on stationary sequences at T = 15 min: per bus and week."""
+def poisson_upper(count: int, level: float = 0.95) -> float:
+    """One-sided upper confidence bound on a Poisson mean after observing ``count`` events."""
+    from scipy.stats import chi2
+
+    return float(chi2.ppf(level, 2 * (count + 1)) / 2.0)
+
+
+def part_false_alarms(n_buses: int, n_periods: int, config: TrackerConfig, snr_db: float,
+                      seed: int = SEEDS["false_alarms"]) -> dict:
+    """Alarms on stationary sequences at T = 15 min: per bus and week, with the Poisson 95 % upper bound.
+
+    Bus i's windows come from seed ``seed + int(snr_db)``; each finished bus is printed to stderr (a long
+    run shows its progress).
+    """
     alarms, periods = 0, 0
-    per_bus = []
+    per_bus, periods_per_bus = [], []
     for bus in range(n_buses):
-        windows, _ = bus_windows(SEEDS["false_alarms"] + int(snr_db), bus, np.ones(n_periods), snr_db)
+        windows, _ = bus_windows(seed + int(snr_db), bus, np.ones(n_periods), snr_db)
         d, se = estimates(windows)
+        del windows
         _, events = track(d, se, config)
         alarms += len(events)
         per_bus.append(len(events))
-        periods += int(np.sum(np.all(np.isfinite(d), axis=1)))
+        periods_per_bus.append(int(np.sum(np.all(np.isfinite(d), axis=1))))
+        periods += periods_per_bus[-1]
+        print(f"false_alarms {snr_db:g} dB: bus {bus + 1}/{n_buses}: {len(events)} alarm(s); {alarms} in "
+              f"{periods} periods so far (load {os.getloadavg()[0]:.1f})", file=sys.stderr, flush=True)
     weeks = periods / (7 * PERIODS_PER_DAY)
-    return {"snr_db": snr_db, "n_buses": n_buses, "periods": periods, "bus_weeks": weeks, "alarms": alarms,
-            "alarms_per_bus_week": alarms / weeks, "threshold": config.threshold,
-            "design_per_bus_week": config.false_alarms_per_day * 7, "alarms_per_bus": per_bus}
+    return {"snr_db": snr_db, "seed": seed + int(snr_db), "n_buses": n_buses, "periods": periods, "bus_weeks": weeks,
+            "alarms": alarms, "alarms_per_bus_week": alarms / weeks,
+            "alarms_per_bus_week_upper95": poisson_upper(alarms) / weeks, "threshold": config.threshold,
+            "design_per_bus_week": config.false_alarms_per_day * 7, "alarms_per_bus": per_bus,
+            "periods_per_bus": periods_per_bus,
+            "buses_with_alarms": int(sum(1 for a in per_bus if a)),
+            "max_alarms_per_bus_week": max(a * 7 * PERIODS_PER_DAY / p for a, p in zip(per_bus, periods_per_bus,
+                                                                                       strict=True) if p)}
 
 
 def _lag(tracked: np.ndarray, truth_of, skip: int) -> float:
@@ -486,9 +513,14 @@ def main() -> None:
     p = common.parser(__doc__.splitlines()[0])
     p.add_argument("--calibrate", action="store_true", help="only the development-seed calibration of se_scale")
     p.add_argument("--parts", nargs="+", default=[*SEEDS, "service_cost"],
-                   choices=[*SEEDS, "service_cost", "andes_step", "joint_cost"],
+                   choices=[*SEEDS, *EXTRA_PARTS],
                    help="run these parts only (their results replace those parts in the JSON file)")
     p.add_argument("--andes-runs", type=int, default=None, help="ANDES runs of andes_step (default 20; --quick 2)")
+    p.add_argument("--snr", type=float, nargs="+", default=[22.0],
+                   help="SNRs [dB] of false_alarms_weeks (one run of FALSE_ALARMS_WEEKS each)")
+    p.add_argument("--json", default=None,
+                   help="results file in docs/results/ (default tracking, or tracking_quick with --quick): a long "
+                        "part in a file of its own is not overwritten by parts run meanwhile")
     args = p.parse_args()
     q = args.quick
     if args.calibrate:
@@ -498,7 +530,7 @@ def main() -> None:
             print(common.write_json("tracking_calibration", {"machine": common.machine(), "calibration": cal}))
         return
     config = TrackerConfig(pool_windows=16, false_alarms_per_day=0.1, period_s=PERIOD_S)
-    name = "tracking_quick" if q else "tracking"
+    name = args.json or ("tracking_quick" if q else "tracking")
     path = common.RESULTS / f"{name}.json"
     out = json.loads(path.read_text()) if set(args.parts) != {*SEEDS, "service_cost"} and path.exists() else {}
     runs = {
@@ -510,13 +542,16 @@ def main() -> None:
         "service_cost": lambda: part_service_cost(50 if q else 500, 20),
         "andes_step": lambda: part_andes_step(args.andes_runs or (2 if q else 20), config),
         "joint_cost": lambda: part_joint_cost(3 if q else 20, 16),
+        "false_alarms_weeks": lambda: [
+            part_false_alarms(2 if q else FALSE_ALARMS_WEEKS["n_buses"], 50 if q else FALSE_ALARMS_WEEKS["n_periods"],
+                              config, snr, seed=FALSE_ALARMS_WEEKS["seed"]) for snr in args.snr],
     }
     for part in args.parts:
         t0 = time.time()
         out[part] = runs[part]()
         out.setdefault("runs", {})[part] = {"machine": common.machine(), "elapsed_s": time.time() - t0,
                                             "load_avg_at_end": [round(x, 2) for x in os.getloadavg()],
-                                            "command": common.command("tracking", q) + " --parts " + part}
+                                            "command": ".venv/bin/python -m benchmarks.tracking " + " ".join(sys.argv[1:])}
         print(part, out[part], flush=True)
     out.update({"config": vars(config), "threshold": config.threshold})
     if not args.no_write:
