@@ -84,6 +84,8 @@ class JointFits:
         self.failed = 0  # fits that failed, timed out or lost their worker
         self.shed = 0  # fits not started before the next period's were queued
         self.stale = 0  # fits that arrived after their pool had changed
+        self.done = 0  # fits that returned a D
+        self.cpu_s = 0.0  # the workers' CPU time of those fits [s]
         self._round: list[WindowTask] = []
         self._round_keys: dict[str, tuple[float, ...]] = {}
         self._queued: dict[tuple[str, float], tuple[float, ...]] = {}  # (bus, round) -> the pool fitted
@@ -118,7 +120,11 @@ class JointFits:
             if b.key is None or b.key in (b.submitted, b.joint_key):
                 return
             b.submitted = b.key
-            start = b.start if b.start is not None else [tracker.model()["dynamic"][k] for k in DYNAMIC_NAMES]
+            if b.start is not None:
+                start = b.start
+            else:
+                mean = tracker.model()["dynamic"]
+                start = [mean[k] for k in DYNAMIC_NAMES]
             pool_windows = b.ring.get(fitted)
             self._round.append(WindowTask(pool_windows[-1], warm_start=list(start), options=self.options,
                                           fn="service.worker:pooled_window", background=True, pool=pool_windows))
@@ -148,6 +154,12 @@ class JointFits:
                 del self.buses[bus]
 
     @property
+    def pending(self) -> int:
+        """Fits handed to the queue whose outcome has not come back."""
+        with self._lock:
+            return len(self._queued)
+
+    @property
     def nbytes(self) -> int:
         """Bytes of the windows held in every ring."""
         with self._lock:
@@ -169,6 +181,8 @@ class JointFits:
                 log.warning("joint fit of %s failed (%s: %s); its tracked model stays the mean", bus,
                             outcome.reason, outcome.message)
                 return
+            self.done += 1
+            self.cpu_s += outcome.cpu_s
             value = outcome.value or {}
             dynamic = value.get("dynamic") or {}
             if any(dynamic.get(k) is None for k in DYNAMIC_NAMES):

@@ -253,7 +253,7 @@ def test_a_failed_or_timed_out_fit_leaves_the_mean_and_loses_nothing_else(tmp_pa
         joint = JointFits(short, max_buses=10)
         sink = TrackingSink(storage, TrackerConfig(pool_windows=4), joint=joint)
         _feed(sink, ws, fits, range(4))
-        _wait(lambda: joint.failed >= 1 and not joint._queued)
+        _wait(lambda: joint.failed >= 1 and not joint.pending)
         assert short.replaced >= 1
         body = TrackedModel.model_validate_json(storage.tracked("bus-j"))
         tr = sink.trackers["bus-j"]
