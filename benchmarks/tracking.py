@@ -545,14 +545,20 @@ def part_service_joint(n_buses: int, ks: tuple[int, ...], workers: int, referenc
                         time.sleep(0.05)
                     if j == k - 1 and joint.done > done0:
                         full_cpu = [(joint.cpu_s - cpu0) / (joint.done - done0)]
-                rows, estimators = [], {"joint": 0, "mean": 0}
+                rows, estimators, n_fitted, changed = [], {"joint": 0, "mean": 0}, [], 0
                 for name, bus, _ in groups:
                     model = TrackedModel.model_validate_json(storage.tracked(name))
                     estimators[model.estimator] += 1
+                    n_fitted.append(model.n_windows)
+                    changed += model.last_change is not None
                     rows.append(np.array([model.dynamic[p] for p in common.PARAMS]) / buses[bus][1])
+                full = [r for r, n in zip(rows, n_fitted, strict=True) if n == k]
                 ring = joint.nbytes / max(len(joint.buses), 1)
                 windows0 = buses[0][0][0]
                 out[str(k)] = {**_sigma(np.array(rows)), "estimators": estimators, "failed": joint.failed,
+                               "windows_fitted_histogram": {str(n): n_fitted.count(n) for n in sorted(set(n_fitted))},
+                               "with_a_change": changed,
+                               "full_pools": _sigma(np.array(full)) if len(full) > 1 else None,
                                "stale": joint.stale, "shed": joint.shed,
                                "cpu_s_per_full_pool_fit": full_cpu[0] if full_cpu else None,
                                "ring_bytes_per_bus": ring, "window_samples": windows0.n,
