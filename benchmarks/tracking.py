@@ -44,6 +44,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
 
 import json  # noqa: E402
 import math  # noqa: E402
+import sys  # noqa: E402
 import time  # noqa: E402
 import zlib  # noqa: E402
 from dataclasses import replace  # noqa: E402
@@ -64,8 +65,13 @@ if TYPE_CHECKING:
     from aslm_sim.andes.scenario import BusLoad
 
 SEEDS = {"pooled": 1801, "step": 1802, "false_alarms": 1803, "drift": 1804}
+#: The long false-alarm run (``false_alarms_weeks``, issue 18's "enough periods"), fixed before it ran: seed
+#: (bus i of SNR s: windows from [seed + s, i]), buses, periods per bus (672 = one week at T = 15 min).
+FALSE_ALARMS_WEEKS = {"seed": 1806, "n_buses": 52, "n_periods": 7 * 96}
 #: Development seeds: the calibration of the standard errors' scale (``--calibrate``), never reported on.
 DEV_SEED = 2801
+#: Parts run only when named in ``--parts``.
+EXTRA_PARTS = ("service_cost", "andes_step", "joint_cost", "false_alarms_weeks", "service_joint")
 PERIOD_S = 900.0
 PERIODS_PER_DAY = 96
 STEP = 1.2
@@ -180,21 +186,50 @@ def part_step(n_buses: int, config: TrackerConfig, snr_db: float) -> dict:
             "false_alarms_before_step": early}
 
 
-def part_false_alarms(n_buses: int, n_periods: int, config: TrackerConfig, snr_db: float) -> dict:
-    """Alarms on stationary sequences at T = 15 min: per bus and week."""
+def poisson_upper(count: int, level: float = 0.95) -> float:
+    """One-sided upper confidence bound on a Poisson mean after observing ``count`` events."""
+    from scipy.stats import chi2
+
+    return float(chi2.ppf(level, 2 * (count + 1)) / 2.0)
+
+
+def part_false_alarms(n_buses: int, n_periods: int, config: TrackerConfig, snr_db: float,
+                      seed: int = SEEDS["false_alarms"], other_rates: tuple[float, ...] = ()) -> dict:
+    """Alarms on stationary sequences at T = 15 min: per bus and week, with the Poisson 95 % upper bound.
+
+    Bus i's windows come from seed ``seed + int(snr_db)``; each finished bus is printed to stderr (a long
+    run shows its progress).  ``other_rates``: the same estimates tracked again with these
+    ``false_alarms_per_day`` (a sensitivity, not a calibration: the configuration reported is ``config``).
+    """
     alarms, periods = 0, 0
-    per_bus = []
+    per_bus, periods_per_bus = [], []
+    others = {r: 0 for r in other_rates}
     for bus in range(n_buses):
-        windows, _ = bus_windows(SEEDS["false_alarms"] + int(snr_db), bus, np.ones(n_periods), snr_db)
+        windows, _ = bus_windows(seed + int(snr_db), bus, np.ones(n_periods), snr_db)
         d, se = estimates(windows)
+        del windows
         _, events = track(d, se, config)
         alarms += len(events)
         per_bus.append(len(events))
-        periods += int(np.sum(np.all(np.isfinite(d), axis=1)))
+        for r in others:
+            others[r] += len(track(d, se, replace(config, false_alarms_per_day=r))[1])
+        periods_per_bus.append(int(np.sum(np.all(np.isfinite(d), axis=1))))
+        periods += periods_per_bus[-1]
+        print(f"false_alarms {snr_db:g} dB: bus {bus + 1}/{n_buses}: {len(events)} alarm(s); {alarms} in "
+              f"{periods} periods so far (load {os.getloadavg()[0]:.1f})", file=sys.stderr, flush=True)
     weeks = periods / (7 * PERIODS_PER_DAY)
-    return {"snr_db": snr_db, "n_buses": n_buses, "periods": periods, "bus_weeks": weeks, "alarms": alarms,
-            "alarms_per_bus_week": alarms / weeks, "threshold": config.threshold,
-            "design_per_bus_week": config.false_alarms_per_day * 7, "alarms_per_bus": per_bus}
+    return {"snr_db": snr_db, "seed": seed + int(snr_db), "n_buses": n_buses, "periods": periods, "bus_weeks": weeks,
+            "alarms": alarms, "alarms_per_bus_week": alarms / weeks,
+            "alarms_per_bus_week_upper95": poisson_upper(alarms) / weeks, "threshold": config.threshold,
+            "design_per_bus_week": config.false_alarms_per_day * 7, "alarms_per_bus": per_bus,
+            "periods_per_bus": periods_per_bus,
+            "buses_with_alarms": int(sum(1 for a in per_bus if a)),
+            "other_rates": {str(r): {"false_alarms_per_day": r, "threshold": replace(config, false_alarms_per_day=r).threshold,
+                                     "alarms": n, "alarms_per_bus_week": n / weeks,
+                                     "alarms_per_bus_week_upper95": poisson_upper(n) / weeks}
+                            for r, n in others.items()},
+            "max_alarms_per_bus_week": max(a * 7 * PERIODS_PER_DAY / p for a, p in zip(per_bus, periods_per_bus,
+                                                                                       strict=True) if p)}
 
 
 def _lag(tracked: np.ndarray, truth_of, skip: int) -> float:
@@ -446,49 +481,198 @@ def part_joint_cost(n_buses: int, k: int) -> dict:
             "load_avg": [round(x, 2) for x in os.getloadavg()]}
 
 
-def part_service_cost(n_buses: int, n_periods: int) -> dict:
-    """Time of the service's tracking sink per bus and period: tracker update, model, SQLite row, put."""
+def part_service_joint(n_buses: int, ks: tuple[int, ...], workers: int, reference: dict | None) -> dict:
+    """σ of the service's tracked model with the joint fit, through the tracking sink's own code path.
+
+    The ``pooled`` part's buses and windows (same seeds, 14 dB, 16 stationary windows each) and their
+    per-window estimates; for each k the windows are cut into groups of k (as there), each group one bus
+    of a :class:`~service.sinks.tracking.TrackingSink` (pool k) with its joint fits
+    (:class:`~service.joint_fit.JointFits`) on ``workers`` real worker processes (``LocalPool``).  One
+    period at a time: the batch of every bus's result (carrying its window, as the scheduler hands it),
+    the period's end (the round of fits goes out), then a wait until every fit has come back, as in a
+    service whose fits finish within T.  Reported: σ of the stored tracked model's D/D_true after the
+    group's last window, which estimator it is, the worker CPU per joint fit of a full pool, the ring's
+    bytes per bus, the pickled task and the sink's time per result in the scheduler's process.
+    """
+    import pickle
     import tempfile
     from pathlib import Path
 
-    from service.models import BusResult
+    from service.executors.local import LocalPool
+    from service.joint_fit import JointFits
+    from service.models import BusResult, PeriodSummary, TrackedModel
+    from service.sinks.base import ResultBatch
+    from service.sinks.tracking import TrackingSink
+    from service.storage import Storage
+
+    kmax = max(ks)
+    buses = []
+    for bus in range(n_buses):
+        windows, truth = bus_windows(SEEDS["pooled"], bus, np.ones(kmax), 14.0)
+        d, se = estimates(windows)
+        buses.append((windows, truth[0], d, se))
+    out: dict = {"n_buses": n_buses, "workers": workers, "snr_db": 14.0}
+    pool = LocalPool(workers, "service.worker:pooled_window", timeout_s=600)
+    try:
+        for k in ks:
+            with tempfile.TemporaryDirectory() as tmp:
+                storage = Storage(Path(tmp) / "joint.sqlite")
+                joint = JointFits(pool, max_buses=10 * n_buses * kmax, in_flight=workers)
+                sink = TrackingSink(storage, TrackerConfig(pool_windows=k, period_s=PERIOD_S), joint=joint)
+                groups = [(f"b{bus:03d}g{g0:02d}", bus, g0) for bus in range(n_buses) for g0 in range(0, kmax, k)
+                          if np.all(np.isfinite(buses[bus][2][g0:g0 + k]))]
+                sink_s, full_cpu, task_bytes = [], [], 0
+                for j in range(k):
+                    batch = ResultBatch()
+                    for name, bus, g0 in groups:
+                        windows, _, d, se = buses[bus]
+                        i = g0 + j
+                        batch.append(BusResult(
+                            bus=name, period=j * PERIOD_S, period_s=PERIOD_S, status="ok", completed_at=j * PERIOD_S,
+                            parameters={"dynamic": dict(zip(common.PARAMS, d[i].tolist(), strict=True)),
+                                        "static": {"Pz": 0.1}, "objective": 0.1, "fit": {"fd_p": 0.9, "fd_q": 0.9},
+                                        "stderr": dict(zip(common.PARAMS, se[i].tolist(), strict=True))}))
+                        batch.windows[name] = windows[i]
+                    t0 = time.perf_counter()
+                    sink.write_results(batch, [""] * len(batch))
+                    sink_s.append((time.perf_counter() - t0) / len(batch))
+                    if j == k - 1 and joint._round:
+                        task_bytes = len(pickle.dumps(joint._round[0]))
+                    done0, cpu0 = joint.done, joint.cpu_s
+                    sink.write_period(PeriodSummary(period=j * PERIOD_S, period_s=PERIOD_S, n_ok=len(batch),
+                                                    n_failed=0, n_skipped=0, latency_s=0.0, completed_at=j * PERIOD_S))
+                    while joint.pending:
+                        time.sleep(0.05)
+                    if j == k - 1 and joint.done > done0:
+                        full_cpu = [(joint.cpu_s - cpu0) / (joint.done - done0)]
+                rows, estimators, n_fitted, changed = [], {"joint": 0, "mean": 0}, [], 0
+                for name, bus, _ in groups:
+                    model = TrackedModel.model_validate_json(storage.tracked(name))
+                    estimators[model.estimator] += 1
+                    n_fitted.append(model.n_windows)
+                    changed += model.last_change is not None
+                    rows.append(np.array([model.dynamic[p] for p in common.PARAMS]) / buses[bus][1])
+                full = [r for r, n in zip(rows, n_fitted, strict=True) if n == k]
+                ring = joint.nbytes / max(len(joint.buses), 1)
+                windows0 = buses[0][0][0]
+                out[str(k)] = {**_sigma(np.array(rows)), "estimators": estimators, "failed": joint.failed,
+                               "windows_fitted_histogram": {str(n): n_fitted.count(n) for n in sorted(set(n_fitted))},
+                               "with_a_change": changed,
+                               "full_pools": _sigma(np.array(full)) if len(full) > 1 else None,
+                               "stale": joint.stale, "shed": joint.shed,
+                               "cpu_s_per_full_pool_fit": full_cpu[0] if full_cpu else None,
+                               "ring_bytes_per_bus": ring, "window_samples": windows0.n,
+                               "task_bytes_full_pool": task_bytes,
+                               "sink_ms_per_result_median": 1e3 * float(np.median(sink_s))}
+                storage.close()
+    finally:
+        pool.close()
+    if reference is not None:
+        out["target"] = {str(k): reference["target"][str(k)] for k in ks}
+        out["target_sigma_1_from"] = "the pooled part's k = 1 joint fit (docs/results/tracking.json)"
+    out["load_avg"] = [round(x, 2) for x in os.getloadavg()]
+    return out
+
+
+def part_service_cost(n_buses: int, n_periods: int) -> dict:
+    """Time of the service's tracking sink per bus and period in the scheduler's process, without and with
+    the joint fit (interleaved per period, each on its own SQLite file).
+
+    Without: tracker update, model, SQLite row, put.  With (``track_joint_fit``): also the window's
+    float32 copy into the ring, the fit's task, and when its result arrives the model again, its SQLite
+    row and put; the fits themselves run in the workers (``service_joint`` measures their CPU), here an
+    executor answers each at once with its start as the fitted D.  Windows of 10 s at 50 frames/s with
+    f (the service's defaults).
+    """
+    import tempfile
+    from concurrent.futures import Future
+    from pathlib import Path
+
+    from aslm_core.window import Window
+    from service.executors.base import TaskOutcome
+    from service.joint_fit import JointFits
+    from service.models import BusResult, PeriodSummary
+    from service.sinks.base import ResultBatch
     from service.sinks.tracking import TrackingSink
     from service.storage import Storage
 
     rng = np.random.default_rng(SEEDS["pooled"])
     d0 = np.array([40.0, 12.0, 1.5, 0.5])
     se = dict(zip(common.PARAMS, (0.02 * d0).tolist(), strict=True))
+    n = 500
+    t = np.arange(n) / 50.0
+    window = Window(t, 1.0 + 0.001 * rng.standard_normal(n), 0.01 * rng.standard_normal(n), np.full(n, 0.8),
+                    np.full(n, 0.3), np.full(n, 50.0))
 
-    def result(bus: int, period: float) -> BusResult:
-        d = d0 * (1.0 + 0.02 * rng.standard_normal(4))
-        return BusResult(bus=f"bus{bus:05d}", period=period, period_s=PERIOD_S, status="ok", completed_at=period,
-                         parameters={"dynamic": dict(zip(common.PARAMS, d.tolist(), strict=True)),
-                                     "static": {"Pz": 0.1}, "objective": 0.1, "fit": {"fd_p": 0.9, "fd_q": 0.9},
-                                     "stderr": se})
+    class AnswerAtOnce:
+        """Each fit done at submission: D = its start (the workers' share of the cost is not measured here)."""
 
-    times = []
+        def submit(self, task):
+            fut = Future()
+            fut.set_result(TaskOutcome(ok=True, value={
+                "dynamic": dict(zip(common.PARAMS, task.warm_start, strict=True)), "stderr": se,
+                "n_windows": len(task.pool)}))
+            return fut
+
+        def submit_many(self, tasks):
+            return [self.submit(task) for task in tasks]
+
+        def close(self):
+            """Nothing runs."""
+
+    def batch_of(period: float) -> ResultBatch:
+        batch = ResultBatch()
+        for bus in range(n_buses):
+            d = d0 * (1.0 + 0.02 * rng.standard_normal(4))
+            batch.append(BusResult(bus=f"bus{bus:05d}", period=period, period_s=PERIOD_S, status="ok",
+                                   completed_at=period,
+                                   parameters={"dynamic": dict(zip(common.PARAMS, d.tolist(), strict=True)),
+                                               "static": {"Pz": 0.1}, "objective": 0.1,
+                                               "fit": {"fd_p": 0.9, "fd_q": 0.9}, "stderr": se}))
+            batch.windows[f"bus{bus:05d}"] = window
+        return batch
+
+    times: dict[str, list[float]] = {"mean": [], "joint": []}
     with tempfile.TemporaryDirectory() as tmp:
-        storage = Storage(Path(tmp) / "cost.sqlite")
-        sink = TrackingSink(storage, TrackerConfig(), put=lambda key, payload: None)
+        sinks = {mode: TrackingSink(Storage(Path(tmp) / f"{mode}.sqlite"), TrackerConfig(), put=lambda k, p: None,
+                                    joint=JointFits(AnswerAtOnce(), max_buses=n_buses) if mode == "joint" else None)
+                 for mode in times}
         for p in range(n_periods):
-            batch = [result(b, p * PERIOD_S) for b in range(n_buses)]
-            t0 = time.perf_counter()
-            sink.write_results(batch, [""] * n_buses)
-            times.append((time.perf_counter() - t0) / n_buses)
-        storage.close()
+            for mode in (("mean", "joint") if p % 2 == 0 else ("joint", "mean")):
+                batch = batch_of(p * PERIOD_S)
+                t0 = time.perf_counter()
+                sinks[mode].write_results(batch, [""] * n_buses)
+                sinks[mode].write_period(PeriodSummary(period=p * PERIOD_S, period_s=PERIOD_S, n_ok=n_buses,
+                                                       n_failed=0, n_skipped=0, latency_s=0.0,
+                                                       completed_at=p * PERIOD_S))
+                times[mode].append((time.perf_counter() - t0) / n_buses)
+        ring = sinks["joint"].joint.nbytes / n_buses
+        estimators = {json.loads(sinks["joint"].storage.tracked("bus00000"))["estimator"]}
+        for sink in sinks.values():
+            sink.storage.close()
     # The first periods fill the pools (and compute the thresholds once per pool size).
-    steady = times[n_periods // 2:]
-    return {"n_buses": n_buses, "n_periods": n_periods, "ms_per_bus_median": 1e3 * float(np.median(steady)),
-            "ms_per_bus_all": [1e3 * t for t in times], "load_avg": [round(x, 2) for x in os.getloadavg()]}
+    steady = {mode: v[n_periods // 2:] for mode, v in times.items()}
+    return {"n_buses": n_buses, "n_periods": n_periods,
+            "ms_per_bus_median": 1e3 * float(np.median(steady["mean"])),
+            "ms_per_bus_median_joint": 1e3 * float(np.median(steady["joint"])),
+            "ms_per_bus_all": [1e3 * t for t in times["mean"]],
+            "ms_per_bus_all_joint": [1e3 * t for t in times["joint"]],
+            "ring_bytes_per_bus": ring, "window_samples": n, "estimator_after": sorted(estimators),
+            "load_avg": [round(x, 2) for x in os.getloadavg()]}
 
 
 def main() -> None:
     p = common.parser(__doc__.splitlines()[0])
     p.add_argument("--calibrate", action="store_true", help="only the development-seed calibration of se_scale")
     p.add_argument("--parts", nargs="+", default=[*SEEDS, "service_cost"],
-                   choices=[*SEEDS, "service_cost", "andes_step", "joint_cost"],
+                   choices=[*SEEDS, *EXTRA_PARTS],
                    help="run these parts only (their results replace those parts in the JSON file)")
     p.add_argument("--andes-runs", type=int, default=None, help="ANDES runs of andes_step (default 20; --quick 2)")
+    p.add_argument("--snr", type=float, nargs="+", default=[22.0],
+                   help="SNRs [dB] of false_alarms_weeks (one run of FALSE_ALARMS_WEEKS each)")
+    p.add_argument("--json", default=None,
+                   help="results file in docs/results/ (default tracking, or tracking_quick with --quick): a long "
+                        "part in a file of its own is not overwritten by parts run meanwhile")
     args = p.parse_args()
     q = args.quick
     if args.calibrate:
@@ -498,7 +682,7 @@ def main() -> None:
             print(common.write_json("tracking_calibration", {"machine": common.machine(), "calibration": cal}))
         return
     config = TrackerConfig(pool_windows=16, false_alarms_per_day=0.1, period_s=PERIOD_S)
-    name = "tracking_quick" if q else "tracking"
+    name = args.json or ("tracking_quick" if q else "tracking")
     path = common.RESULTS / f"{name}.json"
     out = json.loads(path.read_text()) if set(args.parts) != {*SEEDS, "service_cost"} and path.exists() else {}
     runs = {
@@ -510,13 +694,18 @@ def main() -> None:
         "service_cost": lambda: part_service_cost(50 if q else 500, 20),
         "andes_step": lambda: part_andes_step(args.andes_runs or (2 if q else 20), config),
         "joint_cost": lambda: part_joint_cost(3 if q else 20, 16),
+        "service_joint": lambda: part_service_joint(4 if q else 100, (4, 16), 1, out.get("pooled")),
+        "false_alarms_weeks": lambda: [
+            part_false_alarms(2 if q else FALSE_ALARMS_WEEKS["n_buses"], 50 if q else FALSE_ALARMS_WEEKS["n_periods"],
+                              config, snr, seed=FALSE_ALARMS_WEEKS["seed"], other_rates=(0.05, 0.2))
+            for snr in args.snr],
     }
     for part in args.parts:
         t0 = time.time()
         out[part] = runs[part]()
         out.setdefault("runs", {})[part] = {"machine": common.machine(), "elapsed_s": time.time() - t0,
                                             "load_avg_at_end": [round(x, 2) for x in os.getloadavg()],
-                                            "command": common.command("tracking", q) + " --parts " + part}
+                                            "command": ".venv/bin/python -m benchmarks.tracking " + " ".join(sys.argv[1:])}
         print(part, out[part], flush=True)
     out.update({"config": vars(config), "threshold": config.threshold})
     if not args.no_write:

@@ -95,6 +95,7 @@ class Service:
         """Start every part; returns self once REST answers (if enabled)."""
         s = self.settings
         self.executor = make_executor(s.executor, s.workers, s.identify_fn, s.task_timeout_s)
+        self.context.executor = self.executor  # before the sinks: the tracking sink's joint fits run on it
         if hasattr(self.executor, "wait_ready") and not self.executor.wait_ready(wait_workers):
             log.warning("workers not ready after %g s; continuing", wait_workers)
         # The service's own state (latest results, metrics) goes after the persisting sinks and before

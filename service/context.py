@@ -19,6 +19,8 @@ from service.storage import Storage
 if TYPE_CHECKING:  # zenoh is imported only when a session is opened
     import zenoh
 
+    from service.executors.base import Executor
+
 
 @dataclass
 class Context:
@@ -34,6 +36,9 @@ class Context:
     metrics : ServiceMetrics
         ``request_errors`` counts what sources and sinks catch.
     clock : Clock
+    executor : Executor or None
+        The worker pool, set before the sinks are built (a sink may hand it background tasks: the
+        tracking sink's joint fits); None outside a running service.
     """
 
     settings: ServiceSettings
@@ -41,6 +46,7 @@ class Context:
     latest: LatestResults
     metrics: ServiceMetrics
     clock: Clock = SYSTEM_CLOCK
+    executor: Executor | None = None
     _session: zenoh.Session | None = field(default=None, init=False, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
 

@@ -32,12 +32,15 @@ class DiagnosisQueue:
     in_flight : int
         Diagnoses in the executor at a time (the service: workers − 1, so one worker is always free for
         identification when a period starts).
+    what : str
+        What the tasks are, in the log (the tracking sink queues its joint pooled fits the same way).
     """
 
     def __init__(self, executor: Executor, report: Callable[[str, float, TaskOutcome], None], *,
-                 in_flight: int = 1) -> None:
+                 in_flight: int = 1, what: str = "diagnoses") -> None:
         self.executor = executor
         self.report = report
+        self.what = what
         self.in_flight = max(1, int(in_flight))
         self.shed = 0
         self._waiting: collections.deque[tuple[float, WindowTask]] = collections.deque()
@@ -58,11 +61,12 @@ class DiagnosisQueue:
             self._waiting = collections.deque((period, task) for task in tasks)
             self.shed += len(dropped)
         if dropped:
-            log.warning("%d diagnoses of period %.0f shed: not started when the diagnoses of period %.0f "
-                        "were queued (raise diagnose_every, or add workers)", len(dropped), dropped[0][0], period)
+            log.warning("%d %s of period %.0f shed: not started when the %s of period %.0f were queued (add "
+                        "workers%s)", len(dropped), self.what, dropped[0][0], self.what, period,
+                        ", or raise diagnose_every" if self.what == "diagnoses" else "")
         for old, task in dropped:
             self._report(task.bus, old, TaskOutcome(ok=False, reason="shed", message=(
-                f"not started before the diagnoses of period {period:.0f} were queued")))
+                f"not started before the {self.what} of period {period:.0f} were queued")))
         self._pump()
 
     def pause(self) -> None:
@@ -109,4 +113,4 @@ class DiagnosisQueue:
         try:
             self.report(bus, period, outcome)
         except Exception:  # noqa: BLE001 - one bus's report never stops the others
-            log.exception("reporting the diagnosis of %s failed", bus)
+            log.exception("reporting the %s of %s failed", self.what, bus)

@@ -287,6 +287,10 @@ class TrackedModel(TrackedSummary):
                                                   description="Its level and slope at V0 (as in parameters)")
     pool_windows: int = Field(description="Longest pool k in force [windows]")
     threshold: float = Field(description="Detector threshold h on the standardised innovations [-]")
+    estimator: Literal["joint", "mean"] = Field(
+        "mean", description="How dynamic and stderr were pooled: joint (one fit of D to the pool's windows, "
+        "track_joint_fit; n_windows: the windows fitted, a winsorised outlier left out) or mean (the "
+        "information-weighted mean of the windows' estimates, until the joint fit of this pool arrives)")
 
 
 class ChangeEvidence(BaseModel):

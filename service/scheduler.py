@@ -33,6 +33,7 @@ from service.clock import SYSTEM_CLOCK, Clock
 from service.diagnosis_queue import DiagnosisQueue
 from service.executors.base import Executor, TaskOutcome, WindowTask
 from service.models import BusResult, Identified, PeriodSummary
+from service.sinks.base import ResultBatch
 from service.timefmt import utc_text
 
 log = logging.getLogger(__name__)
@@ -331,7 +332,7 @@ class Scheduler:
             submit(group)
         if skipped:
             self._emit(skipped, done)
-        batch: list[BusResult] = []
+        batch = ResultBatch()
         last_emit = time.monotonic()
         while pending:
             finished = []
@@ -347,6 +348,7 @@ class Scheduler:
                 try:
                     if outcome.ok:
                         res = self._record(bus, boundary, period_s, "ok", None, cut, warm, outcome)
+                        batch.windows[bus] = cut  # for the sinks that keep samples (tracking's joint fit)
                         self.warm_starts[bus] = [res.parameters.dynamic[k] for k in DYNAMIC_NAMES]
                         identified[bus] = (cut, outcome.value)
                     else:
@@ -358,7 +360,7 @@ class Scheduler:
             # Report in groups (one SQLite transaction each) rather than one by one.
             if batch and (not pending or len(batch) >= 64 or time.monotonic() - last_emit > 0.25):
                 self._emit(batch, done)
-                batch, last_emit = [], time.monotonic()
+                batch, last_emit = ResultBatch(), time.monotonic()
         finished_at = self.clock.now()
         summary = PeriodSummary(
             period=boundary, period_s=period_s,

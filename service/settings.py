@@ -114,6 +114,14 @@ class ServiceSettings(BaseSettings):
     track_false_alarms_per_day: float = Field(
         0.1, gt=0, description="Change detector's false-alarm rate per bus and day under a stationary load",
     )
+    track_joint_fit: bool = Field(
+        True, description="Refit the tracked model jointly on its pool's windows (a background worker task per "
+                          "bus and period, docs/tracking.md); off: the mean of the windows' estimates",
+    )
+    track_joint_fit_buses: int = Field(
+        1000, ge=0, description="Buses whose pool's windows are kept for the joint fit (the first to be tracked); "
+                                "the others keep the mean [buses]",
+    )
     # --- storage -------------------------------------------------------------------------------
     storage_url: str = Field("aslm.sqlite", description="SQLite file path or sqlite:///path URL")
     retention_days: float = Field(90.0, description="Results and periods older than this are deleted [days]")

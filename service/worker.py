@@ -77,6 +77,28 @@ def diagnose_window(task: WindowTask) -> dict:
     return diagnose_dict(window, previous=task.previous)
 
 
+def pooled_window(task: WindowTask) -> dict:
+    """Worker function of the tracked model's joint pooled fit: one D from the windows of ``task.pool``.
+
+    :func:`aslm_core.pooled.identify_pooled` on the pool's windows (back in float64), started from
+    ``task.warm_start`` (the bus's previous joint D, or the tracker's mean), with ``task.options`` as
+    :class:`aslm_core.IdentifyConfig` keyword arguments.
+
+    Returns
+    -------
+    dict
+        ``dynamic``, ``stderr`` (as D's), ``cov`` (4×4 in the order a, b, H2, Tm), ``n_windows``,
+        ``iterations``, ``status``, ``flags``, ``objective``.
+    """
+    from aslm_core import IdentifyConfig
+    from aslm_core.pooled import identify_pooled
+
+    fit = identify_pooled([w.window() for w in task.pool or []], start=task.warm_start,
+                          config=IdentifyConfig(**task.options))
+    return {"dynamic": fit.dynamic, "stderr": fit.stderr, "cov": fit.cov, "n_windows": fit.n_windows,
+            "iterations": fit.iterations, "status": fit.status, "flags": fit.flags, "objective": fit.objective}
+
+
 _FN_CACHE: dict[str, Callable[[WindowTask], dict]] = {}
 
 

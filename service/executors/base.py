@@ -4,9 +4,12 @@ from __future__ import annotations
 
 from concurrent.futures import Future
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from aslm_core.window import Window
+
+if TYPE_CHECKING:
+    from service.window_ring import CompactWindow
 
 
 @dataclass
@@ -15,9 +18,10 @@ class WindowTask:
 
     Attributes
     ----------
-    window : aslm_core.Window
+    window : aslm_core.Window or CompactWindow
         The bus's samples (t [s], V [pu], θ [rad], P, Q [pu], optional f [Hz]), nominal frequency f0
-        [Hz] and bus name.  Its ``meta`` stays empty: it would be pickled with every task.
+        [Hz] and bus name.  Its ``meta`` stays empty: it would be pickled with every task.  In the joint
+        pooled fit's task, the newest of ``pool``.
     warm_start : list of float or None
         Previous period's D = [a, b, H2, Tm] of the bus.
     options : dict
@@ -29,14 +33,18 @@ class WindowTask:
     background : bool
         Runs only when no identification waits (the diagnosis): an executor that can order its tasks
         gives such a task only to an idle worker and nothing else to that worker while it runs.
+    pool : list of CompactWindow or None
+        The windows of the joint pooled fit of the tracked model (``service.worker:pooled_window``),
+        oldest first, in float32 (:mod:`service.window_ring`).
     """
 
-    window: Window
+    window: Window | CompactWindow
     warm_start: list[float] | None = None
     options: dict[str, Any] = field(default_factory=dict)
     fn: str | None = None
     previous: dict | None = None
     background: bool = False
+    pool: list[CompactWindow] | None = None
 
     @property
     def bus(self) -> str:

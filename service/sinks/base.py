@@ -16,6 +16,22 @@ from service.models import BusResult, PeriodSummary
 log = logging.getLogger(__name__)
 
 
+class ResultBatch(list):
+    """A batch of :class:`BusResult` (a list, as every sink takes it) with the windows identified.
+
+    Attributes
+    ----------
+    windows : dict
+        bus → the ``aslm_core.Window`` its ok result was identified on, for in-process sinks that need
+        the samples (the tracking sink's joint fit); the scheduler drops the batch after the sinks wrote
+        it, so no window outlives its period here.
+    """
+
+    def __init__(self, results=(), windows: dict | None = None) -> None:
+        super().__init__(results)
+        self.windows = windows if windows is not None else {}
+
+
 class Sink(Protocol):
     """Where results, diagnosis reports and period summaries go.
 

@@ -5,7 +5,9 @@ successful result's D and standard errors update its bus's tracker.  The tracked
 events are stored in SQLite (tables ``tracked`` and ``changes``, one transaction per batch; the trackers'
 state too, so tracking resumes after a restart) and, when the service publishes on Zenoh, put on
 ``{prefix}/tracked/{bus}`` and ``{prefix}/changes/{bus}``.  REST serves them (``GET /buses/{bus}/tracked``,
-``GET /buses/{bus}/changes``); docs/tracking.md has the method and its measured figures.
+``GET /buses/{bus}/changes``); docs/tracking.md has the method and its measured figures.  With
+``track_joint_fit`` the pools' windows are kept and fitted jointly on the workers
+(:mod:`service.joint_fit`); each tracked model says which estimator it carries (``estimator``).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import json
 import logging
 import math
+import threading
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -20,6 +23,7 @@ from aslm_core.params import DYNAMIC_NAMES
 from aslm_core.tracking import Tracker, TrackerConfig
 from service.busnames import check_bus_name
 from service.context import Context
+from service.joint_fit import JointFits
 from service.models import BusResult, ChangeEvent, PeriodSummary, TrackedModel
 from service.storage import Storage
 
@@ -45,19 +49,30 @@ class TrackingSink:
         Zenoh key prefix.
     on_error : callable, optional
         Called once per failed put.
+    joint : JointFits, optional
+        The joint pooled fits of the pools' windows (``track_joint_fit``): the tracked model is the joint
+        fit of its pool once it has arrived, the mean of the windows' estimates until then; None: the mean.
     """
 
     name = "tracking"
     persists = True
 
     def __init__(self, storage: Storage, config: TrackerConfig, *, put: Callable[[str, str], None] | None = None,
-                 prefix: str = "aslm", on_error: Callable[[], None] | None = None) -> None:
+                 prefix: str = "aslm", on_error: Callable[[], None] | None = None,
+                 joint: JointFits | None = None) -> None:
         self.storage = storage
         self.config = config
         self._put = put
         self.prefix = prefix
         self._on_error = on_error or (lambda: None)
         self.trackers: dict[str, Tracker] = {}
+        # bus -> (period, static, static_local) of its newest successful result (the model's static part)
+        self._newest: dict[str, tuple[float, dict, dict]] = {}
+        # The scheduler's thread writes results, the executor's delivers joint fits: one at a time.
+        self._lock = threading.RLock()
+        self.joint = joint
+        if joint is not None:
+            joint.arrived = self._joint_arrived
         for bus, state in storage.tracker_states().items():
             try:
                 self.trackers[bus] = Tracker.from_state(json.loads(state), config)
@@ -67,38 +82,66 @@ class TrackingSink:
     def write_results(self, batch: list[BusResult], payloads: list[str]) -> None:  # noqa: ARG002 - Sink signature
         """Update the trackers with the batch's successful results; store, then publish."""
         tracked, changes, puts = [], [], []
-        for res in batch:
-            par = res.parameters
-            if res.status != "ok" or par is None:
-                continue
-            tr = self.trackers.get(res.bus)
-            if tr is None:
-                tr = self.trackers[res.bus] = Tracker(config=self.config)
-            if tr.config.period_s != res.period_s:
-                tr.config = replace(tr.config, period_s=res.period_s)
-            se = [par.stderr.get(k) for k in DYNAMIC_NAMES]
-            event = tr.update(res.period, [par.dynamic[k] for k in DYNAMIC_NAMES],
-                              [math.inf if s is None else s for s in se])
-            model = tr.model()
-            if model is None:
-                continue
-            body = TrackedModel(
-                bus=res.bus, period=model["t"], since=model["since"], last_change=model["last_change"],
-                suspect=model["suspect"], dynamic=model["dynamic"],
-                stderr={k: _finite_or_none(v) for k, v in model["stderr"].items()}, n_windows=model["n_windows"],
-                static=par.static, static_local=par.static_local, pool_windows=tr.config.pool_windows,
-                threshold=tr.config.threshold).model_dump_json()
-            tracked.append((res.bus, res.period, body, json.dumps(tr.to_state())))
-            puts.append((f"{self.prefix}/tracked/{check_bus_name(res.bus)}", body))
-            if event is not None:
-                ev = event.to_dict()
-                for side in ("before", "after"):
-                    ev[side]["stderr"] = {k: _finite_or_none(v) for k, v in ev[side]["stderr"].items()}
-                js = ChangeEvent(bus=res.bus, **ev).model_dump_json()
-                changes.append((res.bus, event.t, js))
-                puts.append((f"{self.prefix}/changes/{check_bus_name(res.bus)}", js))
-        if tracked:
-            self.storage.save_tracking(tracked, changes)
+        windows = getattr(batch, "windows", {})  # a ResultBatch from the scheduler carries them
+        with self._lock:
+            for res in batch:
+                par = res.parameters
+                if res.status != "ok" or par is None:
+                    continue
+                tr = self.trackers.get(res.bus)
+                if tr is None:
+                    tr = self.trackers[res.bus] = Tracker(config=self.config)
+                if tr.config.period_s != res.period_s:
+                    tr.config = replace(tr.config, period_s=res.period_s)
+                se = [par.stderr.get(k) for k in DYNAMIC_NAMES]
+                event = tr.update(res.period, [par.dynamic[k] for k in DYNAMIC_NAMES],
+                                  [math.inf if s is None else s for s in se])
+                if self.joint is not None:
+                    self.joint.observe(res.bus, res.period, windows.get(res.bus), tr)
+                self._newest[res.bus] = (res.period, par.static, par.static_local)
+                body = self._body(res.bus, tr)
+                if body is None:
+                    continue
+                tracked.append((res.bus, res.period, body, json.dumps(tr.to_state())))
+                puts.append((f"{self.prefix}/tracked/{check_bus_name(res.bus)}", body))
+                if event is not None:
+                    ev = event.to_dict()
+                    for side in ("before", "after"):
+                        ev[side]["stderr"] = {k: _finite_or_none(v) for k, v in ev[side]["stderr"].items()}
+                    js = ChangeEvent(bus=res.bus, **ev).model_dump_json()
+                    changes.append((res.bus, event.t, js))
+                    puts.append((f"{self.prefix}/changes/{check_bus_name(res.bus)}", js))
+            if tracked:
+                self.storage.save_tracking(tracked, changes)
+        self._publish(puts)
+
+    def _body(self, bus: str, tr: Tracker) -> str | None:
+        """JSON of the bus's tracked model: the joint fit of its pool when it has arrived, else the mean."""
+        model = tr.model()
+        if model is None:
+            return None
+        joint = self.joint.current(bus) if self.joint is not None else None
+        pooled = joint if joint is not None else model
+        _, static, static_local = self._newest[bus]
+        return TrackedModel(
+            bus=bus, period=model["t"], since=model["since"], last_change=model["last_change"],
+            suspect=model["suspect"], dynamic=pooled["dynamic"],
+            stderr={k: None if v is None else _finite_or_none(v) for k, v in pooled["stderr"].items()},
+            n_windows=pooled["n_windows"], static=static, static_local=static_local,
+            pool_windows=tr.config.pool_windows, threshold=tr.config.threshold,
+            estimator="mean" if joint is None else "joint").model_dump_json()
+
+    def _joint_arrived(self, bus: str) -> None:
+        """A joint fit of the bus's current pool arrived (executor thread): store and publish the model."""
+        with self._lock:
+            tr = self.trackers.get(bus)
+            body = self._body(bus, tr) if tr is not None and bus in self._newest else None
+            if body is None:
+                return
+            self.storage.save_tracking([(bus, self._newest[bus][0], body, json.dumps(tr.to_state()))], [])
+        self._publish([(f"{self.prefix}/tracked/{check_bus_name(bus)}", body)])
+
+    def _publish(self, puts: list[tuple[str, str]]) -> None:
         if self._put is None:
             return
         for key, js in puts:
@@ -112,7 +155,10 @@ class TrackingSink:
         """Diagnoses do not move the tracked model."""
 
     def write_period(self, summary: PeriodSummary) -> None:
-        """Nothing per period."""
+        """Hand the period's joint fits to the workers; forget the rings of buses gone idle."""
+        if self.joint is not None:
+            self.joint.submit_round(summary.period)
+            self.joint.evict_idle(summary.period)
 
     def close(self) -> None:
         """Nothing held (the storage and the session are the instance's)."""
@@ -121,7 +167,9 @@ class TrackingSink:
 def build(ctx: Context) -> TrackingSink:
     """The tracking sink on the service's storage with the settings' ``track_pool_windows`` and
     ``track_false_alarms_per_day``; it publishes on the instance's Zenoh session when the ``zenoh`` sink is
-    configured (failed puts count as ``aslm_internal_errors{where="publish"}``)."""
+    configured (failed puts count as ``aslm_internal_errors{where="publish"}``).  With ``track_joint_fit``
+    (and the service's executor) the pools of the first ``track_joint_fit_buses`` buses are fitted jointly
+    on the workers."""
     s = ctx.settings
     config = TrackerConfig(pool_windows=s.track_pool_windows, false_alarms_per_day=s.track_false_alarms_per_day,
                            period_s=s.period_s)
@@ -135,5 +183,9 @@ def build(ctx: Context) -> TrackingSink:
             session.put(key, payload, encoding=zenoh.Encoding.APPLICATION_JSON,
                         congestion_control=zenoh.CongestionControl.BLOCK)
 
+    joint = None
+    if s.track_joint_fit and s.track_joint_fit_buses > 0 and ctx.executor is not None:
+        joint = JointFits(ctx.executor, max_buses=s.track_joint_fit_buses, in_flight=max(1, s.workers - 1),
+                          options={"lowpass_hz": s.lowpass_hz}, idle_s=s.bus_idle_s)
     return TrackingSink(ctx.storage, config, put=put, prefix=s.prefix,
-                        on_error=ctx.metrics.request_errors.labels("publish").inc)
+                        on_error=ctx.metrics.request_errors.labels("publish").inc, joint=joint)
