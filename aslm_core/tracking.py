@@ -91,7 +91,7 @@ class TrackerConfig:
     """
 
     pool_windows: int = 16
-    false_alarms_per_day: float = 0.1
+    false_alarms_per_day: float = 0.05
     period_s: float = 900.0
     se_scale: float = 1.0
 

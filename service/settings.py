@@ -23,6 +23,7 @@ from pydantic_settings import (
     TomlConfigSettingsSource,
 )
 
+from aslm_core.tracking import TrackerConfig
 from service import registry
 from service.executors import executor_module
 from service.sinks import SINKS
@@ -112,7 +113,7 @@ class ServiceSettings(BaseSettings):
         16, ge=1, description="Longest pool k of the tracked model: the last k windows since the last change",
     )
     track_false_alarms_per_day: float = Field(
-        0.1, gt=0, description="Change detector's false-alarm rate per bus and day under a stationary load",
+        TrackerConfig.false_alarms_per_day, gt=0, description="Change detector's false-alarm rate per bus and day under a stationary load",
     )
     track_joint_fit: bool = Field(
         True, description="Refit the tracked model jointly on its pool's windows (a background worker task per "

@@ -70,7 +70,7 @@ def test_a_single_outlying_window_raises_no_alarm_and_rejoins_the_pool_winsorise
 
 
 def test_no_alarm_on_a_stationary_sequence_of_fixed_seeds():
-    # 500 periods ≈ 5 bus-days at T = 15 min: ~0.5 alarms expected at the design rate (0.1 per day).
+    # 500 periods ≈ 5 bus-days at T = 15 min: ~0.26 alarms expected at the default design rate (0.05 per day).
     tr = Tracker(TrackerConfig())
     assert [i for i, d in enumerate(_draws(np.random.default_rng(100), 500)) if tr.update(i * 900.0, d, SE)] == []
 
@@ -79,7 +79,7 @@ def test_false_alarm_rate_on_gaussian_estimates_is_the_design_rate():
     # 20,000 periods ≈ 30 bus-weeks: the two innovations' correlation through the pool is in the threshold.
     alarms = 0
     for seed in range(40):
-        tr = Tracker(TrackerConfig())
+        tr = Tracker(TrackerConfig(false_alarms_per_day=0.1))
         alarms += sum(tr.update(i * 900.0, d, SE) is not None for i, d in enumerate(_draws(np.random.default_rng(seed), 500)))
     expected = 20_000 * 0.1 * 900.0 / 86400.0  # 20.8
     assert 0.5 * expected < alarms < 1.6 * expected
