@@ -233,6 +233,10 @@ def _parameters(fit: Fit, cand: Candidate, pr: Prediction, res, rp, rq, xwp, xwq
             se_all = np.sqrt(np.clip(np.diag(cov), 0, None))
         except np.linalg.LinAlgError:
             se_all = np.full(j.shape[1], np.inf)
+        # A parameter the residual does not move (a threshold of a discrete law, chosen by a scan) is not
+        # determined by the fit; pinv would report zero variance for it.
+        if j.size:
+            se_all = np.where(np.any(j != 0, axis=0), se_all, np.inf)
         off = 4 if free else 0
         for i, c in enumerate(cand.nl_names):
             params[c] = float(fit.z[i])
