@@ -342,8 +342,11 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         if frac >= config.explained_fraction or not left:
             # Rivals: every other candidate that explains the held-out data (score test and penalty), the
             # magnitude guard aside — a rival whose magnitude is loosely determined still fits as well.
-            rivals = [e for e in entries if e is not best and e.tested and e.score_z > zcrit
-                      and e.penalised_gain is not None and e.penalised_gain > 0]
+            # A candidate's declared look-alikes (``Candidate.confusable``) are rivals whenever they were
+            # fitted: the best one must beat them on the paired test even when they miss the score test.
+            look_alikes = LIBRARY[best.name].confusable
+            rivals = [e for e in entries if e is not best and e.tested and e.penalised_gain is not None
+                      and ((e.score_z > zcrit and e.penalised_gain > 0) or e.name in look_alikes)]
             tied = sorted([best, *_unseparated(analyses, best, rivals, config)], key=lambda e: -e.penalised_gain)
             causes = [e.name for e in tied]
             if len(tied) == 1:

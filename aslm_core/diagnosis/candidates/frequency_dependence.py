@@ -8,7 +8,8 @@ A linear extra term on each channel (lower stage)::
     Q = Q_ZIP(V) + Q_im(D) + Kqf·Δf
 
 with Δf = f − f0 [Hz] the bus frequency deviation (the recorded ``f``, else dθ/dt/2π), low-passed at
-5 Hz.  Parameters: Kpf [pu/Hz], Kqf [pu/Hz] (on the system base; divide by the static P or Q and
+5 Hz by the segment and again at 2 Hz (:data:`SMOOTH_HZ`, zero phase) by the candidate.  Parameters:
+Kpf [pu/Hz], Kqf [pu/Hz] (on the system base; divide by the static P or Q and
 multiply by f0 for the usual per-unit sensitivity, e.g. Kpf·f0/P0 ≈ 0–3 for mixed loads).
 
 Signature: the plain-model residual is coherent with Δf in the ambient band (0.1–2 Hz), more than with
@@ -21,7 +22,12 @@ from __future__ import annotations
 import numpy as np
 
 from aslm_core.diagnosis.candidates.base import Candidate
-from aslm_core.diagnosis.segment import Segment
+from aslm_core.diagnosis.segment import Segment, _lowpass
+
+#: The column's own low-pass [Hz]: the ambient band's top.  dθ/dt amplifies θ's noise in proportion to
+#: frequency, so with noisy θ most of Δf's noise below the segment's 5 Hz cut-off lies in 2–5 Hz, where the
+#: load's frequency response carries little; without θ noise it changes the column by little.
+SMOOTH_HZ = 2.0
 
 
 class FrequencyDependence(Candidate):
@@ -33,7 +39,7 @@ class FrequencyDependence(Candidate):
     signature = "residual coherent with the bus frequency deviation Δf (0.1–2 Hz)"
 
     def extra_columns(self, seg: Segment, d: np.ndarray, z: np.ndarray):
-        col = seg.dfreq[:, None]
+        col = _lowpass(seg.dfreq, seg.fs, SMOOTH_HZ)[:, None]
         return col, col
 
 

@@ -86,11 +86,8 @@ class SwitchedShunt(Candidate):
 
     @staticmethod
     def _relay_v(seg: Segment) -> np.ndarray:
-        v = getattr(seg, "_relay_v", None)
-        if v is None:
-            v = _lowpass(seg.V, seg.fs, FREQ_LOWPASS_HZ)
-            seg._relay_v = v  # the scan and every upper-stage evaluation read the same filtered V
-        return v
+        # Recomputed per call (a fraction of a motor simulation): the noise model perturbs segments' V.
+        return _lowpass(seg.V, seg.fs, FREQ_LOWPASS_HZ)
 
     def bounds(self, seg: Segment, ctx: Context):
         v = self._relay_v(seg)
