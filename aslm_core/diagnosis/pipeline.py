@@ -287,7 +287,8 @@ def _entry(analyses: list[_WindowAnalysis], name: str, zcrit: float) -> Candidat
                                       for ch in ("p", "q"))),
         excess_reduction=PerChannel(*(_mean_or_none([getattr(c, f"excess_{ch}") for c in comps]) for ch in ("p", "q"))),
         penalised_gain=pg, score_z=z, dm_z=dmz, magnitude_z=float(min(mag_z, 1e6)), n_params=cand.n_params,
-        significant=bool(math.isfinite(z) and z > zcrit and pg > 0 and mag_z >= cand.magnitude_z_min),
+        significant=bool(math.isfinite(z) and z > zcrit and pg > 0 and mag_z >= cand.magnitude_z_min
+                         and cand.implausible(params, a0.seg, a0.ctx) is None),
         signature=cand.signature, tested=True)
 
 

@@ -175,6 +175,11 @@ class Candidate:
         ep, eq = self.extra_columns(seg, d, z)
         return Prediction(m[0] + fp, m[1] + fq, np.hstack([sx, ep]), np.hstack([sx, eq]))
 
+    def implausible(self, params: dict[str, float], seg: Segment, ctx: Context) -> str | None:
+        """Why fitted parameters are outside what the physics can be (None: plausible); such a fit is never
+        significant, however well it predicts (it is fitting something else)."""
+        return None
+
     def describe(self, params: dict[str, float], seg: Segment, ctx: Context) -> dict[str, float]:
         """Derived quantities worth reporting (e.g. an exponent from a coefficient); default none."""
         return {}

@@ -3,20 +3,23 @@
 Notes
 -----
 A relay with a dead band and a delay switches a shunt capacitor of susceptance B [pu on the system base]:
-the bank goes in once V has stayed below Vc − dv for τ seconds and out once V has stayed above Vc + dv for
-τ seconds (hysteresis 2·dv; a shorter excursion resets the timer)::
+the relay decides to put the bank in once V has stayed below Vc − dv for τ seconds and to take it out once V
+has stayed above Vc + dv for τ seconds (hysteresis 2·dv; a shorter excursion resets the timer); the
+breaker follows the decision t_op seconds later (its operating time)::
 
-    s(t) ∈ {0, 1},   s: 0 → 1 after V < Vc − dv for τ,   s: 1 → 0 after V > Vc + dv for τ,   s(t0) = s0
+    r(t) ∈ {0, 1},   r: 0 → 1 after V < Vc − dv for τ,   r: 1 → 0 after V > Vc + dv for τ,   r(t0) = s0
+    s(t) = r(t − t_op)
     P = P_ZIP(V) + P_im(D),    Q = Q_ZIP(V) + Q_im(D) − B·s(t)·V²
 
 Nonlinear parameters (upper stage): Vc [pu] the relay's centre voltage, dv [pu] half its dead band,
-τ [s] its delay and s0 [-] the bank's state at the window's start (0 or 1; the fit rounds it).  Linear
+τ [s] its delay, t_op [s] the breaker's operating time (0–0.1 s, whole samples) and s0 [-] the bank's
+state at the window's start (0 or 1; the fit rounds it).  Linear
 (lower stage): B [pu], on Q only (a capacitor exchanges no active power).  The relay reads V low-passed
 at the ambient band's edge (5 Hz, zero phase), so that measurement noise on V does not reset its timer.
 
-The law is piecewise constant in (Vc, dv, τ, s0): finite differences see no slope, so these four are
-chosen by a scan (Vc over the window's V range, dv and τ over logarithmic grids, both s0) with D held at
-the plain fit; the upper stage then refines D with them fixed, and their standard errors are reported as
+The law is piecewise constant in (Vc, dv, τ, t_op, s0): finite differences see no slope, so these are
+chosen by a scan (Vc over the window's V range, dv and τ over coarse grids, both s0, then finer passes
+that also place t_op) with D held at the plain fit; the upper stage then refines D with them fixed, and their standard errors are reported as
 not determined (infinite).  Magnitude: B.
 
 Signature: steps of Q — not of P — proportional to V², following V's excursions beyond a threshold by a
@@ -36,6 +39,7 @@ VC_QUANTILES = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 DV_STD = (0.1, 0.25, 0.5, 0.8, 1.2)
 TAU_S = (0.02, 0.05, 0.1, 0.2, 0.3, 0.45, 0.7)
 REFINE_PASSES = 2
+T_OP_MAX_S = 0.1  # [s] a breaker closes within a few cycles
 
 
 @numba.njit(cache=True)
@@ -69,6 +73,13 @@ def relay_state(v: np.ndarray, vc: float, dv: float, tau: float, dt: float, s0: 
     return s
 
 
+def _state(v: np.ndarray, z, dt: float) -> np.ndarray:
+    """The bank's state s(t) for z = (Vc, dv, τ, t_op, s0): the relay's decision, t_op later."""
+    r = relay_state(v, float(z[0]), float(z[1]), float(z[2]), dt, float(z[4]))
+    k = int(round(float(z[3]) / dt))
+    return np.concatenate([np.full(k, r[0]), r[:r.size - k]]) if k else r
+
+
 def _better(ssr, best: float, z: tuple, trial: tuple) -> tuple[float, tuple]:
     c = ssr(trial)
     return (c, trial) if c < best else (best, z)
@@ -77,8 +88,8 @@ def _better(ssr, best: float, z: tuple, trial: tuple) -> tuple[float, tuple]:
 class SwitchedShunt(Candidate):
     name = "switched_shunt"
     magnitude = ("B",)
-    nl_names = ("Vc", "dv", "tau", "s0")
-    nl_units = ("pu", "pu", "s", "-")
+    nl_names = ("Vc", "dv", "tau", "t_op", "s0")
+    nl_units = ("pu", "pu", "s", "s", "-")
     lin_q = ("B",)
     lin_units = {"B": "pu"}
     signature = "steps of Q ∝ V² (not of P) after V stays beyond a threshold for a delay: a relay-switched bank"
@@ -92,11 +103,11 @@ class SwitchedShunt(Candidate):
     def bounds(self, seg: Segment, ctx: Context):
         v = self._relay_v(seg)
         sd = max(float(np.std(v)), 1e-6)
-        return (np.array([float(v.min()), 0.0, 0.0, 0.0]),
-                np.array([float(v.max()), 4.0 * sd, 2.0, 1.0]))
+        return (np.array([float(v.min()), 0.0, 0.0, 0.0, 0.0]),
+                np.array([float(v.max()), 4.0 * sd, 2.0, T_OP_MAX_S, 1.0]))
 
     def extra_columns(self, seg: Segment, d: np.ndarray, z: np.ndarray):
-        s = relay_state(self._relay_v(seg), float(z[0]), float(z[1]), float(z[2]), seg.dt, float(z[3]))
+        s = _state(self._relay_v(seg), z, seg.dt)
         return np.zeros((seg.n, 0)), (-s * seg.V**2)[:, None]
 
     def starts(self, seg: Segment, ctx: Context) -> list[np.ndarray]:
@@ -113,7 +124,7 @@ class SwitchedShunt(Candidate):
         v2 = seg.V[tr] ** 2
 
         def ssr(z) -> float:
-            s = relay_state(v, z[0], z[1], z[2], seg.dt, z[3])[tr]
+            s = _state(v, z, seg.dt)[tr]
             if s.min() == s.max():  # no switching in training: nothing to fit
                 return np.inf
             x = np.column_stack([x0, -s * v2])
@@ -123,7 +134,7 @@ class SwitchedShunt(Candidate):
             return float(r @ r)
 
         sd = float(np.std(v))
-        grid = [(float(vc), k * sd, tau, s0) for vc in np.quantile(v, VC_QUANTILES) for k in DV_STD
+        grid = [(float(vc), k * sd, tau, 0.0, s0) for vc in np.quantile(v, VC_QUANTILES) for k in DV_STD
                 for tau in TAU_S for s0 in (0.0, 1.0)]
         costs = [ssr(z) for z in grid]
         if not np.isfinite(min(costs)):
@@ -134,11 +145,15 @@ class SwitchedShunt(Candidate):
         # the fit hinges on, and the coarse grid places it within a step of the delay only.
         for _ in range(REFINE_PASSES):
             for c in z[0] + sd * np.linspace(-0.3, 0.3, 13):
-                best, z = _better(ssr, best, z, (float(c), z[1], z[2], z[3]))
-            # dv and τ jointly: together they decide whether an excursion switches the bank at all.
+                best, z = _better(ssr, best, z, (float(c), *z[1:]))
+            # dv and τ jointly: together they decide whether an excursion switches the bank at all; then τ
+            # and t_op jointly: the later the breaker, the longer V is seen before the switching shows.
             for c1 in z[1] * np.geomspace(0.5, 2.0, 9):
                 for c2 in np.clip(z[2] + np.arange(-8, 9) * seg.dt, 0.0, hi[2]):
-                    best, z = _better(ssr, best, z, (z[0], float(c1), float(c2), z[3]))
+                    best, z = _better(ssr, best, z, (z[0], float(c1), float(c2), *z[3:]))
+            for c3 in np.arange(0, int(T_OP_MAX_S / seg.dt + 1e-9) + 1) * seg.dt:
+                for c2 in np.clip(z[2] + np.arange(-6, 7) * seg.dt, 0.0, hi[2]):
+                    best, z = _better(ssr, best, z, (z[0], z[1], float(c2), float(c3), z[4]))
         return [np.clip(np.array(z), lo, hi)]
 
 
