@@ -240,7 +240,9 @@ def _parameters(fit: Fit, cand: Candidate, pr: Prediction, res, rp, rq, xwp, xwq
         off = 4 if free else 0
         for i, c in enumerate(cand.nl_names):
             params[c] = float(fit.z[i])
-            stderr[c] = float(se_all[off + i]) if off + i < se_all.size else float("inf")
+            # A finite difference across a threshold of a discrete law would report a spuriously tiny se.
+            determined = off + i < se_all.size and c not in cand.scanned
+            stderr[c] = float(se_all[off + i]) if determined else float("inf")
     if free:
         for i, c in enumerate(DYNAMIC_NAMES):
             params.setdefault(f"D.{c}", float(fit.d[i]))

@@ -123,6 +123,9 @@ class Candidate:
         from zero.
     magnitude_z_min : float
         That threshold [-] (2 by default).
+    scanned : tuple of str
+        Nonlinear parameters of a discrete law (thresholds, delays), chosen by a scan in :meth:`starts`: the
+        residual is piecewise constant in them, so their standard errors are reported as not determined.
     confusable : tuple of str
         Candidates that produce a similar signature from other physics: this one is named only when the
         paired held-out test separates it from each of them (whether or not they are significant themselves).
@@ -137,6 +140,7 @@ class Candidate:
     signature = ""
     magnitude: tuple[str, ...] = ()
     magnitude_z_min = 2.0
+    scanned: tuple[str, ...] = ()
     confusable: tuple[str, ...] = ()
     max_nfev = 40  # upper-stage function evaluations per start (each iteration adds a Jacobian)
 

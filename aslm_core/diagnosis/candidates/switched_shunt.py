@@ -20,7 +20,7 @@ at the ambient band's edge (5 Hz, zero phase), so that measurement noise on V do
 The law is piecewise constant in (Vc, dv, τ, t_op, s0): finite differences see no slope, so these are
 chosen by a scan (Vc over the window's V range, dv and τ over coarse grids, both s0, then finer passes
 that also place t_op) with D held at the plain fit; the upper stage then refines D with them fixed, and their standard errors are reported as
-not determined (infinite).  Magnitude: B.
+not determined (infinite; ``Candidate.scanned``).  Magnitude: B.
 
 Signature: steps of Q — not of P — proportional to V², following V's excursions beyond a threshold by a
 fixed delay; a continuous droop (``inverter_der``) has no threshold and moves P too.
@@ -90,6 +90,7 @@ class SwitchedShunt(Candidate):
     magnitude = ("B",)
     nl_names = ("Vc", "dv", "tau", "t_op", "s0")
     nl_units = ("pu", "pu", "s", "s", "-")
+    scanned = nl_names
     lin_q = ("B",)
     lin_units = {"B": "pu"}
     signature = "steps of Q ∝ V² (not of P) after V stays beyond a threshold for a delay: a relay-switched bank"
