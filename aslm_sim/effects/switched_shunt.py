@@ -35,4 +35,4 @@ def generate(case: SyntheticCase, magnitude: float, rng: np.random.Generator) ->
 
 
 EFFECT = Effect(name="switched_shunt", generate=generate, magnitude=(0.2, 0.5), channels="Q", in_library=True,
-                label="shunt")
+                label="shunt", main_parameter="B")
