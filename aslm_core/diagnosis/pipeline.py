@@ -232,6 +232,9 @@ def _combine_params(analyses: list[_WindowAnalysis], name: str) -> tuple[dict, d
     val, se = {}, {}
     for k in keys:
         v = np.array([a.fits[name].params.get(k, np.nan) for a in analyses])
+        if all(k not in a.fits[name].stderr for a in analyses):  # a scanned parameter: no standard error
+            val[k] = float(np.nanmean(v))
+            continue
         s = np.array([a.fits[name].stderr.get(k, np.inf) for a in analyses])
         ok = np.isfinite(s) & (s > 1e-150)
         w = np.zeros_like(s)

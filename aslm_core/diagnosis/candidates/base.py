@@ -125,7 +125,7 @@ class Candidate:
         That threshold [-] (2 by default).
     scanned : tuple of str
         Nonlinear parameters of a discrete law (thresholds, delays), chosen by a scan in :meth:`starts`: the
-        residual is piecewise constant in them, so their standard errors are reported as not determined.
+        residual is piecewise constant in them, so they have no standard error (left out of ``stderr``).
     confusable : tuple of str
         Candidates that produce a similar signature from other physics: this one is named only when the
         paired held-out test separates it from each of them (whether or not they are significant themselves).

@@ -19,8 +19,8 @@ at the ambient band's edge (5 Hz, zero phase), so that measurement noise on V do
 
 The law is piecewise constant in (Vc, dv, τ, t_op, s0): finite differences see no slope, so these are
 chosen by a scan (Vc over the window's V range, dv and τ over coarse grids, both s0, then finer passes
-that also place t_op) with D held at the plain fit; the upper stage then refines D with them fixed, and their standard errors are reported as
-not determined (infinite; ``Candidate.scanned``).  Magnitude: B.
+that also place t_op) with D held at the plain fit; the upper stage then refines D with them fixed, and they have no standard error (left out of
+``stderr``; ``Candidate.scanned``).  Magnitude: B.
 
 Signature: steps of Q — not of P — proportional to V², following V's excursions beyond a threshold by a
 fixed delay; a continuous droop (``inverter_der``) has no threshold and moves P too.

@@ -119,7 +119,7 @@ def test_switched_shunt_recovers_the_banks_susceptance_and_relay():
     assert abs(e.parameters["tau"] - ec.truth["delay"]) <= 0.03
     assert e.parameters["dv"] == pytest.approx(0.5 * np.std(ec.window.V), rel=0.3)
     # Scanned thresholds have no standard error to report.
-    assert all(e.stderr[k] == np.inf for k in ("Vc", "dv", "tau", "t_op", "s0"))
+    assert not {"Vc", "dv", "tau", "t_op", "s0"} & set(e.stderr) and "B" in e.stderr
 
 
 def test_implausible_frequency_sensitivity_is_never_significant():
