@@ -233,10 +233,17 @@ def _parameters(fit: Fit, cand: Candidate, pr: Prediction, res, rp, rq, xwp, xwq
             se_all = np.sqrt(np.clip(np.diag(cov), 0, None))
         except np.linalg.LinAlgError:
             se_all = np.full(j.shape[1], np.inf)
+        # A parameter the residual does not move at all is not determined by the fit; pinv would report zero
+        # variance for it (kept as in the runs of record: it decides the magnitude guard in degenerate fits).
+        if j.size:
+            se_all = np.where(np.any(j != 0, axis=0), se_all, np.inf)
         off = 4 if free else 0
         for i, c in enumerate(cand.nl_names):
             params[c] = float(fit.z[i])
-            stderr[c] = float(se_all[off + i]) if off + i < se_all.size else float("inf")
+            # A scanned parameter of a discrete law has no standard error (a finite difference across one of
+            # its thresholds would report a spuriously tiny one): it is left out of ``stderr``.
+            if c not in cand.scanned:
+                stderr[c] = float(se_all[off + i]) if off + i < se_all.size else float("inf")
     if free:
         for i, c in enumerate(DYNAMIC_NAMES):
             params.setdefault(f"D.{c}", float(fit.d[i]))

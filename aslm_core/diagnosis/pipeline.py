@@ -232,6 +232,9 @@ def _combine_params(analyses: list[_WindowAnalysis], name: str) -> tuple[dict, d
     val, se = {}, {}
     for k in keys:
         v = np.array([a.fits[name].params.get(k, np.nan) for a in analyses])
+        if all(k not in a.fits[name].stderr for a in analyses):  # a scanned parameter: no standard error
+            val[k] = float(np.nanmean(v))
+            continue
         s = np.array([a.fits[name].stderr.get(k, np.inf) for a in analyses])
         ok = np.isfinite(s) & (s > 1e-150)
         w = np.zeros_like(s)
@@ -287,7 +290,8 @@ def _entry(analyses: list[_WindowAnalysis], name: str, zcrit: float) -> Candidat
                                       for ch in ("p", "q"))),
         excess_reduction=PerChannel(*(_mean_or_none([getattr(c, f"excess_{ch}") for c in comps]) for ch in ("p", "q"))),
         penalised_gain=pg, score_z=z, dm_z=dmz, magnitude_z=float(min(mag_z, 1e6)), n_params=cand.n_params,
-        significant=bool(math.isfinite(z) and z > zcrit and pg > 0 and mag_z >= cand.magnitude_z_min),
+        significant=bool(math.isfinite(z) and z > zcrit and pg > 0 and mag_z >= cand.magnitude_z_min
+                         and cand.implausible(params, a0.seg, a0.ctx) is None),
         signature=cand.signature, tested=True)
 
 
@@ -342,8 +346,11 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         if frac >= config.explained_fraction or not left:
             # Rivals: every other candidate that explains the held-out data (score test and penalty), the
             # magnitude guard aside — a rival whose magnitude is loosely determined still fits as well.
-            rivals = [e for e in entries if e is not best and e.tested and e.score_z > zcrit
-                      and e.penalised_gain is not None and e.penalised_gain > 0]
+            # A candidate's declared look-alikes (``Candidate.confusable``) are rivals whenever they were
+            # fitted: the best one must beat them on the paired test even when they miss the score test.
+            look_alikes = LIBRARY[best.name].confusable
+            rivals = [e for e in entries if e is not best and e.tested and e.penalised_gain is not None
+                      and ((e.score_z > zcrit and e.penalised_gain > 0) or e.name in look_alikes)]
             tied = sorted([best, *_unseparated(analyses, best, rivals, config)], key=lambda e: -e.penalised_gain)
             causes = [e.name for e in tied]
             if len(tied) == 1:

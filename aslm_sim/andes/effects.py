@@ -14,8 +14,9 @@ kind                       what ANDES simulates                                 
 ``frequency_dependence``   ``FLoad``: P = P0·V^ap·f^bp, Q = Q0·V^aq·f^bq (BusFreq's f)  ``frequency_dependence``
 ``measurement_skew``       the clean scenario, P and Q delayed by τ (linear interp.)    ``measurement_skew``
 ``oscillating_load``       the static load's constant-power part × (1 + A·sin 2πft)     never ``explained``
-``switched_capacitor``     a capacitor bank switched by a voltage relay (dead band)     never ``explained``
+``switched_capacitor``     a capacitor bank switched by a voltage relay (dead band)     ``switched_shunt``
 ``noisy_load``             the static load's constant-power part × (1 + its own noise)  never ``explained``
+``thermostatic_cycling``   a share of that part switched on/off by its own timers       never ``explained``
 =========================  ==========================================================  =======================
 
 The exponential static load (``exponential_static``) is expressible (``FLoad`` with bp = bq = 0) but the
@@ -74,8 +75,9 @@ KINDS: dict[str, AndesKind] = {k.name: k for k in (
     AndesKind("frequency_dependence", "frequency_dependence"),
     AndesKind("measurement_skew", "measurement_skew"),
     AndesKind("oscillating_load", "outside"),
-    AndesKind("switched_capacitor", "outside"),
+    AndesKind("switched_capacitor", "switched_shunt"),
     AndesKind("noisy_load", "outside"),
+    AndesKind("thermostatic_cycling", "outside"),
 )}
 
 
@@ -137,6 +139,10 @@ def build(kind: str, seed: int) -> tuple[BusLoad, dict]:
         effect = {"relay": {"b": _u(rng, 0.01, 0.03), "dv": _u(rng, 0.0003, 0.001), "delay": _u(rng, 0.1, 0.4)}}
     elif kind == "noisy_load":
         effect = {"own": {"kind": "noise", "amp": _u(rng, 0.05, 0.15), "fc": _u(rng, 0.5, 2.0)}}
+    elif kind == "thermostatic_cycling":
+        # Steps of P and Q together, timed by the appliances (not by V): a load change the library has no
+        # law for, in a form unlike the oscillating and the noisy load.
+        effect = {"own": {"kind": "cycle", "amp": _u(rng, 0.03, 0.08), "on_s": (1.0, 4.0), "off_s": (1.0, 4.0)}}
     motor_data = {**motor, **{k: v for k, v in effect.items() if k in ("rr2", "xr2", "rs", "c1", "c2", "c3")}}
     motors = [(model, motor_data)]
     if "second" in effect:

@@ -219,7 +219,9 @@ class BusLoad:
         ``bq`` frequency exponents [-], ``Tf`` [s]); its frequency is ANDES's ``BusFreq`` at the bus.
     own : dict or None
         Exogenous change of the static load's constant-power part, relative [-]: ``{"kind": "noise", "amp",
-        "fc"}`` (its own low-passed noise, cut-off fc [Hz]) or ``{"kind": "sine", "amp", "hz", "phase"}``.
+        "fc"}`` (its own low-passed noise, cut-off fc [Hz]), ``{"kind": "sine", "amp", "hz", "phase"}`` or
+        ``{"kind": "cycle", "amp", "on_s", "off_s"}`` (thermostatic cycling: a share ``amp`` of the part switched
+        on and off, each period drawn uniformly from the ``(lo, hi)`` ranges ``on_s``/``off_s`` [s], P and Q together).
     relay : dict or None
         A capacitor bank ``b`` [pu on 100 MVA] switched by a voltage relay: in below V0 − ``dv``, out above
         V0 + ``dv`` [pu] (V0 the power-flow voltage), each after ``delay`` [s] beyond the threshold.
@@ -413,6 +415,15 @@ def _own_factors(own: dict | None, n: int, tstep: float, rng: np.random.Generato
     if own["kind"] == "noise":
         return (own["amp"] * lowpass_noise(n, tstep, own["fc"], rng),
                 own["amp"] * lowpass_noise(n, tstep, own["fc"], rng))
+    if own["kind"] == "cycle":
+        # Switched by the appliances' own thermostats, not by the bus voltage: durations drawn up front.
+        state = np.zeros(n)
+        k, on = 0, bool(rng.integers(2))
+        while k < n:
+            dur = int(round(rng.uniform(*(own["on_s"] if on else own["off_s"])) / tstep))
+            state[k:k + max(dur, 1)] = float(on)
+            k, on = k + max(dur, 1), not on
+        return own["amp"] * state, own["amp"] * state.copy()
     t = np.arange(n) * tstep
     wave = own["amp"] * np.sin(2 * np.pi * own["hz"] * t + own["phase"])
     return wave, wave.copy()

@@ -18,13 +18,14 @@ from typing import TYPE_CHECKING
 from aslm_sim.effects import (
     exponential_static,
     frequency_dependence,
-    hysteresis,
     inverter_der,
     load_cycling,
     measurement_skew,
     motor_stator_dynamics,
+    own_noise,
     second_motor,
     speed_dependent_torque,
+    switched_shunt,
 )
 from aslm_sim.effects.base import Effect, EffectCase
 
@@ -43,8 +44,9 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     measurement_skew.EFFECT,
     inverter_der.EFFECT,
     exponential_static.EFFECT,
+    switched_shunt.EFFECT,
     load_cycling.EFFECT,
-    hysteresis.EFFECT,
+    own_noise.EFFECT,
 )}
 #: Effects a candidate of the diagnosis library models, and effects outside it.
 LIBRARY_EFFECTS: tuple[str, ...] = tuple(n for n, e in EFFECTS.items() if e.in_library)

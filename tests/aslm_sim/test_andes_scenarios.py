@@ -64,6 +64,8 @@ def test_every_kind_builds_and_runs_a_short_simulation(kind, tmp_path, monkeypat
         assert 0.015 <= drawn["skew_s"] <= 0.04
     elif kind == "switched_capacitor":
         assert isinstance(rec["meta"]["switchings"], int)
+    elif kind == "thermostatic_cycling":
+        assert drawn["effect"]["own"]["kind"] == "cycle"
     # The second call reads the cache: the same record without running ANDES.
     again = effects.recording(kind, 7, tf=0.5)
     for ch in ("t", "V", "theta", "P", "Q"):

@@ -41,7 +41,7 @@ def test_scores_count_wrong_names_ambiguous_and_unknown_verdicts_apart():
         _rec("clean", "consistent", None),
         _rec("clean", "explained", "measurement_skew"),  # a wrong name on a clean case
         _rec("noisy_load", "unexplained", None),
-        _rec("switched_capacitor", "explained", "second_motor"),  # outside the library: never explained
+        _rec("thermostatic_cycling", "explained", "second_motor"),  # outside the library: never explained
         _rec("stator_resistance", "undecided", None),  # unknown verdict
     ]
     s = di.summarise(recs, known_causes=("second_motor", "measurement_skew"))

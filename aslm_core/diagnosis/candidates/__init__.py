@@ -21,6 +21,7 @@ MODULES: tuple[str, ...] = (
     "inverter_der",
     "stator_resistance",
     "double_cage_rotor",
+    "switched_shunt",
 )
 
 

@@ -123,6 +123,12 @@ class Candidate:
         from zero.
     magnitude_z_min : float
         That threshold [-] (2 by default).
+    scanned : tuple of str
+        Nonlinear parameters of a discrete law (thresholds, delays), chosen by a scan in :meth:`starts`: the
+        residual is piecewise constant in them, so they have no standard error (left out of ``stderr``).
+    confusable : tuple of str
+        Candidates that produce a similar signature from other physics: this one is named only when the
+        paired held-out test separates it from each of them (whether or not they are significant themselves).
     """
 
     name = "plain"
@@ -134,6 +140,8 @@ class Candidate:
     signature = ""
     magnitude: tuple[str, ...] = ()
     magnitude_z_min = 2.0
+    scanned: tuple[str, ...] = ()
+    confusable: tuple[str, ...] = ()
     max_nfev = 40  # upper-stage function evaluations per start (each iteration adds a Jacobian)
 
     @property
@@ -170,6 +178,11 @@ class Candidate:
         fp, fq, sx = static_part(seg, ctx)
         ep, eq = self.extra_columns(seg, d, z)
         return Prediction(m[0] + fp, m[1] + fq, np.hstack([sx, ep]), np.hstack([sx, eq]))
+
+    def implausible(self, params: dict[str, float], seg: Segment, ctx: Context) -> str | None:
+        """Why fitted parameters are outside what the physics can be (None: plausible); such a fit is never
+        significant, however well it predicts (it is fitting something else)."""
+        return None
 
     def describe(self, params: dict[str, float], seg: Segment, ctx: Context) -> dict[str, float]:
         """Derived quantities worth reporting (e.g. an exponent from a coefficient); default none."""

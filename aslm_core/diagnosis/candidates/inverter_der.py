@@ -44,6 +44,9 @@ class InverterDER(Candidate):
     lin_q = ("Kq",)
     lin_units = {"Kp": "pu/pu", "Kq": "pu/pu"}
     signature = "residual coherent with V but lagging it by a first-order lag T (mostly Q)"
+    # A small, fast motor group and a relay-switched bank also add a lagged, V-driven Q response: on the
+    # independent (ANDES) development data both were named as a droop before this rule.
+    confusable = ("second_motor", "switched_shunt")
 
     def bounds(self, seg: Segment, ctx: Context):
         return np.array([0.02]), np.array([10.0])

@@ -58,3 +58,39 @@ def test_clean_andes_motor3_is_consistent():
     assert rep.verdict == "consistent" and rep.causes == [], rep.message
     for e in rep.missing_physics:
         assert not e.significant, e.name
+
+
+def test_switched_shunt_recovers_an_andes_relay_switched_bank():
+    from aslm_sim.andes import effects
+    from benchmarks import diagnosis_independent as di
+
+    # Development scenario 102 of the independent benchmark (aslm_sim/andes/effects.py; cached after its
+    # first run): ANDES switches its Shunt device from the simulation's own bus voltage (scenario._Relay:
+    # b = 0.01265 pu, dead band ±0.00030 pu about the power-flow V, delay 0.371 s; 27 switchings in 22 s),
+    # a relay the candidate did not write.
+    rec = effects.recording("switched_capacitor", 102, tf=di.TF, tstep=di.TSTEP)
+    relay = rec["meta"]["drawn"]["effect"]["relay"]
+    w, _ = di._window(rec, 2.0, 12.0, 3, False, "switched_capacitor/102")
+    rep = diagnose(w)
+    assert rep.verdict == "explained" and rep.cause == "switched_shunt", rep.message
+    e = rep.candidate("switched_shunt")
+    # Measured: B = 0.01250 against 0.01265 pu; τ + t_op = 0.40 s against the 0.371 s delay (ANDES's Q step
+    # shows a few 10 ms steps after the relay's decision).
+    assert e.parameters["B"] == pytest.approx(relay["b"], rel=0.1), (e.parameters, e.stderr)
+    assert abs(e.parameters["tau"] + e.parameters["t_op"] - relay["delay"]) <= 0.08, e.parameters
+
+
+@pytest.mark.xfail(strict=True, reason="known defect, not fixed: the droop beats the fitted second motor on the "
+                   "paired held-out test here (separation z 5.1 and 3.8 at L3), so the look-alike rule does not help")
+def test_a_second_andes_motor_is_not_named_inverter_der():
+    from aslm_sim.andes import effects
+    from benchmarks import diagnosis_independent as di
+
+    # Scenario 9001 of the first confirmation set (seen, no longer a confirmation seed): its second motor was
+    # named `inverter_der` at L3 in both windows, and still is with `Candidate.confusable` (measured
+    # 2026-11-24: second_motor is a rival and is separated, z = 5.1 and 3.8); strict, so a fix shows.
+    rec = effects.recording("second_motor", 9001, tf=di.TF, tstep=di.TSTEP)
+    for t0, t1 in di.WINDOWS:
+        w, _ = di._window(rec, t0, t1, 3, False, "second_motor/9001")
+        rep = diagnose(w)
+        assert rep.cause != "inverter_der", rep.message

@@ -104,3 +104,30 @@ def test_inverter_der_recovers_lag_and_droop():
     e = rep.candidate("inverter_der")
     assert e.parameters["T"] == pytest.approx(ec.truth["T"], rel=0.15)
     assert e.parameters["Kq"] == pytest.approx(ec.truth["Kq"], rel=0.1)
+
+
+def test_switched_shunt_recovers_the_banks_susceptance_and_relay():
+    # The effect's relay is its own code (a sample counter, thresholds at mean V ± 0.5 std), not the candidate's.
+    ec = apply_effect(_case(16), "switched_shunt", 0.4, seed=6)
+    assert min(ec.fd_plain.values()) >= 0.9
+    rep = diagnose(ec.window)
+    assert rep.verdict == "explained" and rep.cause == "switched_shunt", rep.message
+    e = rep.candidate("switched_shunt")
+    # Measured: B = 0.003907 ± 0.000038 against 0.003906; τ 0.32 s against 0.30 s (the effect switches on the
+    # sample after its delay); dv 0.00069 against 0.00082 (a dead band is only known between the V samples).
+    assert e.parameters["B"] == pytest.approx(ec.truth["B"], rel=0.05, abs=3 * e.stderr["B"])
+    assert abs(e.parameters["tau"] - ec.truth["delay"]) <= 0.03
+    assert e.parameters["dv"] == pytest.approx(0.5 * np.std(ec.window.V), rel=0.3)
+    # Scanned thresholds have no standard error to report.
+    assert not {"Vc", "dv", "tau", "t_op", "s0"} & set(e.stderr) and "B" in e.stderr
+
+
+def test_implausible_frequency_sensitivity_is_never_significant():
+    from aslm_core.diagnosis.candidates import LIBRARY
+    from aslm_core.diagnosis.segment import make_segment
+
+    cand = LIBRARY["frequency_dependence"]
+    seg = make_segment(_case(11).window)
+    p0 = float(np.mean(seg.P))
+    assert cand.implausible({"Kpf": 3.0 * p0 / seg.f0, "Kqf": -1.0 * p0 / seg.f0}, seg, None) is None
+    assert "sensitivity" in cand.implausible({"Kpf": 12.0 * p0 / seg.f0, "Kqf": 0.0}, seg, None)

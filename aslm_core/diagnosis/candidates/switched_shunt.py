@@ -1,0 +1,162 @@
+"""``switched_shunt``: a capacitor bank switched in and out by a voltage relay (discrete Q–V law).
+
+Notes
+-----
+A relay with a dead band and a delay switches a shunt capacitor of susceptance B [pu on the system base]:
+the relay decides to put the bank in once V has stayed below Vc − dv for τ seconds and to take it out once V
+has stayed above Vc + dv for τ seconds (hysteresis 2·dv; a shorter excursion resets the timer); the
+breaker follows the decision t_op seconds later (its operating time)::
+
+    r(t) ∈ {0, 1},   r: 0 → 1 after V < Vc − dv for τ,   r: 1 → 0 after V > Vc + dv for τ,   r(t0) = s0
+    s(t) = r(t − t_op)
+    P = P_ZIP(V) + P_im(D),    Q = Q_ZIP(V) + Q_im(D) − B·s(t)·V²
+
+Nonlinear parameters (upper stage): Vc [pu] the relay's centre voltage, dv [pu] half its dead band,
+τ [s] its delay, t_op [s] the breaker's operating time (0–0.1 s, whole samples) and s0 [-] the bank's
+state at the window's start (0 or 1; the fit rounds it).  Linear
+(lower stage): B [pu], on Q only (a capacitor exchanges no active power).  The relay reads V low-passed
+at the ambient band's edge (5 Hz, zero phase), so that measurement noise on V does not reset its timer.
+
+The law is piecewise constant in (Vc, dv, τ, t_op, s0): finite differences see no slope, so these are
+chosen by a scan (Vc over the window's V range, dv and τ over coarse grids, both s0, then finer passes
+that also place t_op) with D held at the plain fit; the upper stage then refines D with them fixed, and they have no standard error (left out of
+``stderr``; ``Candidate.scanned``).  Magnitude: B.
+
+Signature: steps of Q — not of P — proportional to V², following V's excursions beyond a threshold by a
+fixed delay; a continuous droop (``inverter_der``) has no threshold and moves P too.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from aslm_core.diagnosis.candidates.base import Candidate, Context, simulate_motor, static_part
+from aslm_core.diagnosis.segment import FREQ_LOWPASS_HZ, Segment, _lowpass
+
+#: Scan of the relay's data: the centre over quantiles of V, the dead band in units of V's std, the delay.
+VC_QUANTILES = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
+DV_STD = (0.1, 0.25, 0.5, 0.8, 1.2)
+TAU_S = (0.02, 0.05, 0.1, 0.2, 0.3, 0.45, 0.7)
+REFINE_PASSES = 2
+T_OP_MAX_S = 0.1  # [s] a breaker closes within a few cycles
+
+
+@numba.njit(cache=True)
+def relay_state(v: np.ndarray, vc: float, dv: float, tau: float, dt: float, s0: float) -> np.ndarray:
+    """The bank's state s(t) ∈ {0, 1} of a dead-band, delayed voltage relay driven by ``v`` [pu].
+
+    Parameters
+    ----------
+    v : ndarray
+        The voltage the relay reads [pu].
+    vc, dv : float
+        Centre voltage and half dead band [pu]: in below vc − dv, out above vc + dv.
+    tau : float
+        Delay: time beyond the threshold before the relay acts [s].
+    dt : float
+        Sample step [s].
+    s0 : float
+        State at the first sample (rounded to 0 or 1).
+    """
+    n = v.shape[0]
+    s = np.empty(n)
+    on = s0 >= 0.5
+    timer = 0.0
+    for k in range(n):
+        beyond = v[k] > vc + dv if on else v[k] < vc - dv
+        timer = timer + dt if beyond else 0.0
+        if timer >= tau - 1e-12:
+            on = not on
+            timer = 0.0
+        s[k] = 1.0 if on else 0.0
+    return s
+
+
+def _state(v: np.ndarray, z, dt: float) -> np.ndarray:
+    """The bank's state s(t) for z = (Vc, dv, τ, t_op, s0): the relay's decision, t_op later."""
+    r = relay_state(v, float(z[0]), float(z[1]), float(z[2]), dt, float(z[4]))
+    k = int(round(float(z[3]) / dt))
+    return np.concatenate([np.full(k, r[0]), r[:r.size - k]]) if k else r
+
+
+def _better(ssr, best: float, z: tuple, trial: tuple) -> tuple[float, tuple]:
+    c = ssr(trial)
+    return (c, trial) if c < best else (best, z)
+
+
+class SwitchedShunt(Candidate):
+    name = "switched_shunt"
+    magnitude = ("B",)
+    nl_names = ("Vc", "dv", "tau", "t_op", "s0")
+    nl_units = ("pu", "pu", "s", "s", "-")
+    scanned = nl_names
+    lin_q = ("B",)
+    lin_units = {"B": "pu"}
+    signature = "steps of Q ∝ V² (not of P) after V stays beyond a threshold for a delay: a relay-switched bank"
+    max_nfev = 10  # only D moves in the upper stage (the relay's data are scanned)
+
+    @staticmethod
+    def _relay_v(seg: Segment) -> np.ndarray:
+        # Recomputed per call (a fraction of a motor simulation): the noise model perturbs segments' V.
+        return _lowpass(seg.V, seg.fs, FREQ_LOWPASS_HZ)
+
+    def bounds(self, seg: Segment, ctx: Context):
+        v = self._relay_v(seg)
+        sd = max(float(np.std(v)), 1e-6)
+        return (np.array([float(v.min()), 0.0, 0.0, 0.0, 0.0]),
+                np.array([float(v.max()), 4.0 * sd, 2.0, T_OP_MAX_S, 1.0]))
+
+    def extra_columns(self, seg: Segment, d: np.ndarray, z: np.ndarray):
+        s = _state(self._relay_v(seg), z, seg.dt)
+        return np.zeros((seg.n, 0)), (-s * seg.V**2)[:, None]
+
+    def starts(self, seg: Segment, ctx: Context) -> list[np.ndarray]:
+        v = self._relay_v(seg)
+        lo, hi = self.bounds(seg, ctx)
+        mid = 0.5 * (lo + hi)
+        m = simulate_motor(seg, ctx.d0)
+        if m is None:
+            return [mid]
+        _, fq, sx = static_part(seg, ctx)
+        tr = seg.train
+        y = (seg.Q - m[1] - fq)[tr]
+        x0 = sx[tr]
+        v2 = seg.V[tr] ** 2
+
+        def ssr(z) -> float:
+            s = _state(v, z, seg.dt)[tr]
+            if s.min() == s.max():  # no switching in training: nothing to fit
+                return np.inf
+            x = np.column_stack([x0, -s * v2])
+            xs = np.linalg.norm(x, axis=0)
+            beta, *_ = np.linalg.lstsq(x / xs, y, rcond=None)
+            r = y - (x / xs) @ beta
+            return float(r @ r)
+
+        sd = float(np.std(v))
+        grid = [(float(vc), k * sd, tau, 0.0, s0) for vc in np.quantile(v, VC_QUANTILES) for k in DV_STD
+                for tau in TAU_S for s0 in (0.0, 1.0)]
+        costs = [ssr(z) for z in grid]
+        if not np.isfinite(min(costs)):
+            return [mid]
+        z = grid[int(np.argmin(costs))]
+        best = min(costs)
+        # Then coordinate passes on finer grids about the best point: the timing of each switching is what
+        # the fit hinges on, and the coarse grid places it within a step of the delay only.
+        for _ in range(REFINE_PASSES):
+            for c in z[0] + sd * np.linspace(-0.3, 0.3, 13):
+                best, z = _better(ssr, best, z, (float(c), *z[1:]))
+            # dv and τ jointly: together they decide whether an excursion switches the bank at all; then τ
+            # and t_op jointly: the later the breaker, the longer V is seen before the switching shows.
+            for c1 in z[1] * np.geomspace(0.5, 2.0, 9):
+                for c2 in np.clip(z[2] + np.arange(-8, 9) * seg.dt, 0.0, hi[2]):
+                    best, z = _better(ssr, best, z, (z[0], float(c1), float(c2), *z[3:]))
+            for c3 in np.arange(0, int(T_OP_MAX_S / seg.dt + 1e-9) + 1) * seg.dt:
+                for c2 in np.clip(z[2] + np.arange(-6, 7) * seg.dt, 0.0, hi[2]):
+                    best, z = _better(ssr, best, z, (z[0], z[1], float(c2), float(c3), z[4]))
+        return [np.clip(np.array(z), lo, hi)]
+
+
+#: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).
+CANDIDATE = SwitchedShunt()
