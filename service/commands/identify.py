@@ -5,9 +5,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import get_args
 
 from aslm_core import IdentifyConfig, WindowError, identify, warmup
 from aslm_core.preprocess import INPUT_SMOOTHERS
+from aslm_core.result import Disturbance
 from service.commands._common import add_mapping_flags
 from service.files import read_window
 
@@ -27,8 +29,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--input-smoother", choices=list(INPUT_SMOOTHERS), default=IdentifyConfig.input_smoother,
                    help="smoother of the noisy inputs V and θ (default %(default)s, docs/numerics.md)")
     p.add_argument("--starts", type=int, default=3, help="random feasible starts")
-    p.add_argument("--disturbance", choices=["none", "ar"], default="none",
-                   help="noise model of P and Q: none (white) or ar (the load's own fluctuation, docs/numerics.md)")
+    p.add_argument("--disturbance", choices=list(get_args(Disturbance)), default=IdentifyConfig.disturbance,
+                   help="noise model of P and Q: none (white), ar (the load's own fluctuation, prediction error) or "
+                        "ar_iv (the same solved by instrumental variables, for own fluctuation fed back through the "
+                        "network; docs/numerics.md)")
     p.set_defaults(func=run)
 
 

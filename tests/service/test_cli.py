@@ -70,6 +70,8 @@ def test_human_output_shows_the_identifiable_static_part_and_the_disturbance_fla
     assert "static at V0=" in proc.stdout and "dPdV=" in proc.stdout and "static_split_unidentifiable" in proc.stdout
     out = json.loads(run_cli("identify", "--json", "--disturbance", "ar", str(d / "bus.npz")).stdout)
     assert out["config"]["disturbance"] == "ar" and "ar_order_p" in out["quality"]
+    iv = json.loads(run_cli("identify", "--json", "--disturbance", "ar_iv", str(d / "bus.npz")).stdout)
+    assert iv["config"]["disturbance"] == "ar_iv" and 0.0 < iv["quality"]["iv_strength_p"] <= 1.0
     assert {"P0", "dPdV", "Q0", "dQdV"} <= set(out["static_local"])
 
 
