@@ -10,9 +10,10 @@ until the pool changes again; a fit that fails, times out, is shed or arrives af
 dropped, and the mean stays.  The change detector is untouched: it keeps testing each window's own
 estimate against the pool.
 
-Which windows a fit takes: the pool's, except a suspect that the next window did not confirm (the tracker
-lets it in winsorised, with its estimate clipped at ±h; a fit cannot clip a window's samples, so it
-leaves the window out).  After a restart the ring is empty and the pool's older windows are gone: the
+Which windows a fit takes: the pool's, and with ``fit_suspects`` off not a suspect that the next window
+did not confirm (the tracker lets it in winsorised, with its estimate clipped at ±h; a fit cannot clip a
+window's samples, so it would leave the window out).  A suspect still held (the newest window, awaiting the
+next) is never fitted.  After a restart the ring is empty and the pool's older windows are gone: the
 mean stays until the pool holds only windows seen since (at most k periods, or the next change).
 """
 
@@ -42,7 +43,7 @@ class _Bus:
 
     ring: WindowRing
     suspect: float | None = None  # period of the suspect the tracker held after the previous window
-    winsorised: set[float] = field(default_factory=set)  # suspects that joined the pool clipped: not fitted
+    winsorised: set[float] = field(default_factory=set)  # suspects that joined the pool clipped: left out
     last_change: float | None = None
     start: list[float] | None = None  # the latest joint D since last_change
     key: tuple[float, ...] | None = None  # periods of the windows the current pool's fit takes
@@ -72,11 +73,17 @@ class JointFits:
         :class:`aslm_core.IdentifyConfig` keyword arguments of the fits (the service's preprocessing).
     idle_s : float or None
         A bus without a new window for this long loses its ring after a period [s] (None: never).
+    fit_suspects : bool
+        Fit a suspect that the next window did not confirm with the rest of the pool (its window is
+        stationary data: one window's estimate stood out, the joint fit has one optimum for all); off, it is
+        left out as the mean clips it.  Chosen on development seeds (docs/tracking.md).
     """
 
     def __init__(self, executor: Executor, arrived: Callable[[str], None] | None = None, *, max_buses: int,
-                 in_flight: int = 1, options: dict | None = None, idle_s: float | None = None) -> None:
+                 in_flight: int = 1, options: dict | None = None, idle_s: float | None = None,
+                 fit_suspects: bool = True) -> None:
         self.arrived = arrived or (lambda bus: None)
+        self.fit_suspects = fit_suspects
         self.max_buses = max_buses
         self.options = options or {}
         self.idle_s = idle_s
@@ -106,7 +113,7 @@ class JointFits:
             held = tracker.suspect.t if tracker.suspect is not None else None
             if tracker.last_change != b.last_change:  # a change restarted the pool: the old D is no start
                 b.last_change, b.start = tracker.last_change, None
-            elif b.suspect is not None and b.suspect != held:
+            elif b.suspect is not None and b.suspect != held and not self.fit_suspects:
                 b.winsorised.add(b.suspect)  # not confirmed: it joined the pool clipped
             b.suspect = held
             if window is not None:

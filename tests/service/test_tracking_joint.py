@@ -77,11 +77,12 @@ def _period(sink: TrackingSink, period: float) -> None:
                                     completed_at=period))
 
 
-def test_the_ring_holds_the_pool_and_stays_bounded_and_a_change_empties_it(tmp_path):
+@pytest.mark.parametrize("fit_suspects", [True, False])
+def test_the_ring_holds_the_pool_and_stays_bounded_and_a_change_empties_it(tmp_path, fit_suspects):
     k = 4
     storage = Storage(tmp_path / "a.sqlite")
     ex = HeldExecutor()
-    joint = JointFits(ex, max_buses=10, in_flight=100)
+    joint = JointFits(ex, max_buses=10, in_flight=100, fit_suspects=fit_suspects)
     sink = TrackingSink(storage, TrackerConfig(pool_windows=k), joint=joint)
     rng = np.random.default_rng(5)
     one = CompactWindow.of(_tiny_window(0)).nbytes
@@ -97,8 +98,12 @@ def test_the_ring_holds_the_pool_and_stays_bounded_and_a_change_empties_it(tmp_p
         fitted = [e.t for e in tr.pool if e.t not in b.winsorised]
         assert list(b.ring.windows) == sorted(fitted + held)
         assert len(b.ring) <= k + 1 and b.ring.nbytes <= (k + 1) * one
-        if i == outlier + 1:  # the outlier joined the pool clipped: in the pool, not in the fit
-            assert T * outlier in [e.t for e in tr.pool] and T * outlier not in b.ring.windows
+        if i == outlier:  # held out of the pool and the fit, kept in the ring until the next window
+            assert tr.suspect is not None and T * outlier in b.ring.windows and T * outlier not in b.key
+        if i == outlier + 1:  # the outlier joined the pool clipped; fitted with the rest unless fit_suspects is off
+            assert T * outlier in [e.t for e in tr.pool]
+            assert (T * outlier in b.ring.windows) is fit_suspects and (T * outlier in b.key) is fit_suspects
+            assert (T * outlier in b.winsorised) is not fit_suspects
     assert len(joint.buses) == 1 and joint.nbytes == len(joint.buses["b1"].ring) * one
     # A fit is planned for each new pool of at least two windows; the task carries the pool's windows.
     task = ex.tasks[-1]
