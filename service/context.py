@@ -7,6 +7,7 @@ The Zenoh session is opened on first use, so a service whose sources and sinks n
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -39,6 +40,9 @@ class Context:
     executor : Executor or None
         The worker pool, set before the sinks are built (a sink may hand it background tasks: the
         tracking sink's joint fits); None outside a running service.
+    tracked_listeners : list of callable
+        Called with a bus whose tracked model changed between its results (a joint fit arrived); a sink
+        that publishes from the tracked model (the records sink) adds itself when it is built.
     """
 
     settings: ServiceSettings
@@ -47,6 +51,7 @@ class Context:
     metrics: ServiceMetrics
     clock: Clock = SYSTEM_CLOCK
     executor: Executor | None = None
+    tracked_listeners: list[Callable[[str], None]] = field(default_factory=list)
     _session: zenoh.Session | None = field(default=None, init=False, repr=False)
     _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
 

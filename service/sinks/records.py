@@ -7,7 +7,8 @@ cannot be written (e.g. no motor, or X' outside its interval) is published as ``
 "format", "error"}`` on the same key, so that a subscriber learns why there is no record.
 
 With the ``tracking`` sink, a bus's records are those of its tracked model (D pooled since the last change,
-docs/tracking.md) rather than of its latest window; ``model`` in the payload says which.
+docs/tracking.md) rather than of its latest window; ``model`` in the payload says which.  They are published
+with each result and again when the tracked model changes between results (its pool's joint fit arrived).
 """
 
 from __future__ import annotations
@@ -56,27 +57,42 @@ class RecordsSink:
         self._tracked = tracked
         self.published = 0
 
-    def _payload(self, res: BusResult, fmt: str) -> str:
-        js = self._tracked(res.bus) if self._tracked is not None else None
+    def _payload(self, res: BusResult | None, bus: str, fmt: str) -> str | None:
+        """The records of the bus's tracked model if it has one, else of ``res`` (None: neither)."""
+        js = self._tracked(bus) if self._tracked is not None else None
+        if js is None and res is None:
+            return None
+        model = json.loads(js) if js is not None else None
         try:
-            if js is not None:
-                return json.dumps({**record_payload(json.loads(js), fmt, self.assumptions), "model": "tracked"})
+            if model is not None:
+                return json.dumps({**record_payload(model, fmt, self.assumptions), "model": "tracked"})
             return json.dumps({**record_payload(res, fmt, self.assumptions), "model": "window"})
         except RecordError as exc:
-            return json.dumps({"bus": res.bus, "period": res.period, "format": fmt, "error": str(exc)})
+            period = model["period"] if model is not None else res.period
+            return json.dumps({"bus": bus, "period": period, "format": fmt, "error": str(exc)})
+
+    def _put_records(self, bus: str, res: BusResult | None) -> None:
+        for fmt in self.formats:
+            try:
+                payload = self._payload(res, bus, fmt)
+                if payload is None:
+                    return
+                self._put(f"{self.prefix}/records/{fmt}/{bus}", payload)
+                self.published += 1
+            except Exception:  # noqa: BLE001 - one bus's records never stop the others
+                self._on_error()
+                log.exception("publishing the %s records of %s failed", fmt, bus)
 
     def write_results(self, batch: list[BusResult], payloads: list[str]) -> None:  # noqa: ARG002 - Sink signature
         """Put the records of each successful result; a failed put is logged and counted."""
         for res in batch:
-            if res.status != "ok" or res.parameters is None:
-                continue
-            for fmt in self.formats:
-                try:
-                    self._put(f"{self.prefix}/records/{fmt}/{res.bus}", self._payload(res, fmt))
-                    self.published += 1
-                except Exception:  # noqa: BLE001 - one bus's records never stop the others
-                    self._on_error()
-                    log.exception("publishing the %s records of %s failed", fmt, res.bus)
+            if res.status == "ok" and res.parameters is not None:
+                self._put_records(res.bus, res)
+
+    def tracked_changed(self, bus: str) -> None:
+        """Put the records of the bus's tracked model again: it changed between results (a joint fit)."""
+        if self._tracked is not None:
+            self._put_records(bus, None)
 
     def write_diagnosis(self, bus: str, period: float, payload: str) -> None:
         """Diagnoses carry no records."""
@@ -99,6 +115,10 @@ def build(ctx: Context) -> RecordsSink:
         session.put(key, payload, encoding=zenoh.Encoding.APPLICATION_JSON,
                     congestion_control=zenoh.CongestionControl.BLOCK)
 
-    return RecordsSink(put, ctx.settings.prefix, Assumptions(f0=ctx.settings.f0),
+    tracking = "tracking" in ctx.settings.sinks
+    sink = RecordsSink(put, ctx.settings.prefix, Assumptions(f0=ctx.settings.f0),
                        on_error=ctx.metrics.request_errors.labels("publish").inc,
-                       tracked=ctx.storage.tracked if "tracking" in ctx.settings.sinks else None)
+                       tracked=ctx.storage.tracked if tracking else None)
+    if tracking:
+        ctx.tracked_listeners.append(sink.tracked_changed)
+    return sink

@@ -52,6 +52,8 @@ class TrackingSink:
     joint : JointFits, optional
         The joint pooled fits of the pools' windows (``track_joint_fit``): the tracked model is the joint
         fit of its pool once it has arrived, the mean of the windows' estimates until then; None: the mean.
+    on_tracked : callable, optional
+        Called with the bus after a joint fit arrived and was stored and published (executor thread).
     """
 
     name = "tracking"
@@ -59,8 +61,9 @@ class TrackingSink:
 
     def __init__(self, storage: Storage, config: TrackerConfig, *, put: Callable[[str, str], None] | None = None,
                  prefix: str = "aslm", on_error: Callable[[], None] | None = None,
-                 joint: JointFits | None = None) -> None:
+                 joint: JointFits | None = None, on_tracked: Callable[[str], None] | None = None) -> None:
         self.storage = storage
+        self._on_tracked = on_tracked or (lambda bus: None)
         self.config = config
         self._put = put
         self.prefix = prefix
@@ -140,6 +143,11 @@ class TrackingSink:
                 return
             self.storage.save_tracking([(bus, self._newest[bus][0], body, json.dumps(tr.to_state()))], [])
         self._publish([(f"{self.prefix}/tracked/{check_bus_name(bus)}", body)])
+        try:
+            self._on_tracked(bus)
+        except Exception:  # noqa: BLE001 - a listener's failure never loses the fit
+            self._on_error()
+            log.exception("a listener of the tracked model of %s failed", bus)
 
     def _publish(self, puts: list[tuple[str, str]]) -> None:
         if self._put is None:
@@ -187,5 +195,10 @@ def build(ctx: Context) -> TrackingSink:
     if s.track_joint_fit and s.track_joint_fit_buses > 0 and ctx.executor is not None:
         joint = JointFits(ctx.executor, max_buses=s.track_joint_fit_buses, in_flight=max(1, s.workers - 1),
                           options={"lowpass_hz": s.lowpass_hz}, idle_s=s.bus_idle_s)
+    def on_tracked(bus: str) -> None:
+        for listener in list(ctx.tracked_listeners):
+            listener(bus)
+
     return TrackingSink(ctx.storage, config, put=put, prefix=s.prefix,
-                        on_error=ctx.metrics.request_errors.labels("publish").inc, joint=joint)
+                        on_error=ctx.metrics.request_errors.labels("publish").inc, joint=joint,
+                        on_tracked=on_tracked)

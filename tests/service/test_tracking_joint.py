@@ -267,3 +267,46 @@ def test_a_failed_or_timed_out_fit_leaves_the_mean_and_loses_nothing_else(tmp_pa
     finally:
         short.close()
     storage.close()
+
+
+@pytest.mark.slow
+def test_the_records_on_zenoh_follow_the_joint_fit_when_it_arrives(tmp_path, windows, pool):
+    """The records sink republishes a bus's records from its tracked model once the pool's joint fit arrives."""
+    from service.sinks import records as records_sink
+    from service_helpers import client_session, free_port
+
+    ws, fits = windows
+    zport = free_port()
+    s = settings_for(tmp_path, zport, sinks=["storage", "records", "tracking"])
+    storage = Storage(s.storage_path)
+    ctx = Context(s, storage, LatestResults(), ServiceMetrics(BufferStore(10.0, 50.0, 1.0)), executor=pool)
+    records = records_sink.build(ctx)  # built before the tracking sink, as in the settings' order
+    sink = build(ctx)
+    assert ctx.tracked_listeners == [records.tracked_changed]
+    got: list[dict] = []
+    client = client_session(zport)
+    sub = client.declare_subscriber(f"{s.prefix}/records/andes/bus-j",
+                                    lambda sample: got.append(json.loads(sample.payload.to_string())))
+    try:
+        time.sleep(1.0)  # the subscription reaches the service's peer
+        for i in range(4):
+            r = fits[i]
+            res = _result("bus-j", T * i, r.d, [r.stderr[k] for k in DYNAMIC_NAMES])
+            res.parameters.static = dict(r.static)  # records need the whole ZIP part
+            sink.write_results(ResultBatch([res], {"bus-j": ws[i]}), [""])
+            records.write_results([res], [""])  # with each result: the tracked model as it is (the mean)
+            _period(sink, T * i)
+        model = lambda: TrackedModel.model_validate_json(storage.tracked("bus-j"))  # noqa: E731
+        _wait(lambda: model().estimator == "joint" and model().n_windows == 4)
+        tm = model().dynamic["Tm"]
+        assert all("content" in p for p in got), got[:1]
+        _wait(lambda: any(json.loads(p["content"])["Motor3"][0]["c1"] == pytest.approx(tm) for p in got), 30.0)
+        assert all(p["model"] == "tracked" for p in got)
+        # The last result's records carried the mean of the four; the republished ones carry the joint fit.
+        firsts = [json.loads(p["content"])["Motor3"][0]["c1"] for p in got]
+        assert firsts[-1] == pytest.approx(tm) and any(c != pytest.approx(tm) for c in firsts[:-1])
+    finally:
+        sub.undeclare()
+        client.close()
+        ctx.close()
+        storage.close()
