@@ -9,7 +9,7 @@ from concurrent.futures import Future
 
 import numpy as np
 import pytest
-from service_helpers import settings_for
+from service_helpers import client_session, free_port, settings_for
 
 from aslm_core import identify
 from aslm_core.params import DYNAMIC_NAMES
@@ -27,6 +27,7 @@ from service.joint_fit import JointFits
 from service.latest import LatestResults
 from service.metrics import ServiceMetrics
 from service.models import BusResult, PeriodSummary, TrackedModel
+from service.sinks import records as records_sink
 from service.sinks.base import ResultBatch
 from service.sinks.tracking import TrackingSink, build
 from service.storage import Storage
@@ -272,9 +273,6 @@ def test_a_failed_or_timed_out_fit_leaves_the_mean_and_loses_nothing_else(tmp_pa
 @pytest.mark.slow
 def test_the_records_on_zenoh_follow_the_joint_fit_when_it_arrives(tmp_path, windows, pool):
     """The records sink republishes a bus's records from its tracked model once the pool's joint fit arrives."""
-    from service.sinks import records as records_sink
-    from service_helpers import client_session, free_port
-
     ws, fits = windows
     zport = free_port()
     s = settings_for(tmp_path, zport, sinks=["storage", "records", "tracking"])
