@@ -79,7 +79,7 @@ POOLED_DEV_SEED, POOLED_CONFIRM_SEED = 1811, 1812
 #: Development seeds: the calibration of the standard errors' scale (``--calibrate``), never reported on.
 DEV_SEED = 2801
 #: Parts run only when named in ``--parts``.
-EXTRA_PARTS = ("service_cost", "andes_step", "joint_cost", "false_alarms_weeks", "service_joint")
+EXTRA_PARTS = ("service_cost", "andes_step", "joint_cost", "false_alarms_weeks", "service_joint", "service_drift")
 PERIOD_S = 900.0
 PERIODS_PER_DAY = 96
 STEP = 1.2
@@ -248,10 +248,15 @@ def _lag(tracked: np.ndarray, truth_of, skip: int) -> float:
     return float(taus[int(np.argmin(rms))])
 
 
+def drift_factor(t: np.ndarray) -> np.ndarray:
+    """Motor count relative to its mean at period t: a daily cycle of ±``DRIFT_AMPLITUDE``."""
+    return 1.0 + DRIFT_AMPLITUDE * np.sin(2 * np.pi * np.asarray(t) / PERIODS_PER_DAY)
+
+
 def part_drift(n_buses: int, ks: tuple[int, ...], snr_db: float, false_alarms_per_day: float) -> dict:
     """Lag of the tracked Tm behind a daily cycle of motor share, per pool length."""
     n = 2 * PERIODS_PER_DAY
-    f = lambda t: 1.0 + DRIFT_AMPLITUDE * np.sin(2 * np.pi * t / PERIODS_PER_DAY)  # noqa: E731
+    f = drift_factor
     factors = f(np.arange(n, dtype=float))
     lags = {k: [] for k in ks}
     changes = {k: 0 for k in ks}
@@ -499,6 +504,98 @@ def _stationary_buses(seed: int, n_buses: int, n_windows: int) -> list[tuple[lis
     return out
 
 
+def _service_results(sink, rows: list[tuple[str, object, np.ndarray, np.ndarray]], period: float) -> float:
+    """Write one period's results through a tracking sink as the scheduler does; the sink's time per result [s].
+
+    ``rows``: (bus, window, D, SEs) per bus; the batch carries each result's window.
+    """
+    from service.models import BusResult
+    from service.sinks.base import ResultBatch
+
+    batch = ResultBatch()
+    for name, window, d, se in rows:
+        batch.append(BusResult(
+            bus=name, period=period, period_s=PERIOD_S, status="ok", completed_at=period,
+            parameters={"dynamic": dict(zip(common.PARAMS, d.tolist(), strict=True)),
+                        "static": {"Pz": 0.1}, "objective": 0.1, "fit": {"fd_p": 0.9, "fd_q": 0.9},
+                        "stderr": dict(zip(common.PARAMS, se.tolist(), strict=True))}))
+        batch.windows[name] = window
+    t0 = time.perf_counter()
+    sink.write_results(batch, [""] * len(batch))
+    return (time.perf_counter() - t0) / max(len(batch), 1)
+
+
+def _service_period_end(sink, joint, period: float, n_ok: int) -> None:
+    """End a period (its round of joint fits goes out) and wait until every fit is back: fits within T."""
+    from service.models import PeriodSummary
+
+    sink.write_period(PeriodSummary(period=period, period_s=PERIOD_S, n_ok=n_ok, n_failed=0, n_skipped=0,
+                                    latency_s=0.0, completed_at=period))
+    while joint.pending:
+        time.sleep(0.05)
+
+
+def part_service_drift(n_buses: int, ks: tuple[int, ...], workers: int, snr_db: float,
+                       false_alarms_per_day: float) -> dict:
+    """The ``drift`` part through the service's code path: the tracked model with its joint fits.
+
+    The same buses, windows and per-window estimates as ``drift`` (seed 1804, motor count
+    1 + 0.2·sin(2π·t/96 periods)); each bus one bus of a tracking sink with joint fits on ``workers`` real
+    worker processes, one period at a time (fits back within T).  Lag as in ``drift`` on the tracked Tm read
+    back from the sink's SQLite row after each period; also which estimator each period's model was.
+    """
+    import tempfile
+    from pathlib import Path
+
+    from service.executors.local import LocalPool
+    from service.joint_fit import JointFits
+    from service.models import TrackedModel
+    from service.sinks.tracking import TrackingSink
+    from service.storage import Storage
+
+    n = 2 * PERIODS_PER_DAY
+    f = drift_factor
+    factors = f(np.arange(n, dtype=float))
+    buses = []
+    for bus in range(n_buses):
+        windows, truth = bus_windows(SEEDS["drift"], bus, factors, snr_db)
+        d, se = estimates(windows)
+        buses.append((f"d{bus:03d}", windows, truth[0, 3], d, se))
+    out: dict = {"snr_db": snr_db, "n_buses": n_buses, "periods": n, "workers": workers, "lag_periods": {},
+                 "target": {str(k): k / 2 for k in ks}, "joint_share": {}, "changes_declared": {}}
+    pool = LocalPool(workers, "service.worker:pooled_window", timeout_s=600)
+    try:
+        for k in ks:
+            with tempfile.TemporaryDirectory() as tmp:
+                storage = Storage(Path(tmp) / "drift.sqlite")
+                joint = JointFits(pool, max_buses=n_buses, in_flight=workers)
+                sink = TrackingSink(storage, TrackerConfig(pool_windows=k, false_alarms_per_day=false_alarms_per_day,
+                                                           period_s=PERIOD_S), joint=joint)
+                tracked = np.full((n_buses, n), np.nan)
+                joint_periods = 0
+                for j in range(n):
+                    rows = [(name, w[j], d[j], se[j]) for name, w, _, d, se in buses if np.all(np.isfinite(d[j]))]
+                    _service_results(sink, rows, j * PERIOD_S)
+                    _service_period_end(sink, joint, j * PERIOD_S, len(rows))
+                    for b, (name, *_rest) in enumerate(buses):
+                        js = storage.tracked(name)
+                        if js is not None:
+                            model = TrackedModel.model_validate_json(js)
+                            tracked[b, j] = model.dynamic["Tm"]
+                            joint_periods += model.estimator == "joint"
+                lags = [_lag(tracked[b], lambda t, tm0=tm0: tm0 * f(t), skip=PERIODS_PER_DAY // 2)
+                        for b, (_, _, tm0, _, _) in enumerate(buses)]
+                out["lag_periods"][str(k)] = {"median": float(np.median(lags)), "max": float(np.max(lags)),
+                                              "all": lags}
+                out["joint_share"][str(k)] = joint_periods / float(np.isfinite(tracked).sum())
+                out["changes_declared"][str(k)] = sum(len(storage.changes(name, limit=10 * n)) for name, *_ in buses)
+                storage.close()
+    finally:
+        pool.close()
+    out["load_avg"] = [round(x, 2) for x in os.getloadavg()]
+    return out
+
+
 def part_service_joint(n_buses: int, ks: tuple[int, ...], workers: int, reference: dict | None,
                        seed: int = SEEDS["pooled"], fit_suspects: bool = True) -> dict:
     """σ of the service's tracked model with the joint fit, through the tracking sink's own code path.
@@ -520,8 +617,7 @@ def part_service_joint(n_buses: int, ks: tuple[int, ...], workers: int, referenc
 
     from service.executors.local import LocalPool
     from service.joint_fit import JointFits
-    from service.models import BusResult, PeriodSummary, TrackedModel
-    from service.sinks.base import ResultBatch
+    from service.models import TrackedModel
     from service.sinks.tracking import TrackingSink
     from service.storage import Storage
 
@@ -539,26 +635,13 @@ def part_service_joint(n_buses: int, ks: tuple[int, ...], workers: int, referenc
                           if np.all(np.isfinite(buses[bus][2][g0:g0 + k]))]
                 sink_s, full_cpu, task_bytes = [], [], 0
                 for j in range(k):
-                    batch = ResultBatch()
-                    for name, bus, g0 in groups:
-                        windows, _, d, se = buses[bus]
-                        i = g0 + j
-                        batch.append(BusResult(
-                            bus=name, period=j * PERIOD_S, period_s=PERIOD_S, status="ok", completed_at=j * PERIOD_S,
-                            parameters={"dynamic": dict(zip(common.PARAMS, d[i].tolist(), strict=True)),
-                                        "static": {"Pz": 0.1}, "objective": 0.1, "fit": {"fd_p": 0.9, "fd_q": 0.9},
-                                        "stderr": dict(zip(common.PARAMS, se[i].tolist(), strict=True))}))
-                        batch.windows[name] = windows[i]
-                    t0 = time.perf_counter()
-                    sink.write_results(batch, [""] * len(batch))
-                    sink_s.append((time.perf_counter() - t0) / len(batch))
+                    rows = [(name, buses[bus][0][g0 + j], buses[bus][2][g0 + j], buses[bus][3][g0 + j])
+                            for name, bus, g0 in groups]
+                    sink_s.append(_service_results(sink, rows, j * PERIOD_S))
                     if j == k - 1 and joint._round:
                         task_bytes = len(pickle.dumps(joint._round[0]))
                     done0, cpu0 = joint.done, joint.cpu_s
-                    sink.write_period(PeriodSummary(period=j * PERIOD_S, period_s=PERIOD_S, n_ok=len(batch),
-                                                    n_failed=0, n_skipped=0, latency_s=0.0, completed_at=j * PERIOD_S))
-                    while joint.pending:
-                        time.sleep(0.05)
+                    _service_period_end(sink, joint, j * PERIOD_S, len(rows))
                     if j == k - 1 and joint.done > done0:
                         full_cpu = [(joint.cpu_s - cpu0) / (joint.done - done0)]
                 rows, estimators, n_fitted, changed = [], {"joint": 0, "mean": 0}, [], 0
@@ -719,6 +802,7 @@ def main() -> None:
         "joint_cost": lambda: part_joint_cost(3 if q else 20, 16),
         "service_joint": lambda: part_service_joint(4 if q else args.buses or 100, (4, 16), 1, out.get("pooled"),
                                                     seed=args.pooled_seed),
+        "service_drift": lambda: part_service_drift(3 if q else 10, (4, 16), 1, 22.0, config.false_alarms_per_day),
         "false_alarms_weeks": lambda: [
             part_false_alarms(2 if q else FALSE_ALARMS_WEEKS["n_buses"], 50 if q else FALSE_ALARMS_WEEKS["n_periods"],
                               config, snr, seed=args.weeks_seed, other_rates=(0.1, 0.2))
