@@ -86,13 +86,13 @@ def impulse_response(problem, d: np.ndarray, beta_p: np.ndarray, beta_q: np.ndar
     Returns
     -------
     ndarray, shape (l, 2, 2), or None
-        h[k, i, j]: output i (P, Q) k samples after an impulse of input j (V [pu], θ [rad]) two samples
-        after the regression start, less two (the cubic interpolation reaches one step back) [pu/pu, pu/rad];
-        zero-padded to the regression length.  None when the model cannot be simulated.
+        h[k, i, j]: output i (P, Q) k − 2 samples after an impulse of input j (V [pu], θ [rad]) in the middle
+        of the regression samples (the cubic interpolation reaches one step back) [pu/pu, pu/rad]; zero-padded
+        to the regression length.  None when the model cannot be simulated.
     """
     pb = problem
     n, k0, l = pb.prep.V.size, pb.k0, pb.l
-    j = k0 + 2
+    j = k0 + l // 2  # mid-window: the operating point the response is taken at is the typical one
     p, q = np.empty(n), np.empty(n)
     dp, dq, xs = np.empty((n, 4)), np.empty((n, 4)), np.empty((n, 3))
 
@@ -114,8 +114,9 @@ def impulse_response(problem, d: np.ndarray, beta_p: np.ndarray, beta_q: np.ndar
         if hi is None or lo is None:
             return None
         h[: n - j + 2, :, c] = (hi - lo) / (2.0 * IMPULSE_STEP)
-    # The static part responds to V in the same sample only.
-    vj = pb.prep.V[j : j + 1]
+    # The static part responds to V in the same sample only, with its slope at the window's mean V (it moves
+    # with V; the motor's response is taken at sample j).
+    vj = np.array([float(np.mean(pb.prep.V[k0:]))])
     model = pb.config.static
     dphi = (static.regressors(vj + IMPULSE_STEP, model) - static.regressors(vj - IMPULSE_STEP, model))[0]
     dphi /= 2.0 * IMPULSE_STEP
