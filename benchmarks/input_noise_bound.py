@@ -367,6 +367,30 @@ def weighting_rows(summ: dict) -> list[list]:
             for key, row in summ.items()]
 
 
+def weighting_targets(summ: dict) -> list[list]:
+    """Issue 11's targets per level, noisy class and estimator: bias, σ (0.05, or 1.3 × the exact-input σ of
+    the level), and the honest version σ ≤ 1.3 × the structural bound (on the windows with a bound)."""
+    rows = []
+    for key, row in summ.items():
+        level, cls, name = key.split("|")
+        if cls not in TARGETS:
+            continue
+        mu_tol, sig = TARGETS[cls]
+        exact = summ[f"{level}|none|{name}"]["sigma"]
+        cells = []
+        for j in range(len(common.PARAMS)):
+            target = 1.3 * exact[j] if sig == "1.3x" else sig
+            bias_ok = abs(row["mu"][j] - 1.0) <= mu_tol
+            cell = (f"{'met' if bias_ok else 'NOT'} / {'met' if row['sigma'][j] <= target else 'NOT'} "
+                    f"(σ {row['sigma'][j]:.3f} vs {target:.3f})")
+            if "sigma_over_bound" in row:
+                ratio = row["sigma_over_bound"][j]
+                cell += f" / {'met' if ratio <= 1.3 else 'NOT'} ({ratio:.2f}× bound)"
+            cells.append(cell)
+        rows.append([level, cls, name] + cells)
+    return rows
+
+
 def weighting_main(args) -> dict:
     """``--weighting``: run (or ``--report``), summarise against the stored bounds, print, write."""
     name = "input_noise_weighting" + ("_quick" if args.quick else "")
@@ -388,6 +412,8 @@ def weighting_main(args) -> dict:
     out["summary"] = weighting_summary(out["per_window"], bounds)
     print(f"**S-weighted estimator against the default** ({out['n']} windows per level, seed {CONFIRM_SEED}):\n\n"
           + common.md_table(W_HEAD, weighting_rows(out["summary"])))
+    print("\n**Targets** (bias / σ / σ ≤ 1.3 × bound):\n\n"
+          + common.md_table(["DL", "input noise", "estimator"] + list(common.PARAMS), weighting_targets(out["summary"])))
     if not args.no_write:
         common.write_json(name, out)
     return out
