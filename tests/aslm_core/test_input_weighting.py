@@ -17,20 +17,16 @@ SPECTRAL = IdentifyConfig(input_weighting="spectral")
 
 
 @pytest.fixture(scope="module")
-def cases():
-    """DL 2 windows (P and Q at the level's SNR), V and θ exact (development seed 41, as test_noise)."""
-    return make_cases(12, level=2, seed=41, input_noise=False)
+def windows():
+    """test_noise's windows: DL 2 of development seed 41, exact inputs and 0.1 % / 1e-3 rad on V and θ."""
+    cs = make_cases(12, level=2, seed=41, input_noise=False)
+    return cs, [with_input_noise(c.window, V_REL, THETA_RAD, seed=i) for i, c in enumerate(cs)]
 
 
-@pytest.fixture(scope="module")
-def noisy(cases):
-    """The same windows with white noise of 0.1 % of V and 1e-3 rad on V and θ, fixed draws."""
-    return [with_input_noise(c.window, V_REL, THETA_RAD, seed=i) for i, c in enumerate(cases)]
-
-
-def test_weighting_lowers_the_spread_on_noisy_inputs_and_stays_unbiased(cases, noisy):
+def test_weighting_lowers_the_spread_on_noisy_inputs_and_stays_unbiased(windows):
     """Measured on these 12 windows: RMS error a / b / H2 / Tm 0.155 / 0.067 / 0.051 / 0.073 (default) against
     0.082 / 0.043 / 0.045 / 0.040; the summed mean square falls by 67 %, held here to at least 40 %."""
+    cases, noisy = windows
     truth = np.array([c.truth.d for c in cases])
     default = np.array([identify(w).d for w in noisy]) / truth
     weighted = np.array([identify(w, config=SPECTRAL).d for w in noisy]) / truth
@@ -41,7 +37,8 @@ def test_weighting_lowers_the_spread_on_noisy_inputs_and_stays_unbiased(cases, n
     assert np.all(np.abs(weighted.mean(axis=0) - 1.0) < 0.03)
 
 
-def test_weighted_result_reports_its_fit(noisy):
+def test_weighted_result_reports_its_fit(windows):
+    noisy = windows[1]
     r = identify(noisy[0], config=SPECTRAL)
     assert 0.3 < r.quality["weighted_chi2"] < 3.0  # the whitened residual's mean square, ~1 when S is right
     assert r.quality["lowpass_hz"] == 0.0  # the weighting replaces the low-pass
@@ -49,8 +46,8 @@ def test_weighted_result_reports_its_fit(noisy):
     assert "weighted_chi2" not in identify(noisy[0]).quality
 
 
-def test_exact_inputs_are_identified_exactly_as_without_the_option(cases):
-    for c in cases[:3]:
+def test_exact_inputs_are_identified_exactly_as_without_the_option(windows):
+    for c in windows[0][:3]:
         r0, r1 = identify(c.window), identify(c.window, config=SPECTRAL)
         np.testing.assert_array_equal(r1.d, r0.d)
         assert r1.stderr == r0.stderr
@@ -96,12 +93,12 @@ def test_per_frequency_weight_is_the_time_domain_covariance_on_a_circular_toy(mo
         assert float(z[:, 0] @ z[:, 0]) == pytest.approx(float(e @ np.linalg.solve(s_t, e)), rel=1e-9)
 
 
-def test_impulse_response_is_the_models_response_to_an_input_error(noisy):
+def test_impulse_response_is_the_models_response_to_an_input_error(windows):
     """H from the impulse responses reproduces the whole model's response (motor and static part) to a small
     smooth input error, the model being nearly time-invariant over a window: within 6 % of its RMS (measured
     0.6–4.3 % per input and channel; 10–12 % when H was taken at the regression start with the static slope
     at that sample's V)."""
-    w = noisy[0]
+    w = windows[1][0]
     d = identify(w).d
     prep = prepare(w, floors=True, input_smoother="wiener")
     pb = Problem(prep, w.f0, IdentifyConfig())
