@@ -282,7 +282,7 @@ def _descend(problem, d0: np.ndarray, weighting: Weighting, margin: float) -> di
                 continue
             pred = -float(g @ step) - 0.5 * float(step @ a @ step)
             if pred <= 1e-10 * cost:
-                return {"d": d, "cost": cost, "iterations": it}
+                return {"d": d, "cost": cost, "iterations": it, "e": e, "jac": jac}
             trial = np.minimum(np.maximum(d + step, pb.lower), pb.upper)
             if not pb.feasible(trial):
                 # The constraint is bilinear: back onto it along Tm (as the kernel does).
@@ -306,7 +306,7 @@ def _descend(problem, d0: np.ndarray, weighting: Weighting, margin: float) -> di
             break
         if np.all(np.abs(step) <= 1e-7 * (np.abs(d) + 1e-3)):
             break
-    return {"d": d, "cost": cost, "iterations": it}
+    return {"d": d, "cost": cost, "iterations": it, "e": e, "jac": jac}
 
 
 def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, margin: float) -> dict | None:
@@ -351,10 +351,7 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
             return None
         iters += out["iterations"]
         d = out["d"]
-    ev = whitened_residuals(pb, d, weighting)
-    if ev is None:
-        return None
-    e, jac = ev
+    e, jac = out["e"], out["jac"]
     dof = max(2 * pb.l - 4 - 2 * pb.basis.shape[1], 1)
     chi2 = float(e @ e) / dof
     try:
