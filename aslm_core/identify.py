@@ -19,7 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from aslm_core import disturbance, excitation, instrumental, motor, optimize, static
+from aslm_core import disturbance, excitation, input_weighting, instrumental, motor, optimize, static
 from aslm_core.errors import NoEquilibriumError, WindowError
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import Prepared, prepare
@@ -335,6 +335,14 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
             final, final_problem = r, longer
     cov_d = None
     extra: dict[str, float] = {}
+    if config.input_weighting == "spectral" and config.disturbance == "none":
+        w = input_weighting.weighted_fit(window, config, final["d"], final_problem.k0 * prep.dt, prep.noise,
+                                         EQUILIBRIUM_MARGIN)
+        if w is not None:
+            it = final["iterations"] if final is not best else 0
+            final_problem, prep, cov_d = w["problem"], w["problem"].prep, w["cov"]
+            final = {"d": w["d"], "cost": w["objective"], "iterations": w["iterations"] + it}
+            extra = {"weighted_chi2": w["chi2"]}
     if config.disturbance in ("ar", "ar_iv"):
         fit_pem = disturbance.fit if config.disturbance == "ar" else instrumental.fit
         pem = fit_pem(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)

@@ -201,7 +201,7 @@ def _extend(x: np.ndarray, pad: int, m: int) -> np.ndarray:
 
 
 def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float = WIENER_SMOOTH_HZ,
-                  return_cutoffs: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+                  return_cutoffs: bool = False, return_error: bool = False) -> np.ndarray | tuple:
     """Conditional mean of jointly stationary signals observed in white noise of known std: a non-causal
     multichannel Wiener smoother.
 
@@ -218,6 +218,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         Width of the moving average over the cross-spectrum the gain is formed from [Hz].
     return_cutoffs : bool
         Also return each channel's signal cut-off.
+    return_error : bool
+        Also return the smoothed signals' error spectrum (after the cut-offs, whether or not they were asked).
 
     Returns
     -------
@@ -226,6 +228,10 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     ndarray, shape (c,)
         Only with ``return_cutoffs``: per channel the frequency above which its signal is taken as zero
         (where its averaged power sinks to its floor; fs/2 when it never does) [Hz].
+    ndarray, shape (m,), and ndarray, shape (m, c, c)
+        Only with ``return_error``: frequencies [Hz] and, per frequency, the covariance spectrum of the error
+        x − x̂, P_x = R − R·(S + R)⁻¹·R = gain·R, in per-sample units (white noise of variance σ² has
+        the flat spectrum σ²) [unit of x squared].
 
     Notes
     -----
@@ -247,7 +253,9 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     if c > 2:
         raise ValueError(f"wiener_smooth takes one or two channels, got {c}")
     if n < 8 or not np.any(var > 0.0):
-        return (x.copy(), np.full(c, 0.5 * fs)) if return_cutoffs else x.copy()
+        freqs = np.fft.rfftfreq(n, 1.0 / fs)
+        return _returned(x.copy(), np.full(c, 0.5 * fs), freqs, np.zeros((freqs.size, c, c), complex),
+                         return_cutoffs, return_error)
     var = np.maximum(var, 1e-30)
     pad = min(n - 2, int(round(2.0 * fs)))
     m = max(2, min(n // 4, int(round(EDGE_FIT_S * fs))))
@@ -274,7 +282,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         s = np.maximum(p[0] - r[0], 0.0)
         s[ends[0]:] = 0.0
         out = (np.fft.irfft(s / (s + r[0]) * spec[0], n=ne) + line[0])[None, pad:pad + n]
-        return (out, cutoffs) if return_cutoffs else out
+        px = (s / (s + r[0]) * var[0]).astype(complex)[:, None, None]
+        return _returned(out, cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px, return_cutoffs, return_error)
     # Two channels: S = S_m − R with its negative eigenvalue clipped, in closed form per frequency.
     b = _moving_average(spec[0] * spec[1].conj(), width)
     a, d = p[0] - r[0], p[1] - r[1]
@@ -298,4 +307,14 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     g10, g11 = (sb.conj() * td - sd * sb.conj()) / det, (sd * ta - sb.conj() * sb) / det
     est = np.stack([g00 * spec[0] + g01 * spec[1], g10 * spec[0] + g11 * spec[1]])
     out = (np.fft.irfft(est, n=ne, axis=1) + line)[:, pad:pad + n]
-    return (out, cutoffs) if return_cutoffs else out
+    px = np.empty((g00.size, 2, 2), dtype=complex)
+    px[:, 0, 0], px[:, 0, 1] = g00 * var[0], g01 * var[1]
+    px[:, 1, 0], px[:, 1, 1] = g10 * var[0], g11 * var[1]
+    return _returned(out, cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px, return_cutoffs, return_error)
+
+
+def _returned(out: np.ndarray, cutoffs: np.ndarray, freqs: np.ndarray, px: np.ndarray, with_cutoffs: bool,
+              with_error: bool) -> np.ndarray | tuple:
+    """:func:`wiener_smooth`'s return value for the outputs asked for."""
+    extra = ((cutoffs,) if with_cutoffs else ()) + ((freqs, px) if with_error else ())
+    return (out, *extra) if extra else out

@@ -29,7 +29,8 @@ class Prepared:
 
     ``noise``: the white-noise std of the measured channels (:func:`aslm_core.noise.channel_floors`,
     before any filtering), when asked for.  ``lowpass_hz``: the cut-off of the causal low-pass applied
-    (given, or chosen by ``wiener_lowpass``), 0 for none [Hz].
+    (given, or chosen by ``wiener_lowpass``), 0 for none [Hz].  ``input_error``: after a Wiener smoother, the
+    frequencies [Hz] and error spectrum of the smoothed V and θ (:func:`aslm_core.noise.wiener_smooth`).
     """
 
     t: np.ndarray
@@ -41,6 +42,7 @@ class Prepared:
     flags: list[str] = field(default_factory=list)
     noise: dict[str, float] = field(default_factory=dict)
     lowpass_hz: float = 0.0
+    input_error: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def _fill_short_gaps(x: np.ndarray, max_run: int, name: str) -> int:
@@ -177,9 +179,11 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
              if k in est}
     if est:
         est.update(noise.input_ratios(V, theta, white))
+    input_error = None
     if wiener:
-        (V, theta), cut = noise.wiener_smooth(np.stack([V, theta]), 1.0 / dt, [white["noise_v"], white["noise_theta"]],
-                                              return_cutoffs=True)
+        (V, theta), cut, *input_error = noise.wiener_smooth(
+            np.stack([V, theta]), 1.0 / dt, [white["noise_v"], white["noise_theta"]], return_cutoffs=True,
+            return_error=True)
         if input_smoother == "wiener_lowpass" and lowpass_hz is None and cut.min() < 0.45 / dt:
             # Rounded to 0.1 Hz so the filter designs are cached.
             lowpass_hz = max(0.1, round(PREFILTER_FRACTION * float(cut.min()), 1))
@@ -196,4 +200,5 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         x = np.stack([V, theta, P, Q])
         V, theta, P, Q = signal.lfilter(b, a, x, axis=1, zi=zi[None, :] * x[:, :1])[0]
     tg = t[0] + dt * np.arange(n_grid)
-    return Prepared(tg, V, theta, P, Q, dt, flags, est, float(lowpass_hz or 0.0))
+    return Prepared(tg, V, theta, P, Q, dt, flags, est, float(lowpass_hz or 0.0),
+                    tuple(input_error) if input_error else None)

@@ -15,6 +15,7 @@ StaticModel = Literal["zip", "exponential"]
 InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
 Disturbance = Literal["none", "ar", "ar_iv"]
 StderrMethod = Literal["spectral", "ar1"]
+InputWeighting = Literal["none", "spectral"]
 
 
 @dataclass(frozen=True)
@@ -84,6 +85,12 @@ class IdentifyConfig:
         Output-error standard errors: the score's variance from the residual's smoothed spectrum (every
         lag of its colour; default), or the lag-1 inflation (1+ρ)/(1−ρ) of a white-noise sandwich (before
         issue 11).  See docs/numerics.md.
+    input_weighting : {"none", "spectral"}
+        ``spectral``: where V or θ carries white PMU noise (exact inputs: today's fit, untouched) and
+        ``disturbance="none"``, D is refined from the output-error fit by weighting the residuals per frequency
+        by the inverse of the disturbance spectrum the inputs' noise adds through the model
+        (:mod:`aslm_core.input_weighting`), on the Wiener-smoothed V, θ and the unfiltered P, Q; standard errors
+        from the weighted fit.  See docs/numerics.md.
     """
 
     integrator: Integrator = "rk4"
@@ -104,6 +111,7 @@ class IdentifyConfig:
     disturbance: Disturbance = "none"
     ar_max_order: int = 30
     stderr_method: StderrMethod = "spectral"
+    input_weighting: InputWeighting = "none"
 
     def to_dict(self) -> dict:
         """The options as a plain dict (flat, so cheaper than ``dataclasses.asdict``)."""

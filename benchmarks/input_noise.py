@@ -13,11 +13,12 @@ median over windows.
 300 windows per level, the three PMU classes, μ and σ with 95 % bootstrap intervals against issue 11's
 targets; confirmation seed 43, fixed before the run (the thresholds were tuned on seed 5, the candidates
 compared on seed 41).  ``--rates R ...``: the default at those reporting rates [frames/s], DL 2, the
-same per-sample PMU noise, 150 windows per rate (seed 43).
+same per-sample PMU noise, 150 windows per rate (seed 43); with ``--weighting`` the S-weighted option
+(``input_weighting="spectral"``) next to the default on the same windows (JSON ``input_noise_rates_weighting``).
 
     .venv/bin/python -m benchmarks.input_noise [--quick] [--n N] [--levels 2 3] [--workers 2] [--time-n 30]
     .venv/bin/python -m benchmarks.input_noise --supplement [--n 300]
-    .venv/bin/python -m benchmarks.input_noise --rates 25 30 50 60 100 120 [--n 150]
+    .venv/bin/python -m benchmarks.input_noise --rates 25 30 50 60 100 120 [--n 150] [--weighting]
     .venv/bin/python -m benchmarks.input_noise --cost [--n 60]
 
 ``--cost``: the default's time per identification against the identifier before issue 11 (no input
@@ -54,6 +55,8 @@ CANDIDATES = {
     "default, lag-1 SE rule": IdentifyConfig(stderr_method="ar1"),
 }
 DEFAULT_ONLY = {"default": IdentifyConfig()}
+#: ``--rates --weighting``: the default and the S-weighted option (docs/numerics.md).
+WITH_WEIGHTING = {"default": IdentifyConfig(), "spectral": IdentifyConfig(input_weighting="spectral")}
 COST = {"before issue 11": IdentifyConfig(input_smoother="none", stderr_method="ar1"), "default": IdentifyConfig()}
 #: Issue 11's targets per PMU class: |μ − 1| bound, and σ bound (absolute, or as a multiple of exact-input σ).
 TARGETS = {"0.03 % / 3e-4 rad": (0.01, "1.3x"), "0.1 % / 1e-3 rad": (0.02, 0.05)}
@@ -208,14 +211,16 @@ RATE_HEAD = (["frames/s", "input noise", "n"] + [f"μ {p}" for p in common.PARAM
 
 
 def rate_rows(rates_out: dict) -> list[list]:
+    """One row per rate and class (and candidate, after the class, when there are several)."""
     out = []
     for fs, per in rates_out.items():
         for cls, by in per.items():
-            st = by["default"]
-            out.append([fs, cls, st["n"]] + [f"{st['mu'][p]:.3f}" for p in common.PARAMS]
-                       + [f"{st['sigma'][p]:.3f}" for p in common.PARAMS]
-                       + [" / ".join(f"{100 * st['coverage_95'][p]:.0f}" for p in common.PARAMS),
-                          f"{st['n_off_20pct']} ({st['off_20pct_unflagged']})", f"{st['median_time_ms']:.1f}"])
+            for name, st in by.items():
+                label = cls if len(by) == 1 else f"{cls}, {name}"
+                out.append([fs, label, st["n"]] + [f"{st['mu'][p]:.3f}" for p in common.PARAMS]
+                           + [f"{st['sigma'][p]:.3f}" for p in common.PARAMS]
+                           + [" / ".join(f"{100 * st['coverage_95'][p]:.0f}" for p in common.PARAMS),
+                              f"{st['n_off_20pct']} ({st['off_20pct_unflagged']})", f"{st['median_time_ms']:.1f}"])
     return out
 
 
@@ -247,6 +252,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--supplement", action="store_true", help="the Table I supplement (default identifier)")
     ap.add_argument("--rates", type=float, nargs="+", default=None, help="reporting rates [frames/s]")
     ap.add_argument("--cost", action="store_true", help="time per identification: the default against before")
+    ap.add_argument("--weighting", action="store_true",
+                    help="with --rates: the S-weighted option (input_weighting='spectral') next to the default")
     args = ap.parse_args(argv)
     if args.cost:
         return cost(args.n or 60, args.no_write)
@@ -254,7 +261,7 @@ def main(argv=None) -> dict:
     n = args.n or (20 if args.quick else {"compare": 200, "supplement": 300, "rates": 150}[mode])
     levels = args.levels or {"compare": [2, 3], "supplement": [1, 2, 3], "rates": [2]}[mode]
     seed = SEED if mode == "compare" else CONFIRM_SEED
-    candidates = CANDIDATES if mode == "compare" else DEFAULT_ONLY
+    candidates = CANDIDATES if mode == "compare" else (WITH_WEIGHTING if args.weighting else DEFAULT_ONLY)
     t_all = time.perf_counter()
     out = {"machine": common.machine(), "mode": mode, "n_per_level": n, "seed": seed, "quick": args.quick,
            "candidates": {k: v.to_dict() for k, v in candidates.items()}, "levels": {}}
@@ -287,6 +294,8 @@ def main(argv=None) -> dict:
         name = {"compare": "input_noise", "supplement": "input_noise_supplement", "rates": "input_noise_rates"}[mode]
         if mode == "rates" and levels != [2]:
             name += "_dl" + "-".join(str(x) for x in levels)
+        if mode == "rates" and args.weighting:
+            name += "_weighting"
         common.write_json(name + ("_quick" if args.quick else ""), out)
     return out
 

@@ -157,3 +157,22 @@ def test_spectral_standard_errors_agree_with_the_white_rule_on_white_residuals_a
                      for m in ("spectral", "ar1"))
         ratio = np.array([spec.stderr[k] / ar1.stderr[k] for k in PARAMS])
         assert np.all(ratio < 0.9), ratio
+
+
+def test_wiener_error_spectrum_has_the_smoothed_signals_error_variance():
+    """The smoother's error spectrum P_x = gain·R (per-sample units), averaged over frequency, is the variance
+    of x̂ − x: measured 0.84–0.86 of it on average over 20 draws of two coherent 1 Hz low-passed channels in
+    0.1 % / 1e-3 rad white noise (slightly optimistic: the gain is estimated, and the cut-off drops the signal
+    below the floor); (I − gain)·R, the complement, would be 6–12×."""
+    rng = np.random.default_rng(11)
+    fs, n = 50.0, 1500
+    b, a = signal.butter(2, 1.0, fs=fs)
+    sig = np.array([1e-3, 1e-3])
+    ratios = []
+    for _ in range(20):
+        w = signal.lfilter(b, a, rng.standard_normal((2, n + 500)), axis=1)[:, 500:]
+        x = np.stack([1.0 + 0.004 * w[0], 0.01 * (0.6 * w[0] + 0.8 * w[1])])
+        xh, _, px = noise.wiener_smooth(x + sig[:, None] * rng.standard_normal((2, n)), fs, sig, return_error=True)
+        err = (xh - x)[:, 100:-100]
+        ratios.append([np.mean(px[:, c, c].real) / np.var(err[c]) for c in range(2)])
+    assert np.all((np.mean(ratios, axis=0) > 0.7) & (np.mean(ratios, axis=0) < 1.2))

@@ -32,3 +32,20 @@ def test_one_window_bound_orders_exact_structural_functional_and_the_oracle_fits
             assert np.all(np.abs(default - 1) < 0.3) and np.all(np.abs(gls - 1) < 0.3), (level, cls, default, gls)
     for key in bounds[1]:
         assert np.all(bounds[1][key] >= bounds[3][key])
+
+
+def test_weighting_part_runs_both_estimators_on_the_same_windows():
+    """``--weighting`` on one window per level: every level and class for both estimators, the exact-input
+    rows the same D for both (the option leaves exact inputs alone), and the summary against a bound."""
+    from benchmarks.input_noise_bound import WEIGHTING, weighting_run, weighting_summary, weighting_targets
+
+    per = weighting_run(1, 1)
+    assert len(per) == len(LEVELS) * len(INPUT_NOISE) * len(WEIGHTING)
+    for level in LEVELS:
+        assert per[f"{level}|none|default"]["ratio"] == per[f"{level}|none|spectral"]["ratio"]
+    var = {str(level): {"exact": [1e-4] * 4, **{f"{c}|structural": [1e-3] * 4 for c, _, _ in INPUT_NOISE[1:]}}
+           for level in LEVELS}
+    per2 = {k: {f: v[f] * 2 for f in v} for k, v in per.items()}  # two windows: σ needs more than one
+    summ = weighting_summary(per2, [var, var])
+    assert all(row["n"] == 2 and len(row["sigma_over_bound"]) == 4 for row in summ.values())
+    assert len(weighting_targets(summ)) == len(LEVELS) * 2 * len(WEIGHTING)

@@ -1,0 +1,410 @@
+"""S-weighted refinement of D for windows whose inputs V and θ are noisy (``input_weighting="spectral"``).
+
+With noisy inputs the model's output carries the smoothed inputs' error x − x̂ through the model: the
+disturbance of [P; Q] is S = Σ_v + A·P_x·Aᵀ, not white (:mod:`aslm_core.information`), and the efficient
+estimator weights the residuals by S⁻¹.  Over a window the load model is nearly time-invariant, so per
+frequency f that covariance is the 2×2 spectrum
+
+    S(f) = diag(σ_P², σ_Q²) + H(f)·P_x(f)·H(f)ᴴ,
+
+H(f) the model's response of (P, Q) to (V, θ) at the current D (the Fourier transform of its impulse
+responses, by finite differences through the compiled simulator, the static part's slope added), P_x(f) the
+Wiener smoother's error spectrum (:func:`aslm_core.noise.wiener_smooth`) and σ_P, σ_Q the floors of P and Q;
+its diagonal is floored by the output-error residual's smoothed periodogram (the true inputs' content beyond
+the smoother's cut-off, which P_x leaves out, still drives P and Q).  The residuals, their D-Jacobian and the static regressors are tapered (against the DFT's leakage into bins
+where S is small) and taken to the frequency domain (an orthonormal DFT), whitened per frequency by S(f)^(−1/2) (the inverse of its Cholesky factor), the static part is
+projected out after whitening, and D is refined by Levenberg–Marquardt steps under the box and equilibrium
+constraint (:func:`aslm_core.optimize.qp_step`) on the Wiener-smoothed V, θ and the measured P, Q (no
+low-pass: the weighting takes its place).  Standard errors from the whitened problem's information, scaled
+by the whitened residual's variance.  Measurements: docs/numerics.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from functools import lru_cache
+
+import numpy as np
+from scipy import signal
+
+from aslm_core import motor, optimize, static
+from aslm_core.preprocess import FLOOR_TILT_MAX, Prepared, prepare
+from aslm_core.window import Window
+
+#: Size of the single-sample perturbation whose response gives H [pu for V, rad for θ].
+IMPULSE_STEP = 1e-4
+#: Levenberg–Marquardt iterations of the refinement (per estimate of H).
+MAX_ITER = 12
+#: Estimates of H (at the output-error D; a second one at the refined D changed σ by under 5 % on development windows).
+ROUNDS = 1
+#: Tukey taper of the regression samples before the DFT (fraction of the window tapered) [-].
+TAPER = 0.1
+#: Width of the moving average over the residual's periodogram that floors S's diagonal [Hz].
+RESIDUAL_SMOOTH_HZ = 1.0
+
+
+@dataclass
+class Weighting:
+    """The per-frequency whitening of one window's [P; Q] residuals.
+
+    ``w``: per rfft bin of the regression samples, the lower-triangular W = L⁻¹ with S = L·Lᴴ, as its
+    entries (w00, w10, w11) [1/pu]; ``nuisance``: the whitened static regressors in the stacked real
+    representation (:func:`_stack`) and ``gram_inv`` the inverse of their Gram matrix (the projection off them).
+    """
+
+    w: tuple[np.ndarray, np.ndarray, np.ndarray]
+    nuisance: np.ndarray
+    gram_inv: np.ndarray
+
+    def project(self, z: np.ndarray) -> np.ndarray:
+        """z with its component in the whitened static regressors' span removed."""
+        return z - self.nuisance @ (self.gram_inv @ (self.nuisance.T @ z))
+
+
+def bin_weights(l: int) -> np.ndarray:
+    """√(multiplicity) of each rfft bin of l samples: the real stacking of the one-sided DFT then keeps the
+    sum of squares of the time series (Parseval with ``norm="ortho"``)."""
+    m = np.full(l // 2 + 1, math.sqrt(2.0))
+    m[0] = 1.0
+    if l % 2 == 0:
+        m[-1] = 1.0
+    return m
+
+
+def impulse_response(problem, d: np.ndarray, beta_p: np.ndarray, beta_q: np.ndarray) -> np.ndarray | None:
+    """The model's [P; Q] response to a unit impulse of V and of θ at one sample, on the regression grid.
+
+    Parameters
+    ----------
+    problem : aslm_core.identify.Problem
+        The window (its inputs, integrator and regression samples).
+    d : ndarray
+        D = [a, b, H2, Tm].
+    beta_p, beta_q : ndarray
+        Static coefficients of P and Q on the configured regressors [pu].
+
+    Returns
+    -------
+    ndarray, shape (l, 2, 2), or None
+        h[k, i, j]: output i (P, Q) k − 2 samples after an impulse of input j (V [pu], θ [rad]) in the middle
+        of the regression samples (the cubic interpolation reaches one step back) [pu/pu, pu/rad]; zero-padded
+        to the regression length.  None when the model cannot be simulated.
+    """
+    pb = problem
+    n, k0, l = pb.prep.V.size, pb.k0, pb.l
+    j = k0 + l // 2  # mid-window: the operating point the response is taken at is the typical one
+    p, q = np.empty(n), np.empty(n)
+    dp, dq, xs = np.empty((n, 4)), np.empty((n, 4)), np.empty((n, 3))
+
+    def output(v: np.ndarray, th: np.ndarray) -> np.ndarray | None:
+        vd, vq, vdm, vqm = motor.dq_inputs(v, th, pb.substeps)
+        if not motor.simulate_kernel(vd, vq, vdm, vqm, d, pb.dt, pb.omega0, pb.rk4, False, p, q, dp, dq, xs, True,
+                                     k0, pb.p_meas, pb.q_meas, dp):
+            return None
+        return np.stack([p[j - 2:], q[j - 2:]], axis=1)
+
+    h = np.zeros((l, 2, 2))
+    base = (pb.prep.V, pb.prep.theta)
+    for c in range(2):
+        up, down = base[c].copy(), base[c].copy()
+        up[j] += IMPULSE_STEP
+        down[j] -= IMPULSE_STEP
+        hi = output(up, base[1]) if c == 0 else output(base[0], up)
+        lo = output(down, base[1]) if c == 0 else output(base[0], down)
+        if hi is None or lo is None:
+            return None
+        h[: n - j + 2, :, c] = (hi - lo) / (2.0 * IMPULSE_STEP)
+    # The static part responds to V in the same sample only, with its slope at the window's mean V (it moves
+    # with V; the motor's response is taken at sample j).
+    vj = np.array([float(np.mean(pb.prep.V[k0:]))])
+    model = pb.config.static
+    dphi = (static.regressors(vj + IMPULSE_STEP, model) - static.regressors(vj - IMPULSE_STEP, model))[0]
+    dphi /= 2.0 * IMPULSE_STEP
+    h[2, 0, 0] += float(dphi @ beta_p)
+    h[2, 1, 0] += float(dphi @ beta_q)
+    return h
+
+
+def disturbance_spectrum(h: np.ndarray, freqs: np.ndarray, px_freqs: np.ndarray, px: np.ndarray,
+                         white_var: tuple[float, float]) -> np.ndarray:
+    """S(f) = diag(σ_P², σ_Q²) + H(f)·P_x(f)·H(f)ᴴ at the rfft bins of the regression samples.
+
+    Parameters
+    ----------
+    h : ndarray, shape (l, 2, 2)
+        Impulse responses (:func:`impulse_response`).
+    freqs : ndarray
+        Frequencies of the bins [Hz].
+    px_freqs, px : ndarray
+        The input error's spectrum (:func:`aslm_core.noise.wiener_smooth`, per-sample units), interpolated
+        linearly onto ``freqs``.
+    white_var : (float, float)
+        White noise variance of P and Q [pu²].
+
+    Returns
+    -------
+    ndarray, shape (m, 2, 2), complex
+        Per bin the Hermitian covariance spectrum of the [P; Q] disturbance, per-sample units [pu²].
+    """
+    hf = np.fft.rfft(h, axis=0)  # (m, 2, 2)
+
+    def at(a: int, b: int) -> np.ndarray:
+        return np.interp(freqs, px_freqs, px[:, a, b].real) + 1j * np.interp(freqs, px_freqs, px[:, a, b].imag)
+
+    p00, p01, p11 = at(0, 0).real, at(0, 1), at(1, 1).real
+    s = np.empty((freqs.size, 2, 2), dtype=complex)
+    # Row i of H·P_x·Hᴴ against row k, P_x Hermitian: Σ_ab H_ia·P_ab·conj(H_kb).
+    for i in range(2):
+        for k in range(i, 2):
+            hi0, hi1, hk0, hk1 = hf[:, i, 0], hf[:, i, 1], hf[:, k, 0], hf[:, k, 1]
+            s[:, i, k] = (hi0 * p00 * hk0.conj() + hi0 * p01 * hk1.conj() + hi1 * p01.conj() * hk0.conj()
+                          + hi1 * p11 * hk1.conj())
+    s[:, 1, 0] = s[:, 0, 1].conj()
+    s[:, 0, 0] = s[:, 0, 0].real + white_var[0]
+    s[:, 1, 1] = s[:, 1, 1].real + white_var[1]
+    return s
+
+
+def whitening(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Entries (w00, w10, w11) of W = L⁻¹ per bin, S = L·Lᴴ its Cholesky factor (W·S·Wᴴ = I)."""
+    l00 = np.sqrt(np.maximum(s[:, 0, 0].real, 1e-300))
+    l10 = s[:, 1, 0] / l00
+    l11 = np.sqrt(np.maximum(s[:, 1, 1].real - np.abs(l10) ** 2, 1e-12 * s[:, 1, 1].real + 1e-300))
+    return 1.0 / l00, -l10 / (l00 * l11), 1.0 / l11
+
+
+@lru_cache(maxsize=32)
+def _taper_of(l: int, fraction: float) -> np.ndarray:
+    """The symmetric Tukey taper of l samples, as a column (ones without a taper)."""
+    return (signal.get_window(("tukey", fraction), l, fftbins=False) if fraction > 0 else np.ones(l))[:, None]
+
+
+def _taper(l: int) -> np.ndarray:
+    """:data:`TAPER`'s taper of l samples, shape (l, 1)."""
+    return _taper_of(l, TAPER)
+
+
+def _stack(w: tuple[np.ndarray, np.ndarray, np.ndarray], xp: np.ndarray, xq: np.ndarray,
+           mult: np.ndarray) -> np.ndarray:
+    """Whitened real representation of the columns xp (P's rows) and xq (Q's rows), time along axis 0.
+
+    Each column pair goes to the frequency domain (orthonormal DFT), is multiplied per bin by W, and the real
+    and imaginary parts of both whitened channels are stacked (bins weighted by ``mult``), so that a sum of
+    squares over the rows is the whitened quadratic form of the time series.
+    """
+    f = np.fft.rfft(np.hstack([xp, xq]) * _taper(xp.shape[0]), axis=0, norm="ortho") * mult[:, None]
+    fp, fq = f[:, : xp.shape[1]], f[:, xp.shape[1]:]
+    zp = w[0][:, None] * fp
+    zq = w[1][:, None] * fp + w[2][:, None] * fq
+    return np.concatenate([zp.real, zp.imag, zq.real, zq.imag], axis=0)
+
+
+def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.ndarray],
+                    white_var: tuple[float, float]) -> Weighting | None:
+    """The window's whitening at D: H at D and the static coefficients of the plain fit there.  None when
+    the model cannot be simulated at D."""
+    pb = problem
+    if not _simulate(pb, d):
+        return None
+    k0 = pb.k0
+    resid = np.column_stack([pb.p_meas - pb._p[k0:], pb.q_meas - pb._q[k0:]])
+    beta = np.linalg.solve(pb.r_factor, pb.basis.T @ resid)
+    h = impulse_response(pb, d, beta[:, 0], beta[:, 1])
+    if h is None:
+        return None
+    freqs = np.fft.rfftfreq(pb.l, pb.dt)
+    s = disturbance_spectrum(h, freqs, *input_error, white_var)
+    if RESIDUAL_SMOOTH_HZ > 0:
+        from aslm_core.identify import _reflected_mean
+
+        width = max(1, int(round(RESIDUAL_SMOOTH_HZ * pb.l * pb.dt)))
+        kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
+        resid -= pb.basis @ (pb.basis.T @ resid)
+        fr = np.fft.rfft(resid * _taper(pb.l), axis=0, norm="ortho")
+        for c in range(2):
+            pr = _reflected_mean(fr[:, c].real ** 2 + fr[:, c].imag ** 2, kernel)
+            s[:, c, c] += np.maximum(pr - s[:, c, c].real, 0.0)
+    w = whitening(s)
+    phi = pb.basis
+    zero = np.zeros_like(phi)
+    nuis = _stack(w, np.hstack([phi, zero]), np.hstack([zero, phi]), bin_weights(pb.l))
+    return Weighting(w, nuis, np.linalg.inv(nuis.T @ nuis))
+
+
+def _simulate(pb, d: np.ndarray) -> bool:
+    """The motor with its D-sensitivities at d into the problem's buffers."""
+    return bool(motor.simulate_kernel(pb.vd, pb.vq, pb.vdm, pb.vqm, d, pb.dt, pb.omega0, pb.rk4, True, pb._p, pb._q,
+                                      pb._dp, pb._dq, pb._x, True, pb.k0, pb.p_meas, pb.q_meas, pb._dp))
+
+
+def whitened_residuals(problem, d: np.ndarray, weighting: Weighting) -> tuple[np.ndarray, np.ndarray] | None:
+    """Whitened residual ẽ = P⊥·W·(y − m(D)) and Jacobian J̃ = P⊥·W·∂m/∂D, the static part projected out
+    after whitening (stacked real form).  None when the model cannot be simulated at d."""
+    pb = problem
+    pb.evaluations += 1
+    if not _simulate(pb, d):
+        return None
+    k0 = pb.k0
+    xp = np.column_stack([pb.p_meas - pb._p[k0:], pb._dp[k0:]])
+    xq = np.column_stack([pb.q_meas - pb._q[k0:], pb._dq[k0:]])
+    z = _stack(weighting.w, xp, xq, bin_weights(pb.l))
+    z = weighting.project(z)
+    if not np.all(np.isfinite(z)):
+        return None
+    return z[:, 0], z[:, 1:]
+
+
+def _descend(problem, d0: np.ndarray, weighting: Weighting, margin: float) -> dict:
+    """Levenberg–Marquardt on ½‖ẽ‖² from d0 under the box and the linearised equilibrium constraint."""
+    pb = problem
+    d = np.array(d0, dtype=np.float64)
+    ev = whitened_residuals(pb, d, weighting)
+    if ev is None:
+        return {"d": d, "cost": math.inf, "iterations": 0}
+    e, jac = ev
+    cost = 0.5 * float(e @ e)
+    lam, nu = 1e-3, 2.0
+    work, vec, ivec = np.empty((4, 4)), np.empty((3, 4)), np.empty((3, 4), dtype=np.int64)
+    step, gc = np.empty(4), np.empty(4)
+    it = 0
+    for it in range(1, MAX_ITER + 1):
+        a = jac.T @ jac
+        g = -(jac.T @ e)
+        gc[:] = (pb.v_min**2 * (1.0 - margin), -2.0 * d[3], 0.0, -2.0 * d[1])
+        c_d = gc[0] * d[0] - 2.0 * d[1] * d[3]
+        dmax = float(np.max(np.diag(a)))
+        improved = False
+        for _ in range(10):
+            m = a + lam * np.diag(np.maximum(np.diag(a), 1e-12 * dmax + 1e-300))
+            if not optimize.qp_step(m, g, d, pb.lower, pb.upper, gc, c_d, step, work, vec, ivec):
+                lam *= nu
+                nu *= 2.0
+                continue
+            pred = -float(g @ step) - 0.5 * float(step @ a @ step)
+            if pred <= 1e-10 * cost:
+                return {"d": d, "cost": cost, "iterations": it, "e": e, "jac": jac}
+            trial = np.minimum(np.maximum(d + step, pb.lower), pb.upper)
+            if not pb.feasible(trial):
+                # The constraint is bilinear: back onto it along Tm (as the kernel does).
+                trial[3] = min(trial[3], (1.0 - margin) * trial[0] * pb.v_min**2 / (2.0 * trial[1]) * (1.0 - 1e-9))
+            if not pb.feasible(trial):
+                lam *= nu
+                nu *= 2.0
+                continue
+            ev = whitened_residuals(pb, trial, weighting)
+            cost_t = 0.5 * float(ev[0] @ ev[0]) if ev is not None else math.inf
+            if cost_t < cost:
+                # Nielsen's damping update from the gain ratio, as the output-error kernel.
+                gain = min(1.0, (cost - cost_t) / pred)
+                d, (e, jac), cost = trial, ev, cost_t
+                lam, nu = lam * max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3), 2.0
+                improved = True
+                break
+            lam *= nu
+            nu *= 2.0
+        if not improved:
+            break
+        if np.all(np.abs(step) <= 1e-7 * (np.abs(d) + 1e-3)):
+            break
+    return {"d": d, "cost": cost, "iterations": it, "e": e, "jac": jac}
+
+
+def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, margin: float) -> dict | None:
+    """D refined by the S-weighted fit from the output-error D (module docstring).
+
+    Parameters
+    ----------
+    prep : Prepared
+        The window with Wiener-smoothed V, θ, measured P, Q (no low-pass) and the smoother's error spectrum
+        (``input_error``) and floors (``noise``).
+    f0 : float
+        Nominal frequency [Hz].
+    config : IdentifyConfig
+    d0 : ndarray
+        The output-error D (feasible).
+    skip_s : float
+        Samples skipped at the start [s] (the output-error fit's).
+    margin : float
+        Equilibrium margin of the feasible set (``identify.EQUILIBRIUM_MARGIN``).
+
+    Returns
+    -------
+    dict or None
+        ``d``, ``cost`` (½‖ẽ‖²), ``iterations``, ``cov`` (4×4 covariance of D), ``chi2`` (the whitened
+        residual's mean square, ~1 when S is right), ``problem`` (the refinement's
+        :class:`~aslm_core.identify.Problem`, its buffers at D); None when H cannot be formed or the
+        whitened information is singular.
+    """
+    from aslm_core.identify import Problem  # identify imports this module
+
+    pb = Problem(prep, f0, replace(config, skip_s=skip_s))
+    white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
+    d = np.array(d0, dtype=np.float64)
+    iters = 0
+    out = None
+    for _ in range(ROUNDS):
+        weighting = build_weighting(pb, d, prep.input_error, white)
+        if weighting is None:
+            return None
+        out = _descend(pb, d, weighting, margin)
+        if not math.isfinite(out["cost"]):
+            return None
+        iters += out["iterations"]
+        d = out["d"]
+    e, jac = out["e"], out["jac"]
+    dof = max(2 * pb.l - 4 - 2 * pb.basis.shape[1], 1)
+    chi2 = float(e @ e) / dof
+    try:
+        cov = np.linalg.inv(jac.T @ jac) * chi2
+    except np.linalg.LinAlgError:
+        return None
+    return {"d": d, "cost": out["cost"], "iterations": iters, "cov": cov, "chi2": chi2, "problem": pb}
+
+
+def noisy_inputs(floors: dict[str, float]) -> bool:
+    """Whether V or θ carries white PMU noise by the smoother's rule (a flat floor band, ``floor_tilt_*`` at
+    most ``preprocess.FLOOR_TILT_MAX``, and a positive floor); exact inputs are left to the output-error fit."""
+    return any(floors.get(f"floor_tilt_{c}", math.inf) <= FLOOR_TILT_MAX and floors.get(f"noise_{c}", 0.0) > 0.0
+               for c in ("v", "theta"))
+
+
+def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: dict[str, float],
+                 margin: float) -> dict | None:
+    """The S-weighted refinement of an identification, or None where it does not apply or fails.
+
+    Parameters
+    ----------
+    window : Window
+        The measured window.
+    config : IdentifyConfig
+    d0 : ndarray
+        The output-error D.
+    skip_s : float
+        Samples skipped at the start by the output-error fit [s].
+    floors : dict
+        The window's noise floors (``Prepared.noise``): the refinement runs only with noisy inputs
+        (:func:`noisy_inputs`).
+    margin : float
+        Equilibrium margin of the feasible set.
+
+    Returns
+    -------
+    dict or None
+        :func:`refine`'s dict plus ``objective``, the configured objective at the refined D on the
+        refinement's data.
+    """
+    if not noisy_inputs(floors):
+        return None
+    prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
+                   floors=True, input_smoother="wiener")
+    if prep.input_error is None:
+        return None
+    out = refine(prep, window.f0, config, d0, skip_s, margin)
+    if out is None:
+        return None
+    res = out["problem"].residuals(out["d"], jacobian=False)
+    if res is None:
+        return None
+    out["objective"] = out["problem"].cost(res[0], res[1])
+    return out
