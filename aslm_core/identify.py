@@ -336,8 +336,11 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
     cov_d = None
     extra: dict[str, float] = {}
     if config.disturbance in ("ar", "ar_iv"):
-        fit_pem = disturbance.fit if config.disturbance == "ar" else instrumental.fit
-        pem = fit_pem(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
+        if config.disturbance == "ar":
+            pem = disturbance.fit(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
+        else:
+            pem = instrumental.fit(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order,
+                                   se_smooth_hz=SE_SMOOTH_HZ if config.stderr_method == "spectral" else None)
         final_problem.evaluations += pem["evaluations"]
         if math.isfinite(pem["cost"]):
             it = final["iterations"] if final is not best else 0
@@ -346,7 +349,7 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
             extra = {"ar_order_p": float(len(pem["polys"][0]) - 1), "ar_order_q": float(len(pem["polys"][1]) - 1)}
             if "strength" in pem:
                 extra.update(iv_strength_p=pem["strength"][0], iv_strength_q=pem["strength"][1],
-                             iv_overid=pem["overid"], iv_overid_p=pem["overid_p"])
+                             iv_overid=pem["overid"], iv_overid_p=pem["overid_p"], iv_overid_white=pem["overid_white"])
     return _result(final_problem, window, best, runs, prep, config, t_start, final=final, cov_d=cov_d,
                    extra_quality=extra)
 

@@ -72,20 +72,23 @@ class Instrumented:
     d_ref : ndarray
         D at which the instruments (and the channel weights) are computed.
     lags : int
-        Number of instrument lags, from :data:`FIRST_LAG` on.
+        Number of instrument lags.
+    first : int
+        Shortest instrument lag [samples].
     """
 
-    def __init__(self, problem, polys: tuple[np.ndarray, np.ndarray], d_ref: np.ndarray, lags: int = IV_LAGS) -> None:
+    def __init__(self, problem, polys: tuple[np.ndarray, np.ndarray], d_ref: np.ndarray, lags: int = IV_LAGS,
+                 first: int = FIRST_LAG) -> None:
         self.pb = problem
         self.polys = polys
         self.lags = lags
-        self.top = FIRST_LAG + lags - 1  # rows before the first with every lag
+        self.top = first + lags - 1  # rows before the first with every lag
         self.skip = max(len(a) for a in polys) - 1
         self.evaluations = 1
         zs = disturbance.whitened_columns(problem, polys, d_ref, self.skip)
         if zs is None:
             raise ValueError("the instruments' reference D cannot be simulated")
-        self.bases = [_orthonormal(instruments(zf, lags)) for zf in zs]
+        self.bases = [_orthonormal(instruments(zf, lags, first)) for zf in zs]
         self.n_static = zs[0].shape[1] - 5  # static regressors, estimated in the instrument space too
         # Channel variances from the structural (not the projected) residual at d_ref: ε = y − Φβ̂ with β̂ the
         # 2SLS static part, since ‖P_Z·ε‖² is a small share of ‖ε‖² when the instrument is weak.
@@ -136,6 +139,75 @@ class Instrumented:
         """1/σ_c²: fixed within the pass, so the Fisher term is the IV covariance σ²(X̂ᵀX̂)⁻¹."""
         return [1.0 / v for v in self.var]
 
+    def spectral_moments(self, d: np.ndarray, smooth_hz: float) -> tuple[np.ndarray, float] | None:
+        """Covariance of D from the IV moment conditions and Hansen's over-identification statistic, both robust
+        to colour left in the innovations; None when D cannot be simulated.
+
+        At the optimum Σ_c w_c·X̂_cᵀ·ε_c = 0, with X̂_c the whitened Jacobian projected onto the instruments and
+        off the static part (in time) and ε_c the whitened structural residual; so cov = B⁻¹·M·B⁻¹ with
+        B = Σ_c w_c·X̂_cᵀX̂_c and M the covariance of the score Σ_c w_c·X̂_cᵀε_c, from the residuals' smoothed
+        cross-periodogram (P with Q: the own fluctuation moves both).  J = gᵀS⁻¹g with g the instrument moments
+        Z_cᵀε_c and S their covariance from the same spectra: Sargan's 2 × criterion when ε is white.  The
+        white-noise forms assume white ε; after a low-pass or an input smoother it is not (a low-pass's zeros
+        cannot be whitened by an AR model): their ±1.96 SE intervals covered 33–58 %, and Sargan's statistic was
+        5–17 × its degrees of freedom on windows whose instruments are valid (docs/numerics.md).
+
+        Returns
+        -------
+        cov : ndarray, shape (4, 4)
+        j : float
+            Hansen's statistic [-] (χ² with instruments − parameters degrees of freedom when they are valid).
+        """
+        from aslm_core.identify import _reflected_mean  # a function import: identify imports this module
+
+        zs = disturbance.whitened_columns(self.pb, self.polys, d, self.skip)
+        if zs is None:
+            return None
+        xs, eps = [], []
+        for zf, q in zip(zs, self.bases, strict=True):
+            zl = zf[self.top:]
+            u = q.T @ zl
+            beta, *_ = np.linalg.lstsq(u[:, 5:], u[:, 0], rcond=None)
+            xs.append(q @ _off(u[:, 1:5], u[:, 5:]))
+            eps.append(zl[:, 0] - zl[:, 5:] @ beta)
+        l = eps[0].size
+        width = max(1, int(round(smooth_hz * l * self.pb.dt)))
+        kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
+        mult = np.full(l // 2 + 1, 2.0)  # one-sided spectrum: inner bins stand for two of the full DFT's
+        mult[0] = 1.0
+        if l % 2 == 0:
+            mult[-1] = 1.0
+        fe = [np.fft.rfft(e) for e in eps]
+        spectra = {}
+        for a in range(2):
+            for b in range(2):
+                cross = fe[a] * fe[b].conj()
+                spectra[a, b] = mult * (_reflected_mean(cross.real, kernel) + 1j * _reflected_mean(cross.imag, kernel))
+        # The fitted D and static part take their share of the residual's power.
+        dof = l / max(l - 4 - self.n_static, 1)
+
+        def blocks(cols: list[np.ndarray]) -> dict:
+            """Covariances of Σ_t cols_a(t)·ε_a(t) with Σ_t cols_b(t)·ε_b(t), per channel pair."""
+            f = [np.fft.rfft(c, axis=0) for c in cols]
+            return {ab: dof * (f[ab[0]].conj().T @ (s[:, None] * f[ab[1]])).real / (l * l) for ab, s in spectra.items()}
+
+        w = self.weights([])
+        bread = sum(wc * (x.T @ x) for wc, x in zip(w, xs, strict=True))
+        meat = sum(w[a] * w[b] * m for (a, b), m in blocks(xs).items())
+        g = np.concatenate([q.T @ e for q, e in zip(self.bases, eps, strict=True)])
+        bq = blocks(self.bases)
+        s_g = np.block([[bq[0, 0], bq[0, 1]], [bq[1, 0], bq[1, 1]]])
+        try:
+            binv = np.linalg.inv(bread)
+            cov = binv @ meat @ binv.T
+        except np.linalg.LinAlgError:
+            cov = np.full((4, 4), np.inf)
+        try:
+            j = float(g @ np.linalg.solve(s_g, g))
+        except np.linalg.LinAlgError:
+            j = math.inf
+        return cov, j
+
 
 def _off(x: np.ndarray, basis_cols: np.ndarray) -> np.ndarray:
     """x with the span of ``basis_cols`` projected out."""
@@ -144,28 +216,38 @@ def _off(x: np.ndarray, basis_cols: np.ndarray) -> np.ndarray:
 
 
 def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin: float = 1e-3,
-        reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS) -> dict:
+        reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS,
+        first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None) -> dict:
     """IV prediction-error fit of D from an output-error optimum d0; AR models and instruments renewed per pass.
+
+    ``first_lag``: the shortest instrument lag [samples]; ``se_smooth_hz``: the covariance of D and the
+    over-identification statistic robust to coloured innovations (:meth:`Instrumented.spectral_moments`, the
+    periodogram averaged over this width [Hz]); None: their white-innovation forms (as before issue 20's gate).
 
     Returns
     -------
     dict as :func:`aslm_core.disturbance.fit` (d, cost, iterations, evaluations, status, polys, cov, resid),
     ``strength`` (per channel, the instruments' smallest kept share of D's information) [-], ``overid`` (Sargan's
     over-identification statistic over its degrees of freedom: near 1 when the instruments are valid) [-] and
-    ``overid_p`` (its χ² upper-tail probability) [-].
+    ``overid_p`` (its χ² upper-tail probability) [-], both robust with ``se_smooth_hz``, and ``overid_white`` (Sargan's
+    white-innovation statistic over its degrees of freedom) [-].
     """
     def make(pb, polys, d):
         try:
-            return Instrumented(pb, polys, d, lags)
+            return Instrumented(pb, polys, d, lags, first_lag)
         except ValueError:
             return None
 
     def finish(wp: Instrumented, state: dict) -> None:
         # Sargan's statistic: 2·cost is χ² with (instruments − parameters) degrees of freedom when the
-        # instruments are uncorrelated with the innovations; far above it, they are not (the IV is biased).
+        # instruments are uncorrelated with white innovations; far above it, they are not (the IV is biased).
         dof = max(sum(q.shape[1] - wp.n_static for q in wp.bases) - len(state["d"]), 1)
         stat = 2.0 * state["cost"] if math.isfinite(state["cost"]) else math.inf
-        state.update(strength=wp.strength, overid=stat / dof, overid_p=float(chi2.sf(stat, dof)))
+        state.update(strength=wp.strength, overid_white=stat / dof)
+        robust = wp.spectral_moments(state["d"], se_smooth_hz) if se_smooth_hz and math.isfinite(stat) else None
+        if robust is not None:
+            state["cov"], stat = robust
+        state.update(overid=stat / dof, overid_p=float(chi2.sf(stat, dof)))
 
     return disturbance.passes(problem, d0, make, max_iter=max_iter, xtol=xtol, margin=margin,
                               reestimate=reestimate, max_order=max_order, finish=finish)
