@@ -54,7 +54,8 @@ SHAPES = ("lowpass", "switching", "pink", "ramp")
 #: Own-process seeds of the confirmation run, fixed before it (the development windows are seed 1's).
 CONFIRM_OWN_SEEDS = (11,)
 CANDIDATES = {"output error": IdentifyConfig(), "AR disturbance (PEM)": IdentifyConfig(disturbance="ar"),
-              "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv")}
+              "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv"),
+              "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1")}
 F0 = 60.0
 
 
@@ -141,11 +142,12 @@ def main(argv=None) -> dict:
     ap.add_argument("--shapes", nargs="+", default=list(SHAPES), choices=SHAPES)
     ap.add_argument("--own-seed", type=int, default=SEED, help="seed of the own process and the P/Q noise")
     ap.add_argument("--candidates", nargs="+", default=list(CANDIDATES), choices=list(CANDIDATES))
+    ap.add_argument("--tag", default="", help="name suffix of the JSON")
     ap.add_argument("--gate", action="store_true",
                     help="print the gated composite from the run of record's JSON (no identification)")
     args = ap.parse_args(argv)
     if args.gate:
-        name = "own_fluctuation_andes" + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
+        name = "own_fluctuation_andes" + (f"_{args.tag}" if args.tag else "") + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
         recorded = common.read_json(name)
         for title, bound in (("gate on own_ratio_p", None), (f"and iv_overid ≤ {IV_OVERID_MAX:g}", IV_OVERID_MAX)):
             print(f"\n{title}\n" + common.md_table(GATE_HEAD, [gated_row(run, overid_max=bound) for run in recorded["runs"]]))
@@ -180,7 +182,7 @@ def main(argv=None) -> dict:
     out["total_s"] = time.perf_counter() - t_all
     print(common.md_table(HEAD, table))
     if not args.no_write:
-        name = "own_fluctuation_andes" + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
+        name = "own_fluctuation_andes" + (f"_{args.tag}" if args.tag else "") + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
         common.write_json(name + ("_quick" if args.quick else ""), out)
     return out
 
