@@ -33,7 +33,7 @@ from benchmarks.own_fluctuation_andes import F0, FS, LENGTH_S, SEED, SHAPES, SNR
 RATIO = 0.9
 DEV_SEEDS = (1, 2, 3, 4, 5, 6)
 #: Own seeds of the confirmation pools, fixed before any run on them.
-CONFIRM_SEEDS = (11, 12, 13, 14, 15, 16)
+CONFIRM_SEEDS = tuple(range(11, 21))
 IV = IdentifyConfig(disturbance="ar_iv")
 
 
