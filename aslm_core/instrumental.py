@@ -61,7 +61,22 @@ def instruments(zf: np.ndarray, lags: int, first: int = FIRST_LAG) -> np.ndarray
     return np.hstack(cols)
 
 
-class Instrumented:
+class _Weighted:
+    """A 2SLS criterion over residual blocks (channels, or windows and channels) with fixed innovation variances
+    ``var``, one per block."""
+
+    var: list[float]
+
+    def cost(self, es: list[np.ndarray]) -> float:
+        """The 2SLS criterion (summed over blocks), each block weighted by its innovation variance."""
+        return 0.5 * sum(float(e @ e) / v for e, v in zip(es, self.var, strict=True))
+
+    def weights(self, es: list[np.ndarray]) -> list[float]:
+        """1/σ² per block: fixed within the pass, so the Fisher term is the IV covariance σ²(X̂ᵀX̂)⁻¹."""
+        return [1.0 / v for v in self.var]
+
+
+class Instrumented(_Weighted):
     """The whitened identification problem projected onto fixed instruments (two-stage least squares).
 
     Parameters
@@ -130,14 +145,6 @@ class Instrumented:
             es.append(proj[:, 0])
             js.append(proj[:, 1:])
         return es, js
-
-    def cost(self, es: list[np.ndarray]) -> float:
-        """The 2SLS criterion, each channel weighted by its innovation variance."""
-        return 0.5 * sum(float(e @ e) / v for e, v in zip(es, self.var, strict=True))
-
-    def weights(self, es: list[np.ndarray]) -> list[float]:
-        """1/σ_c²: fixed within the pass, so the Fisher term is the IV covariance σ²(X̂ᵀX̂)⁻¹."""
-        return [1.0 / v for v in self.var]
 
     def spectral_parts(self, d: np.ndarray, smooth_hz: float) -> tuple[np.ndarray, np.ndarray, float] | None:
         """The IV moment conditions' sandwich parts and Hansen's over-identification statistic, robust to colour
@@ -209,7 +216,7 @@ class Instrumented:
         return sum(q.shape[1] - self.n_static for q in self.bases)
 
 
-class Stacked:
+class Stacked(_Weighted):
     """Several windows' instrumented problems with one D (pooled): criteria summed, the windows independent.
 
     Parameters
@@ -238,14 +245,6 @@ class Stacked:
             es += out[0]
             js += out[1]
         return es, js
-
-    def cost(self, es: list[np.ndarray]) -> float:
-        """The summed 2SLS criteria."""
-        return 0.5 * sum(float(e @ e) / v for e, v in zip(es, self.var, strict=True))
-
-    def weights(self, es: list[np.ndarray]) -> list[float]:
-        """1/σ² per window and channel."""
-        return [1.0 / v for v in self.var]
 
     def spectral_parts(self, d: np.ndarray, smooth_hz: float) -> tuple[np.ndarray, np.ndarray, float] | None:
         """Summed sandwich parts and Hansen's statistic of the windows (:meth:`Instrumented.spectral_parts`)."""
