@@ -61,7 +61,22 @@ def instruments(zf: np.ndarray, lags: int, first: int = FIRST_LAG) -> np.ndarray
     return np.hstack(cols)
 
 
-class Instrumented:
+class _Weighted:
+    """A 2SLS criterion over residual blocks (channels, or windows and channels) with fixed innovation variances
+    ``var``, one per block."""
+
+    var: list[float]
+
+    def cost(self, es: list[np.ndarray]) -> float:
+        """The 2SLS criterion (summed over blocks), each block weighted by its innovation variance."""
+        return 0.5 * sum(float(e @ e) / v for e, v in zip(es, self.var, strict=True))
+
+    def weights(self, es: list[np.ndarray]) -> list[float]:
+        """1/σ² per block: fixed within the pass, so the Fisher term is the IV covariance σ²(X̂ᵀX̂)⁻¹."""
+        return [1.0 / v for v in self.var]
+
+
+class Instrumented(_Weighted):
     """The whitened identification problem projected onto fixed instruments (two-stage least squares).
 
     Parameters
@@ -72,20 +87,23 @@ class Instrumented:
     d_ref : ndarray
         D at which the instruments (and the channel weights) are computed.
     lags : int
-        Number of instrument lags, from :data:`FIRST_LAG` on.
+        Number of instrument lags.
+    first : int
+        Shortest instrument lag [samples].
     """
 
-    def __init__(self, problem, polys: tuple[np.ndarray, np.ndarray], d_ref: np.ndarray, lags: int = IV_LAGS) -> None:
+    def __init__(self, problem, polys: tuple[np.ndarray, np.ndarray], d_ref: np.ndarray, lags: int = IV_LAGS,
+                 first: int = FIRST_LAG) -> None:
         self.pb = problem
         self.polys = polys
         self.lags = lags
-        self.top = FIRST_LAG + lags - 1  # rows before the first with every lag
+        self.top = first + lags - 1  # rows before the first with every lag
         self.skip = max(len(a) for a in polys) - 1
         self.evaluations = 1
         zs = disturbance.whitened_columns(problem, polys, d_ref, self.skip)
         if zs is None:
             raise ValueError("the instruments' reference D cannot be simulated")
-        self.bases = [_orthonormal(instruments(zf, lags)) for zf in zs]
+        self.bases = [_orthonormal(instruments(zf, lags, first)) for zf in zs]
         self.n_static = zs[0].shape[1] - 5  # static regressors, estimated in the instrument space too
         # Channel variances from the structural (not the projected) residual at d_ref: ε = y − Φβ̂ with β̂ the
         # 2SLS static part, since ‖P_Z·ε‖² is a small share of ‖ε‖² when the instrument is weak.
@@ -128,13 +146,124 @@ class Instrumented:
             js.append(proj[:, 1:])
         return es, js
 
-    def cost(self, es: list[np.ndarray]) -> float:
-        """The 2SLS criterion, each channel weighted by its innovation variance."""
-        return 0.5 * sum(float(e @ e) / v for e, v in zip(es, self.var, strict=True))
+    def spectral_parts(self, d: np.ndarray, smooth_hz: float) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """The IV moment conditions' sandwich parts and Hansen's over-identification statistic, robust to colour
+        left in the innovations; None when D cannot be simulated.
 
-    def weights(self, es: list[np.ndarray]) -> list[float]:
-        """1/σ_c²: fixed within the pass, so the Fisher term is the IV covariance σ²(X̂ᵀX̂)⁻¹."""
-        return [1.0 / v for v in self.var]
+        At the optimum Σ_c w_c·X̂_cᵀ·ε_c = 0, with X̂_c the whitened Jacobian projected onto the instruments and
+        off the static part (in time) and ε_c the whitened structural residual; so cov(D) = B⁻¹·M·B⁻¹
+        (:func:`sandwich`) with B = Σ_c w_c·X̂_cᵀX̂_c and M the covariance of the score Σ_c w_c·X̂_cᵀε_c, from the
+        residuals' smoothed cross-periodogram (P with Q: the own fluctuation moves both).  J = gᵀS⁻¹g with g the
+        instrument moments Z_cᵀε_c and S their covariance from the same spectra: Sargan's 2 × criterion when ε
+        is white.  The white-noise forms assume white ε; after a low-pass or an input smoother it is not (a
+        low-pass's zeros cannot be whitened by an AR model): their ±1.96 SE intervals covered 33–58 %, and
+        Sargan's statistic was 4–17 × its degrees of freedom on windows whose instruments are valid
+        (docs/numerics.md).
+
+        Returns
+        -------
+        bread, meat : ndarray, shape (4, 4)
+        j : float
+            Hansen's statistic [-] (χ² with instruments − parameters degrees of freedom when they are valid).
+        """
+        from aslm_core.identify import _reflected_mean  # a function import: identify imports this module
+
+        zs = disturbance.whitened_columns(self.pb, self.polys, d, self.skip)
+        if zs is None:
+            return None
+        xs, eps = [], []
+        for zf, q in zip(zs, self.bases, strict=True):
+            zl = zf[self.top:]
+            u = q.T @ zl
+            beta, *_ = np.linalg.lstsq(u[:, 5:], u[:, 0], rcond=None)
+            xs.append(q @ _off(u[:, 1:5], u[:, 5:]))
+            eps.append(zl[:, 0] - zl[:, 5:] @ beta)
+        l = eps[0].size
+        width = max(1, int(round(smooth_hz * l * self.pb.dt)))
+        kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
+        mult = np.full(l // 2 + 1, 2.0)  # one-sided spectrum: inner bins stand for two of the full DFT's
+        mult[0] = 1.0
+        if l % 2 == 0:
+            mult[-1] = 1.0
+        fe = [np.fft.rfft(e) for e in eps]
+        spectra = {}
+        for a in range(2):
+            for b in range(2):
+                cross = fe[a] * fe[b].conj()
+                spectra[a, b] = mult * (_reflected_mean(cross.real, kernel) + 1j * _reflected_mean(cross.imag, kernel))
+        # The fitted D and static part take their share of the residual's power.
+        dof = l / max(l - 4 - self.n_static, 1)
+
+        def blocks(cols: list[np.ndarray]) -> dict:
+            """Covariances of Σ_t cols_a(t)·ε_a(t) with Σ_t cols_b(t)·ε_b(t), per channel pair."""
+            f = [np.fft.rfft(c, axis=0) for c in cols]
+            return {ab: dof * (f[ab[0]].conj().T @ (s[:, None] * f[ab[1]])).real / (l * l) for ab, s in spectra.items()}
+
+        w = self.weights([])
+        bread = sum(wc * (x.T @ x) for wc, x in zip(w, xs, strict=True))
+        meat = sum(w[a] * w[b] * m for (a, b), m in blocks(xs).items())
+        g = np.concatenate([q.T @ e for q, e in zip(self.bases, eps, strict=True)])
+        bq = blocks(self.bases)
+        s_g = np.block([[bq[0, 0], bq[0, 1]], [bq[1, 0], bq[1, 1]]])
+        try:
+            j = float(g @ np.linalg.solve(s_g, g))
+        except np.linalg.LinAlgError:
+            j = math.inf
+        return bread, meat, j
+
+    def overid_dof(self) -> int:
+        """Over-identifying restrictions of this window: instruments beyond the static part, both channels."""
+        return sum(q.shape[1] - self.n_static for q in self.bases)
+
+
+class Stacked(_Weighted):
+    """Several windows' instrumented problems with one D (pooled): criteria summed, the windows independent.
+
+    Parameters
+    ----------
+    pool
+        Gives the common ``lower``, ``upper``, ``v_min`` and ``feasible`` of D (:class:`aslm_core.pooled._Pool`).
+    parts : list of Instrumented
+        One per window, each with its own AR models, instruments and channel variances.
+    """
+
+    def __init__(self, pool, parts: list[Instrumented]) -> None:
+        self.pb = pool
+        self.parts = parts
+        self.var = [v for p in parts for v in p.var]
+        self.strength = [min(s) for s in zip(*(p.strength for p in parts), strict=True)]
+        self.evaluations = 0
+
+    def residuals(self, d: np.ndarray):
+        """Every window's residuals and Jacobians in its instrument space, in one list per kind."""
+        self.evaluations += len(self.parts)
+        es, js = [], []
+        for p in self.parts:
+            out = p.residuals(d)
+            if out is None:
+                return None
+            es += out[0]
+            js += out[1]
+        return es, js
+
+    def spectral_parts(self, d: np.ndarray, smooth_hz: float) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """Summed sandwich parts and Hansen's statistic of the windows (:meth:`Instrumented.spectral_parts`)."""
+        parts = [p.spectral_parts(d, smooth_hz) for p in self.parts]
+        if any(p is None for p in parts):
+            return None
+        return sum(p[0] for p in parts), sum(p[1] for p in parts), sum(p[2] for p in parts)
+
+    def overid_dof(self) -> int:
+        return sum(p.overid_dof() for p in self.parts)
+
+
+def sandwich(bread: np.ndarray, meat: np.ndarray) -> np.ndarray:
+    """B⁻¹·M·B⁻¹ (inf where B is singular)."""
+    try:
+        binv = np.linalg.inv(bread)
+    except np.linalg.LinAlgError:
+        return np.full((4, 4), np.inf)
+    return binv @ meat @ binv.T
 
 
 def _off(x: np.ndarray, basis_cols: np.ndarray) -> np.ndarray:
@@ -144,28 +273,91 @@ def _off(x: np.ndarray, basis_cols: np.ndarray) -> np.ndarray:
 
 
 def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin: float = 1e-3,
-        reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS) -> dict:
+        reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS,
+        first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None) -> dict:
     """IV prediction-error fit of D from an output-error optimum d0; AR models and instruments renewed per pass.
+
+    ``first_lag``: the shortest instrument lag [samples]; ``se_smooth_hz``: the covariance of D and the
+    over-identification statistic robust to coloured innovations (:meth:`Instrumented.spectral_moments`, the
+    periodogram averaged over this width [Hz]); None: their white-innovation forms (as before issue 20's gate).
 
     Returns
     -------
     dict as :func:`aslm_core.disturbance.fit` (d, cost, iterations, evaluations, status, polys, cov, resid),
     ``strength`` (per channel, the instruments' smallest kept share of D's information) [-], ``overid`` (Sargan's
     over-identification statistic over its degrees of freedom: near 1 when the instruments are valid) [-] and
-    ``overid_p`` (its χ² upper-tail probability) [-].
+    ``overid_p`` (its χ² upper-tail probability) [-], both robust with ``se_smooth_hz``, and ``overid_white`` (Sargan's
+    white-innovation statistic over its degrees of freedom) [-].
     """
     def make(pb, polys, d):
         try:
-            return Instrumented(pb, polys, d, lags)
+            return Instrumented(pb, polys, d, lags, first_lag)
         except ValueError:
             return None
 
     def finish(wp: Instrumented, state: dict) -> None:
-        # Sargan's statistic: 2·cost is χ² with (instruments − parameters) degrees of freedom when the
-        # instruments are uncorrelated with the innovations; far above it, they are not (the IV is biased).
-        dof = max(sum(q.shape[1] - wp.n_static for q in wp.bases) - len(state["d"]), 1)
-        stat = 2.0 * state["cost"] if math.isfinite(state["cost"]) else math.inf
-        state.update(strength=wp.strength, overid=stat / dof, overid_p=float(chi2.sf(stat, dof)))
+        _overid_and_covariance(wp, state, se_smooth_hz)
 
     return disturbance.passes(problem, d0, make, max_iter=max_iter, xtol=xtol, margin=margin,
                               reestimate=reestimate, max_order=max_order, finish=finish)
+
+
+def _overid_and_covariance(wp: Instrumented | Stacked, state: dict, se_smooth_hz: float | None) -> None:
+    """Add ``strength``, ``overid``, ``overid_p``, ``overid_white`` to a fit's result; with ``se_smooth_hz`` its
+    ``cov`` and ``overid`` from the spectral moment conditions."""
+    # Sargan's statistic: 2·cost is χ² with (instruments − parameters) degrees of freedom when the
+    # instruments are uncorrelated with white innovations; far above it, they are not (the IV is biased).
+    dof = max(wp.overid_dof() - len(state["d"]), 1)
+    stat = 2.0 * state["cost"] if math.isfinite(state["cost"]) else math.inf
+    state.update(strength=wp.strength, overid_white=stat / dof)
+    robust = wp.spectral_parts(state["d"], se_smooth_hz) if se_smooth_hz and math.isfinite(stat) else None
+    if robust is not None:
+        state["cov"], stat = sandwich(robust[0], robust[1]), robust[2]
+    state.update(overid=stat / dof, overid_p=float(chi2.sf(stat, dof)))
+
+
+def fit_pooled(pool, problems: list, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin: float = 1e-3,
+               reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS,
+               first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None) -> dict:
+    """IV prediction-error fit of one D from several windows: per window its AR models and instruments.
+
+    Parameters
+    ----------
+    pool
+        The windows' common bounds and equilibrium set (:class:`aslm_core.pooled._Pool`).
+    problems : list of aslm_core.identify.Problem
+        One per window.
+    d0 : ndarray
+        Start (the pooled output-error optimum).
+
+    Returns
+    -------
+    dict as :func:`fit` (``polys`` per window).
+    """
+    d = pool.into_feasible(d0)
+    state: dict = {}
+    total_it = evals = 0
+    for _ in range(max(reestimate, 1)):
+        parts = []
+        for pb in problems:
+            r = pb.residuals(d, jacobian=False)
+            if r is None:
+                break
+            polys = (disturbance.ar_whitener(r[0], max_order), disturbance.ar_whitener(r[1], max_order))
+            try:
+                parts.append(Instrumented(pb, polys, d, lags, first_lag))
+            except ValueError:
+                break
+        if len(parts) < len(problems):
+            break
+        wp = Stacked(pool, parts)
+        state = disturbance.constrained_lm(wp, d, max_iter, xtol, margin)
+        total_it += state["iterations"]
+        evals += wp.evaluations + len(parts)
+        d = state["d"]
+        state["polys"] = [p.polys for p in parts]
+        _overid_and_covariance(wp, state, se_smooth_hz)
+    if not state:
+        return {"d": d, "cost": math.inf, "iterations": 0, "evaluations": evals, "status": "failed"}
+    state["iterations"], state["evaluations"] = total_it, evals
+    return state

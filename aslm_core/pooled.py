@@ -19,9 +19,16 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from aslm_core import optimize, static
+from aslm_core import instrumental, optimize, static
 from aslm_core.errors import WindowError
-from aslm_core.identify import EQUILIBRIUM_MARGIN, Problem, _transient_skip, identify
+from aslm_core.identify import (
+    EQUILIBRIUM_MARGIN,
+    IV_OVERID_MAX,
+    SE_SMOOTH_HZ,
+    Problem,
+    _transient_skip,
+    identify,
+)
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import prepare
 from aslm_core.result import IdentifyConfig
@@ -48,14 +55,17 @@ class PooledResult:
     noise_std : list of list
         Per window, the residual std of P and Q [pu] (the weights' inverse square roots).
     objective : float
-        Weighted sum of squares Σ_i Σ_c ‖r_ic‖²/σ_ic² at the optimum [-] (≈ number of samples).
+        Weighted sum of squares Σ_i Σ_c ‖r_ic‖²/σ_ic² at the optimum [-] (≈ number of samples); with
+        ``disturbance="ar_iv"`` the summed 2SLS criteria ½·Σ_i Σ_c ‖P_Z·ε_ic‖²/σ_ic² [-].
     n_windows : int
     iterations, evaluations : int
         LM iterations and window simulations.
     status : str
         ``converged``, ``max_iter`` or ``stalled``.
     flags : list of str
-        ``at_bound:NAME``, ``equilibrium_constraint_active``.
+        ``at_bound:NAME``, ``equilibrium_constraint_active``; with ``disturbance="ar_iv"``
+        ``iv_instruments_rejected`` (the pool's over-identification statistic over its degrees of freedom above
+        :data:`aslm_core.identify.IV_OVERID_MAX`).
     elapsed_s : float
     """
 
@@ -265,7 +275,7 @@ def _static_parts(pool: _Pool, d: np.ndarray) -> list[dict[str, float]]:
 
 def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[float] | None = None,
                     config: IdentifyConfig | None = None, shared_static: bool = False,
-                    max_iter: int | None = None, xtol: float = 1e-7) -> PooledResult:
+                    max_iter: int | None = None, xtol: float = 1e-7, disturbance: str = "none") -> PooledResult:
     """Identify one D = [a, b, H2, Tm] from several windows of the same bus, jointly.
 
     Parameters
@@ -277,13 +287,20 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
         own identifications (:func:`aslm_core.identify`, which also costs one fit per window).
     config : IdentifyConfig, optional
         Integrator, static model, skip, preprocessing of every window (``objective`` and ``disturbance``
-        do not apply: the pool weights each window and channel by its inverse noise variance).
+        do not apply: the pool weights each window and channel by its inverse noise variance; the disturbance
+        model is the ``disturbance`` argument).
     shared_static : bool
         One static part for all windows instead of one per window.
     max_iter : int, optional
         LM iterations per reweighting pass (default ``config.max_iter``).
     xtol : float
         Relative step below which the LM stops.
+    disturbance : {"none", "ar_iv"}
+        ``none``: white noise per window and channel (above).  ``ar_iv``: from that optimum, the instrumental-
+        variable fit of :mod:`aslm_core.instrumental` with per-window AR models of the load's own fluctuation and
+        per-window instruments, one D (the windows' 2SLS criteria summed); standard errors from the summed
+        moment conditions with each window's innovation spectrum (``config.stderr_method="ar1"``: white).  Not
+        with ``shared_static``.
 
     Returns
     -------
@@ -299,6 +316,11 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
     t0 = time.perf_counter()
     if not windows:
         raise ValueError("identify_pooled needs at least one window")
+    if disturbance not in ("none", "ar_iv"):
+        raise ValueError(f"disturbance must be 'none' or 'ar_iv', got {disturbance!r}")
+    if disturbance == "ar_iv" and shared_static:
+        raise ValueError("disturbance='ar_iv' estimates each window's static part in its instrument space: "
+                         "not with shared_static")
     config = config or IdentifyConfig()
     max_iter = max_iter or config.max_iter
     preps = [prepare(w, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
@@ -332,9 +354,20 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
     pool.reweight(fit["blocks"])
     cost, _, _ = pool.normal(fit["blocks"])
     cov = _covariance(pool, fit["blocks"])
+    flags = []
+    if disturbance == "ar_iv":
+        iv = instrumental.fit_pooled(pool, pool.problems, d, max_iter=max_iter, xtol=xtol, margin=EQUILIBRIUM_MARGIN,
+                                     max_order=config.ar_max_order,
+                                     se_smooth_hz=SE_SMOOTH_HZ if config.stderr_method == "spectral" else None)
+        evaluations += iv["evaluations"]
+        if math.isfinite(iv["cost"]):
+            d, cost, cov = iv["d"], iv["cost"], iv["cov"]
+            iterations += iv["iterations"]
+            if iv["overid"] > IV_OVERID_MAX:
+                flags.append("iv_instruments_rejected")
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    flags = [f"at_bound:{n}" for i, n in enumerate(DYNAMIC_NAMES)
-             if d[i] <= pool.lower[i] * (1 + 1e-9) or d[i] >= pool.upper[i] * (1 - 1e-9)]
+    flags += [f"at_bound:{n}" for i, n in enumerate(DYNAMIC_NAMES)
+              if d[i] <= pool.lower[i] * (1 + 1e-9) or d[i] >= pool.upper[i] * (1 - 1e-9)]
     if (d[0] * pool.v_min**2 - 2 * d[1] * d[3]) / (d[0] * pool.v_min**2) < 0.01:
         flags.append("equilibrium_constraint_active")
     static_parts = _static_parts(pool, d)

@@ -74,7 +74,8 @@ class IdentifyConfig:
         from the whitened Jacobian.  ``ar_iv``: the same AR models, D and the static part by instrumental
         variables (the whitened regressors lagged by 2 and 3 samples, so the own fluctuation's same-sample
         effect on V and θ does not bias them; :mod:`aslm_core.instrumental`); standard errors from the IV
-        covariance.  See docs/numerics.md.
+        moment conditions with the innovations' spectrum (``stderr_method="spectral"``) or from the white-noise
+        IV covariance (``"ar1"``).  See docs/numerics.md.
     ar_max_order : int
         Longest AR noise model tried [samples].
     coarse_to_fine : bool
@@ -84,7 +85,8 @@ class IdentifyConfig:
     stderr_method : {"spectral", "ar1"}
         Output-error standard errors: the score's variance from the residual's smoothed spectrum (every
         lag of its colour; default), or the lag-1 inflation (1+ρ)/(1−ρ) of a white-noise sandwich (before
-        issue 11).  See docs/numerics.md.
+        issue 11).  ``ar_iv``: the same spectral rule on its moment conditions (and Hansen's statistic for
+        ``iv_overid``), or the white-noise IV covariance and Sargan's statistic.  See docs/numerics.md.
     input_weighting : {"none", "spectral"}
         ``spectral``: where V or θ carries white PMU noise (exact inputs: today's fit, untouched) and
         ``disturbance="none"``, D is refined from the output-error fit by weighting the residuals per frequency
@@ -146,8 +148,9 @@ class IdentificationResult:
         inputs' ambient std over their white PMU noise std) [-], ``rk4_substeps`` (RK4 steps per sample);
         with a disturbance model ``ar_order_p``, ``_q`` (the AR orders) and, for ``ar_iv``, ``iv_strength_p``, ``_q`` (the smallest share of D's whitened information that the
         instruments keep: 1 = all, near 0 = a weak instrument and large standard errors) [-], ``iv_overid``
-        (Sargan's over-identification statistic over its degrees of freedom: ~1 for valid instruments) [-]
-        and ``iv_overid_p`` (its χ² upper-tail probability) [-].
+        (the over-identification statistic over its degrees of freedom, Hansen's with the innovations'
+        spectrum: ~1 for valid instruments) [-], ``iv_overid_p`` (its χ² upper-tail probability) [-] and
+        ``iv_overid_white`` (Sargan's, which assumes white innovations) [-].
     flags : list of str
         Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``,
         ``static_split_unidentifiable`` (a static coefficient's standard error above 10 % of the load),

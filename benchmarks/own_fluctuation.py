@@ -10,7 +10,13 @@ bias μ − 1 and σ of D_opt/D_real, coverage of ±1.96 SE, windows off by more
 carry no flag, median time per identification (wall clock inside the pool, so with ``--workers 2`` on a shared
 machine it is an upper bound).
 
-    .venv/bin/python -m benchmarks.own_fluctuation [--quick] [--n 50] [--workers 2]
+    .venv/bin/python -m benchmarks.own_fluctuation [--quick] [--n 50] [--workers 2] [--seed 43]
+        [--candidates ...] [--tag NAME] [--gate]
+
+Seed 43 (:data:`SEED`) is the development set; :data:`CONFIRM_SEEDS` were fixed before any run on them (issue
+20's gate work, 2026-11-24).  Every run keeps per-window records (errors, standard errors, flags, quality:
+:mod:`benchmarks.own_gate`), so ``--gate`` prints the gated composite from the JSON without identifying.
+Results go to ``docs/results/own_fluctuation[_TAG][_seedS].json``.
 """
 
 from __future__ import annotations
@@ -30,8 +36,11 @@ from aslm_core import IdentifyConfig, WindowError, identify  # noqa: E402
 from aslm_sim.cases import make_cases  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise import INPUT_NOISE, with_input_noise  # noqa: E402
+from benchmarks.own_gate import GATE_HEAD, WARNING_FLAGS, gated_row, window_records  # noqa: E402
 
 SEED = 43
+#: Seeds of the confirmation runs, fixed before any run on them.
+CONFIRM_SEEDS = (143,)
 LEVEL = 2
 #: Target std(own ΔP) / std(clean P) of the windows.
 RATIOS = (0.0, 0.5, 0.9)
@@ -43,26 +52,26 @@ CANDIDATES = {
     "Wiener V/θ + AR disturbance": IdentifyConfig(input_smoother="wiener", disturbance="ar"),
     "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv"),
     "Wiener V/θ + AR disturbance (IV)": IdentifyConfig(input_smoother="wiener", disturbance="ar_iv"),
+    "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1"),
 }
-#: Flags that tell the user a window's D is not to be trusted.
-WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "unexplained_fluctuation", "low_excitation",
-                 "equilibrium_constraint_active", "own_fluctuation_unmodelled", "iv_instruments_rejected")
 
 
-def own_cases(n: int, ratio: float, shape: str, base: list) -> list:
-    """The n cases of ``base`` again, with an own fluctuation at std ratio ``ratio`` to the clean P."""
+def own_cases(n: int, ratio: float, shape: str, base: list, seed: int = SEED) -> list:
+    """The n cases of ``base`` (made with ``seed``) again, with an own fluctuation at std ratio ``ratio`` to the
+    clean P."""
     if ratio <= 0.0:
         return base
     # own std = k·p_v with k = r/√(1 − r²) gives own/total = r when the two are uncorrelated.
     k = ratio / math.sqrt(1.0 - ratio * ratio)
     sig = [k * float(np.std(c.clean.P)) / c.truth.power(1.0)[0] for c in base]
-    return make_cases(n, level=LEVEL, seed=SEED, input_noise=False, own_sigma=sig, own_shape=shape)
+    return make_cases(n, level=LEVEL, seed=seed, input_noise=False, own_sigma=sig, own_shape=shape)
 
 
-def _one(w) -> dict:
-    """Every candidate on one window, in turn, with its wall time [s]."""
+def _one(w, names: list[str]) -> dict:
+    """The candidates ``names`` on one window, in turn, with their wall times [s]."""
     out = {}
-    for name, cfg in CANDIDATES.items():
+    for name in names:
+        cfg = CANDIDATES[name]
         t0 = time.perf_counter()
         try:
             out[name] = (identify(w, config=cfg), time.perf_counter() - t0)
@@ -71,9 +80,9 @@ def _one(w) -> dict:
     return out
 
 
-def stats(cases: list, results: list) -> dict:
+def stats(cases: list, results: list, names: list[str]) -> dict:
     """Per candidate: the accuracy, calibration and flag statistics of the module docstring."""
-    return candidate_stats([c.truth.d for c in cases], results, list(CANDIDATES), WARNING_FLAGS)
+    return candidate_stats([c.truth.d for c in cases], results, names, WARNING_FLAGS)
 
 
 def candidate_stats(truths: list, results: list, names: list[str], warning_flags: tuple[str, ...]) -> dict:
@@ -126,37 +135,61 @@ def main(argv=None) -> dict:
     ap.add_argument("--n", type=int, default=None, help="windows per ratio (default 50; --quick: 8)")
     ap.add_argument("--workers", type=int, default=2, help="threads (the machine is shared)")
     ap.add_argument("--shapes", nargs="+", default=["lowpass", "switching", "pink"],
-                    help="own-fluctuation shapes; input noise on V/θ only with the first")
+                    help="own-fluctuation shapes")
+    ap.add_argument("--noise-shapes", nargs="+", default=None,
+                    help="shapes that also get noisy V/θ at the two PMU classes (default: the first shape)")
+    ap.add_argument("--seed", type=int, default=SEED, help="seed of the cases (43: development)")
+    ap.add_argument("--candidates", nargs="+", default=list(CANDIDATES), choices=list(CANDIDATES))
+    ap.add_argument("--tag", default="", help="name suffix of the JSON")
+    ap.add_argument("--gate", action="store_true", help="print the gated composite from the JSON (no identification)")
     args = ap.parse_args(argv)
+    name = "own_fluctuation" + (f"_{args.tag}" if args.tag else "") + ("" if args.seed == SEED else f"_seed{args.seed}")
+    if args.gate:
+        return print_gate(common.read_json(name))
+    names = args.candidates
+    noisy = args.noise_shapes if args.noise_shapes is not None else args.shapes[:1]
     n = args.n or (8 if args.quick else 50)
     t_all = time.perf_counter()
-    out = {"machine": common.machine(), "n_per_ratio": n, "seed": SEED, "level": LEVEL, "quick": args.quick,
-           "candidates": {k: v.to_dict() for k, v in CANDIDATES.items()}, "runs": []}
-    base = make_cases(n, level=LEVEL, seed=SEED, input_noise=False)
-    _one(base[0].window)  # numba compilation / cache load outside the timings
+    out = {"machine": common.machine(), "n_per_ratio": n, "seed": args.seed, "level": LEVEL, "quick": args.quick,
+           "candidates": {k: CANDIDATES[k].to_dict() for k in names}, "runs": []}
+    base = make_cases(n, level=LEVEL, seed=args.seed, input_noise=False)
+    _one(base[0].window, names)  # numba compilation / cache load outside the timings
     table = []
     for si, shape in enumerate(args.shapes):
         for ratio in RATIOS:
             if ratio == 0.0 and si > 0:
                 continue  # no own fluctuation: the shape does not matter
-            cs = own_cases(n, ratio, shape, base)
+            cs = own_cases(n, ratio, shape, base, args.seed)
             achieved = [float(np.std(c.states["P_own"]) / np.std(c.clean.P)) if ratio > 0 else 0.0 for c in cs]
             label = f"{ratio:g} {shape} (achieved {np.median(achieved):.2f})" if ratio > 0 else "0"
-            for k, (cls, v_rel, th) in enumerate(INPUT_NOISE if si == 0 else INPUT_NOISE[:1]):
-                rng = np.random.default_rng([SEED, int(100 * ratio), k])
+            for k, (cls, v_rel, th) in enumerate(INPUT_NOISE if shape in noisy or ratio == 0.0 else INPUT_NOISE[:1]):
+                rng = np.random.default_rng([args.seed, int(100 * ratio), k])
                 windows = [with_input_noise(c.window, c.clean, v_rel, th, rng) for c in cs]
                 with ThreadPoolExecutor(max_workers=args.workers) as pool:
-                    results = list(pool.map(_one, windows))
-                per = stats(cs, results)
+                    results = list(pool.map(lambda w: _one(w, names), windows))
+                per = stats(cs, results, names)
                 out["runs"].append({"shape": shape, "ratio": ratio, "achieved_ratio": achieved, "input_noise": cls,
-                                    "stats": per})
+                                    "stats": per, **window_records([c.truth.d for c in cs], results, names)})
                 table.extend(rows(label, cls, per))
                 print(f"{shape} {ratio}, {cls}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
     out["total_s"] = time.perf_counter() - t_all
     print(common.md_table(HEAD, table))
     if not args.no_write:
-        common.write_json("own_fluctuation" + ("_quick" if args.quick else ""), out)
+        common.write_json(name + ("_quick" if args.quick else ""), out)
+    if "output error" in names and "AR disturbance (IV)" in names:
+        print_gate(out)
     return out
+
+
+def print_gate(recorded: dict) -> dict:
+    """Print the gated composites (on ``own_ratio_p``; and with the IV's over-identification test) of a run."""
+    from aslm_core.identify import IV_OVERID_MAX
+
+    for title, bound in (("gate on own_ratio_p", None), (f"and iv_overid ≤ {IV_OVERID_MAX:g}", IV_OVERID_MAX)):
+        body = [gated_row(run, overid_max=bound, label=f"{run['shape']}, {run['input_noise']}")
+                for run in recorded["runs"]]
+        print(f"\n{title}\n" + common.md_table(GATE_HEAD, body))
+    return recorded
 
 
 if __name__ == "__main__":

@@ -32,18 +32,18 @@ import os
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
-import math  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 from aslm_core import IdentifyConfig, Window, WindowError, identify  # noqa: E402
-from aslm_core.identify import OWN_UNMODELLED_RATIO  # noqa: E402
+from aslm_core.identify import IV_OVERID_MAX  # noqa: E402
 from aslm_core.information import cramer_rao, disturbance_covariance, model_jacobian  # noqa: E402
 from aslm_sim.andes import own_fluctuation as andes_own  # noqa: E402
 from aslm_sim.own import OWN_Q_PER_P, window_covariance  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.own_fluctuation import candidate_stats  # noqa: E402
+from benchmarks.own_gate import GATE_HEAD, WARNING_FLAGS, gated_row, window_records  # noqa: E402, F401
 
 SEED = 1
 TF, TSTEP, FS = 261.0, 0.01, 100.0
@@ -54,14 +54,9 @@ SHAPES = ("lowpass", "switching", "pink", "ramp")
 #: Own-process seeds of the confirmation run, fixed before it (the development windows are seed 1's).
 CONFIRM_OWN_SEEDS = (11,)
 CANDIDATES = {"output error": IdentifyConfig(), "AR disturbance (PEM)": IdentifyConfig(disturbance="ar"),
-              "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv")}
-#: Every flag that tells the user not to trust a window's D (today's flags).
-WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "unexplained_fluctuation", "low_excitation",
-                 "equilibrium_constraint_active", "own_fluctuation_unmodelled", "iv_instruments_rejected")
+              "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv"),
+              "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1")}
 F0 = 60.0
-#: Per-window quality entries kept in the JSON (to develop flags on).
-QUALITY_KEYS = ("own_ratio_p", "own_ratio_q", "excitation_share_p", "iv_strength_p", "iv_strength_q", "iv_overid",
-                "ar_order_p", "static_cond")
 
 
 def _bound(w: dict, truth: np.ndarray, own_cov: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -141,47 +136,21 @@ def rows(ratio: float, shape: str, per: dict) -> list[list]:
             for name, st in per.items()]
 
 
-GATE_HEAD = ["own/total", "shape", "windows switched", "median |err| a / b / H2 / Tm [%]", "worst [%]",
-             "bias μ−1 a / b / H2 / Tm [%]", "±1.96 SE cover [%]", "off > 20 % (unflagged)"]
-
-
-def gated_row(run: dict, fallback: str = "output error", model: str = "AR disturbance (IV)") -> list:
-    """One row of the gated composite: ``fallback``'s window where its ``own_ratio_p`` is at most
-    :data:`aslm_core.identify.OWN_UNMODELLED_RATIO`, ``model``'s window otherwise (both as recorded in ``run``).
-
-    The gate is the threshold of the ``own_fluctuation_unmodelled`` flag, fixed on the development windows; the
-    composite is what a default "output error unless the window's own fluctuation is sizeable" would give.
-    """
-    picked, switched = [], 0
-    for i, ratio in enumerate(run["own_ratio_p"][fallback]):
-        use = model if ratio is not None and ratio > OWN_UNMODELLED_RATIO else fallback
-        switched += use == model
-        if run["errors"][use][i] is not None:
-            picked.append((run["errors"][use][i], run["stderr"][use][i], run["flags"][use][i]))
-    err = np.array([e for e, _, _ in picked])
-    se = np.array([s for _, s, _ in picked])
-    off = [np.max(np.abs(e)) > 0.2 for e, _, _ in picked]
-    unflagged = sum(o and not any(f.startswith(WARNING_FLAGS) for f in fl) for o, (_, _, fl) in zip(off, picked, strict=True))
-    return [f"{run['ratio']:g}", run["shape"], f"{switched} / {len(run['own_ratio_p'][fallback])}",
-            " / ".join(f"{100 * v:.1f}" for v in np.median(np.abs(err), axis=0)), f"{100 * np.abs(err).max():.0f}",
-            " / ".join(f"{100 * v:+.1f}" for v in err.mean(axis=0)),
-            " / ".join(f"{100 * v:.0f}" for v in np.mean(np.abs(err) <= 1.96 * se, axis=0)),
-            f"{sum(off)} ({unflagged})"]
-
-
 def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None, help="windows per level (default 50; --quick: 6)")
     ap.add_argument("--shapes", nargs="+", default=list(SHAPES), choices=SHAPES)
     ap.add_argument("--own-seed", type=int, default=SEED, help="seed of the own process and the P/Q noise")
     ap.add_argument("--candidates", nargs="+", default=list(CANDIDATES), choices=list(CANDIDATES))
+    ap.add_argument("--tag", default="", help="name suffix of the JSON")
     ap.add_argument("--gate", action="store_true",
                     help="print the gated composite from the run of record's JSON (no identification)")
     args = ap.parse_args(argv)
     if args.gate:
-        name = "own_fluctuation_andes" + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
+        name = "own_fluctuation_andes" + (f"_{args.tag}" if args.tag else "") + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
         recorded = common.read_json(name)
-        print(common.md_table(GATE_HEAD, [gated_row(run) for run in recorded["runs"]]))
+        for title, bound in (("gate on own_ratio_p", None), (f"and iv_overid ≤ {IV_OVERID_MAX:g}", IV_OVERID_MAX)):
+            print(f"\n{title}\n" + common.md_table(GATE_HEAD, [gated_row(run, overid_max=bound) for run in recorded["runs"]]))
         return recorded
     names = args.candidates
     n = args.n or (6 if args.quick else 50)
@@ -207,26 +176,13 @@ def main(argv=None) -> dict:
             achieved = [w["own_ratio"] for w in ws]
             label = shape if ratio > 0 else "–"
             out["runs"].append({"shape": label, "ratio": ratio, "achieved_ratio": achieved, "stats": per,
-                                "flags": {name: [r[name][0].flags if not isinstance(r[name][0], WindowError) else
-                                                 ["error"] for r in results] for name in names},
-                                "errors": {name: [(r[name][0].d / truth - 1).tolist()
-                                                  if not isinstance(r[name][0], WindowError) else None
-                                                  for r in results] for name in names},
-                                "stderr": {name: [[r[name][0].stderr[k] / t for k, t in zip(common.PARAMS, truth, strict=True)]
-                                                  if not isinstance(r[name][0], WindowError) else None
-                                                  for r in results] for name in names},
-                                "quality": {name: [{k: r[name][0].quality.get(k, math.nan) for k in QUALITY_KEYS}
-                                                   if not isinstance(r[name][0], WindowError) else None
-                                                   for r in results] for name in names},
-                                "own_ratio_p": {name: [r[name][0].quality.get("own_ratio_p", math.nan)
-                                                       if not isinstance(r[name][0], WindowError) else None
-                                                       for r in results] for name in names}})
+                                **window_records([truth] * len(results), results, names)})
             table.extend(rows(ratio, label, per))
             print(f"{shape} {ratio}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
     out["total_s"] = time.perf_counter() - t_all
     print(common.md_table(HEAD, table))
     if not args.no_write:
-        name = "own_fluctuation_andes" + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
+        name = "own_fluctuation_andes" + (f"_{args.tag}" if args.tag else "") + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
         common.write_json(name + ("_quick" if args.quick else ""), out)
     return out
 

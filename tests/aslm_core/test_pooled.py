@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aslm_core import identify
+from aslm_core import IdentifyConfig, identify
 from aslm_core.pooled import identify_pooled
 from aslm_sim.cases import make_cases
 from aslm_sim.network import draw_network
@@ -65,3 +65,35 @@ def test_shared_static_gives_one_static_part_close_to_the_per_window_pool(buses)
 def test_no_window_is_an_error():
     with pytest.raises(ValueError):
         identify_pooled([])
+
+
+@pytest.fixture(scope="module")
+def own_bus():
+    """Four windows of one bus whose load's own constant-power part fluctuates (2 Hz low-passed, ~0.6 of P's std)."""
+    rng = np.random.default_rng([78, 0])
+    truth = random_truth(rng)
+    net = draw_network(rng, truth, 50.0)
+    cases = make_cases(4, level=2, seed=7800, input_noise=False, truths=[truth] * 4, networks=[net] * 4,
+                       own_sigma=0.0015)
+    return [c.window for c in cases], truth.d
+
+
+def test_pooled_iv_is_the_window_fit_for_one_window_and_shrinks_its_errors_with_more(own_bus):
+    windows, d_true = own_bus
+    iv = IdentifyConfig(disturbance="ar_iv")
+    alone = identify(windows[0], config=iv)
+    one = identify_pooled(windows[:1], disturbance="ar_iv")
+    # The same estimator (the pool starts at the window's output-error optimum, as identify does).
+    assert one.d == pytest.approx(alone.d, rel=0.03)
+    assert [one.stderr[k] for k in PARAMS] == pytest.approx([alone.stderr[k] for k in PARAMS], rel=0.3)
+    four = identify_pooled(windows, disturbance="ar_iv", start=one.d)
+    se = np.array([four.stderr[k] for k in PARAMS])
+    assert np.all(se < 0.8 * np.array([one.stderr[k] for k in PARAMS]))
+    assert np.all(np.abs(four.d - d_true) < 4 * se)
+
+
+def test_pooled_iv_takes_no_shared_static_part(own_bus):
+    with pytest.raises(ValueError):
+        identify_pooled(own_bus[0][:2], disturbance="ar_iv", shared_static=True)
+    with pytest.raises(ValueError):
+        identify_pooled(own_bus[0][:2], disturbance="ar")

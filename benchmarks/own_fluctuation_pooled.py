@@ -1,0 +1,114 @@
+"""Pooled windows under the load's own fluctuation (issue 20's k = 16 target) on the ANDES bench.
+
+The windows of ``benchmarks.own_fluctuation_andes`` (IEEE 14-bus, Motor3 + ZIP at bus 9, P and Q at 22 dB), at
+own/total 0.9 per shape, but not overlapping: 16 windows of 10 s, one every 10 s from 5 s, per own seed (the own
+process and the P/Q noise; the grid-side run is the same for every seed, so the pools share its excitation).  Per
+pool: ``identify_pooled`` with white noise (``disturbance="none"``) and with ``disturbance="ar_iv"``, and the
+single-window ``ar_iv`` fits of the same windows.  Median and worst |error| over the pools, bias, coverage of
+±1.96 SE, ``iv_instruments_rejected`` count.
+
+    .venv/bin/python -m benchmarks.own_fluctuation_pooled [--seeds 1 2 3 4 5 6] [--shapes ...] [--k 16]
+
+Seeds 1–6 are the development pools; :data:`CONFIRM_SEEDS` were fixed before any run on them.  Results in
+``docs/results/own_fluctuation_pooled[_confirm].json``.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from aslm_core import IdentifyConfig, Window, WindowError, identify  # noqa: E402
+from aslm_core.pooled import identify_pooled  # noqa: E402
+from aslm_sim.andes import own_fluctuation as andes_own  # noqa: E402
+from benchmarks import common  # noqa: E402
+from benchmarks.own_fluctuation_andes import F0, FS, LENGTH_S, SEED, SHAPES, SNR_DB, START_S, TF, TSTEP  # noqa: E402
+
+RATIO = 0.9
+DEV_SEEDS = (1, 2, 3, 4, 5, 6)
+#: Own seeds of the confirmation pools, fixed before any run on them.
+CONFIRM_SEEDS = tuple(range(11, 21))
+IV = IdentifyConfig(disturbance="ar_iv")
+
+
+def pool_windows(grid: dict, own: dict, k: int, seed: int, shape: str) -> list[Window]:
+    """k non-overlapping windows at own/total :data:`RATIO`."""
+    ws = andes_own.cut_windows(grid, own, RATIO, length_s=LENGTH_S, start_s=START_S, stride_s=LENGTH_S, n=k,
+                               snr_db=SNR_DB, rng=np.random.default_rng([seed, 2, SHAPES.index(shape), 16]))
+    return [Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=F0, bus="andes-ieee14-bus9") for w in ws]
+
+
+def one_pool(windows: list[Window], truth: np.ndarray) -> dict:
+    """Pooled white, pooled ``ar_iv`` and the single-window ``ar_iv`` fits: relative errors and SEs, flags, time."""
+    out = {}
+    t0 = time.perf_counter()
+    single = []
+    for w in windows:
+        try:
+            single.append(identify(w, config=IV))
+        except WindowError:
+            continue
+    out["single ar_iv"] = {"errors": [(r.d / truth - 1).tolist() for r in single],
+                           "stderr": [[r.stderr[p] / t for p, t in zip(common.PARAMS, truth, strict=True)] for r in single],
+                           "seconds": time.perf_counter() - t0}
+    for name, dist in (("pooled, white", "none"), ("pooled ar_iv", "ar_iv")):
+        t0 = time.perf_counter()
+        r = identify_pooled(windows, disturbance=dist)
+        out[name] = {"errors": (r.d / truth - 1).tolist(),
+                     "stderr": [r.stderr[p] / t for p, t in zip(common.PARAMS, truth, strict=True)],
+                     "flags": r.flags, "seconds": time.perf_counter() - t0}
+    return out
+
+
+def summary(pools: list[dict], name: str) -> list:
+    """Median and worst |error|, bias, coverage over the pools (or over every window for ``single ar_iv``)."""
+    if name == "single ar_iv":
+        e = np.array([x for p in pools for x in p[name]["errors"]])
+        s = np.array([x for p in pools for x in p[name]["stderr"]])
+        flagged = "–"
+    else:
+        e = np.array([p[name]["errors"] for p in pools])
+        s = np.array([p[name]["stderr"] for p in pools])
+        flagged = str(sum("iv_instruments_rejected" in p[name]["flags"] for p in pools))
+    return [" / ".join(f"{100 * v:.1f}" for v in np.median(np.abs(e), axis=0)), f"{100 * np.abs(e).max():.0f}",
+            " / ".join(f"{100 * v:+.1f}" for v in e.mean(axis=0)),
+            " / ".join(f"{100 * v:.0f}" for v in np.mean(np.abs(e) <= 1.96 * s, axis=0)), flagged, str(len(e))]
+
+
+def main(argv=None) -> dict:
+    ap = common.parser(__doc__.splitlines()[0])
+    ap.add_argument("--seeds", nargs="+", type=int, default=list(DEV_SEEDS))
+    ap.add_argument("--shapes", nargs="+", default=list(SHAPES), choices=SHAPES)
+    ap.add_argument("--k", type=int, default=16, help="windows per pool")
+    args = ap.parse_args(argv)
+    t_all = time.perf_counter()
+    grid = andes_own.grid_recording(tf=TF, tstep=TSTEP, seed=SEED, fs=FS)
+    truth = np.asarray(grid["truth"], dtype=float)
+    out = {"machine": common.machine(), "ratio": RATIO, "k": args.k, "seeds": args.seeds, "truth": truth.tolist(),
+           "runs": []}
+    table = []
+    for shape in args.shapes:
+        pools = []
+        for seed in args.seeds:
+            own = andes_own.own_recording(shape, tf=TF, tstep=TSTEP, seed=seed)
+            pools.append(one_pool(pool_windows(grid, own, args.k, seed, shape), truth))
+            print(f"{shape} seed {seed}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
+        out["runs"].append({"shape": shape, "pools": pools})
+        table.extend([[shape, name, *summary(pools, name)] for name in ("single ar_iv", "pooled, white", "pooled ar_iv")])
+    out["total_s"] = time.perf_counter() - t_all
+    print(common.md_table(["shape (0.9)", "estimator", "median |err| a / b / H2 / Tm [%]", "worst [%]",
+                           "bias μ−1 [%]", "±1.96 SE cover [%]", "iv_instruments_rejected", "fits"], table))
+    if not args.no_write:
+        confirm = set(args.seeds) <= set(CONFIRM_SEEDS)
+        common.write_json("own_fluctuation_pooled" + ("_confirm" if confirm else "") + ("_quick" if args.quick else ""), out)
+    return out
+
+
+if __name__ == "__main__":
+    main()
