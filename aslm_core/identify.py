@@ -344,23 +344,49 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
             final_problem, prep, cov_d = w["problem"], w["problem"].prep, w["cov"]
             final = {"d": w["d"], "cost": w["objective"], "iterations": w["iterations"] + it}
             extra = {"weighted_chi2": w["chi2"]}
+    if config.disturbance == "gated":
+        # Output error unless its own fluctuation share says it is not consistent; then the IV fit, unless its
+        # instruments are rejected (docs/numerics.md, "the gated composite").
+        oe = _result(final_problem, window, best, runs, prep, replace(config, disturbance="none"), t_start,
+                     final=final, cov_d=cov_d, extra_quality={**extra, "gated_ar_iv": 0.0})
+        if not oe.quality["own_ratio_p"] > OWN_UNMODELLED_RATIO:
+            return replace(oe, config=config.to_dict())
+        iv_final, iv_cov, iv_extra = _disturbance_fit("ar_iv", final_problem, final, best, config)
+        if iv_cov is not None and iv_extra["iv_overid"] <= IV_OVERID_MAX:
+            iv = _result(final_problem, window, best, runs, prep, replace(config, disturbance="ar_iv"), t_start,
+                         final=iv_final, cov_d=iv_cov, extra_quality={**iv_extra, "gated_ar_iv": 1.0})
+            return replace(iv, config=config.to_dict())
+        oe.quality.update({k: v for k, v in iv_extra.items() if k.startswith("iv_")})
+        return replace(oe, config=config.to_dict(), elapsed_s=time.perf_counter() - t_start)
     if config.disturbance in ("ar", "ar_iv"):
-        if config.disturbance == "ar":
-            pem = disturbance.fit(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
-        else:
-            pem = instrumental.fit(final_problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order,
-                                   se_smooth_hz=SE_SMOOTH_HZ if config.stderr_method == "spectral" else None)
-        final_problem.evaluations += pem["evaluations"]
-        if math.isfinite(pem["cost"]):
-            it = final["iterations"] if final is not best else 0
-            final = {**pem, "iterations": pem["iterations"] + it}
-            cov_d = pem["cov"]
-            extra = {"ar_order_p": float(len(pem["polys"][0]) - 1), "ar_order_q": float(len(pem["polys"][1]) - 1)}
-            if "strength" in pem:
-                extra.update(iv_strength_p=pem["strength"][0], iv_strength_q=pem["strength"][1],
-                             iv_overid=pem["overid"], iv_overid_p=pem["overid_p"], iv_overid_white=pem["overid_white"])
+        final, pem_cov, pem_extra = _disturbance_fit(config.disturbance, final_problem, final, best, config)
+        if pem_cov is not None:
+            cov_d, extra = pem_cov, pem_extra
     return _result(final_problem, window, best, runs, prep, config, t_start, final=final, cov_d=cov_d,
                    extra_quality=extra)
+
+
+def _disturbance_fit(kind: str, problem: Problem, final: dict, best: dict,
+                     config: IdentifyConfig) -> tuple[dict, np.ndarray | None, dict[str, float]]:
+    """The prediction-error (``ar``) or IV (``ar_iv``) fit from the output-error optimum ``final``.
+
+    Returns the new optimum (``final`` unchanged when the fit failed), its covariance of D (None: failed)
+    and its ``quality`` entries (AR orders; for the IV its instruments' strength and over-identification).
+    """
+    if kind == "ar":
+        pem = disturbance.fit(problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
+    else:
+        pem = instrumental.fit(problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order,
+                               se_smooth_hz=SE_SMOOTH_HZ if config.stderr_method == "spectral" else None)
+    problem.evaluations += pem["evaluations"]
+    if not math.isfinite(pem["cost"]):
+        return final, None, {}
+    it = final["iterations"] if final is not best else 0
+    extra = {"ar_order_p": float(len(pem["polys"][0]) - 1), "ar_order_q": float(len(pem["polys"][1]) - 1)}
+    if "strength" in pem:
+        extra.update(iv_strength_p=pem["strength"][0], iv_strength_q=pem["strength"][1],
+                     iv_overid=pem["overid"], iv_overid_p=pem["overid_p"], iv_overid_white=pem["overid_white"])
+    return {**pem, "iterations": pem["iterations"] + it}, pem["cov"], extra
 
 
 def _transient_skip(d: np.ndarray, prep: Prepared, f0: float, config: IdentifyConfig) -> float:

@@ -13,7 +13,7 @@ Integrator = Literal["rk4", "euler"]
 Objective = Literal["paper", "ml", "ssq"]
 StaticModel = Literal["zip", "exponential"]
 InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
-Disturbance = Literal["none", "ar", "ar_iv"]
+Disturbance = Literal["none", "ar", "ar_iv", "gated"]
 StderrMethod = Literal["spectral", "ar1"]
 InputWeighting = Literal["none", "spectral"]
 
@@ -66,7 +66,7 @@ class IdentifyConfig:
         Longest run of missing samples repaired by interpolation.
     min_duration_s : float
         Shortest window accepted [s].
-    disturbance : {"none", "ar", "ar_iv"}
+    disturbance : {"none", "ar", "ar_iv", "gated"}
         Noise model of P and Q.  ``none``: white (output error).  ``ar``: the load's own fluctuation as
         an AR process per channel (order by BIC, up to ``ar_max_order``) estimated from the output-error
         residuals, then D by the prediction-error criterion on the whitened residuals, the AR models
@@ -75,7 +75,10 @@ class IdentifyConfig:
         variables (the whitened regressors lagged by 2 and 3 samples, so the own fluctuation's same-sample
         effect on V and θ does not bias them; :mod:`aslm_core.instrumental`); standard errors from the IV
         moment conditions with the innovations' spectrum (``stderr_method="spectral"``) or from the white-noise
-        IV covariance (``"ar1"``).  See docs/numerics.md.
+        IV covariance (``"ar1"``).  ``gated``: output error's answer where its ``own_ratio_p`` is at most
+        0.3 (``OWN_UNMODELLED_RATIO``), else ``ar_iv``'s unless its instruments are rejected (``iv_overid`` above
+        ``IV_OVERID_MAX``), then output error's with its warning; ``quality["gated_ar_iv"]`` says which (1: IV).
+        See docs/numerics.md.
     ar_max_order : int
         Longest AR noise model tried [samples].
     coarse_to_fine : bool

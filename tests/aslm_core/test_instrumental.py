@@ -96,3 +96,30 @@ def test_first_lag_moves_the_instruments():
     # Row j stands for time 5 + j: instruments at lags 4 and 5.
     np.testing.assert_array_equal(z[:, 1:8], zf[1:36, 1:])
     np.testing.assert_array_equal(z[:, 8:], zf[0:35, 1:])
+
+
+def test_the_gated_estimator_picks_output_error_or_the_iv_as_documented(grid_and_own):
+    """``disturbance="gated"``: output error's answer without own fluctuation (the same D, bit for bit), the IV's
+    where output error's own share is above 0.3 and the instruments pass, output error's (flagged) where not."""
+    grid, own = grid_and_own
+    gated = IdentifyConfig(disturbance="gated")
+    for c in grid:
+        ro, rg = identify(c.window), identify(c.window, config=gated)
+        np.testing.assert_array_equal(rg.d, ro.d)
+        assert rg.stderr == ro.stderr and rg.flags == ro.flags and rg.quality["gated_ar_iv"] == 0.0
+        assert rg.config["disturbance"] == "gated"
+    picked_iv = 0
+    for c in own:
+        ro, ri, rg = identify(c.window), identify(c.window, config=IV), identify(c.window, config=gated)
+        if not ro.quality["own_ratio_p"] > 0.3:
+            want = ro
+        elif ri.quality["iv_overid"] <= 3.0:
+            want = ri
+        else:
+            want = ro
+            assert "own_fluctuation_unmodelled" in rg.flags and rg.quality["iv_overid"] == ri.quality["iv_overid"]
+        np.testing.assert_allclose(rg.d, want.d, rtol=1e-12)
+        assert rg.stderr == pytest.approx(want.stderr, rel=1e-9) and rg.flags == want.flags
+        assert rg.quality["gated_ar_iv"] == float(want is ri)
+        picked_iv += want is ri
+    assert picked_iv >= 3  # the fixture's own fluctuation is large enough that the gate opens on most windows
