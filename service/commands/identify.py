@@ -30,9 +30,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="smoother of the noisy inputs V and θ (default %(default)s, docs/numerics.md)")
     p.add_argument("--starts", type=int, default=3, help="random feasible starts")
     p.add_argument("--disturbance", choices=list(get_args(Disturbance)), default=IdentifyConfig.disturbance,
-                   help="noise model of P and Q: none (white), ar (the load's own fluctuation, prediction error) or "
+                   help="noise model of P and Q: none (white), ar (the load's own fluctuation, prediction error), "
                         "ar_iv (the same solved by instrumental variables, for own fluctuation fed back through the "
-                        "network; docs/numerics.md)")
+                        "network) or gated (none, and ar_iv where the window's own fluctuation share is above 0.3 "
+                        "and its instruments pass; docs/numerics.md)")
     p.set_defaults(func=run)
 
 
