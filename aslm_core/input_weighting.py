@@ -42,8 +42,6 @@ ROUNDS = 1
 TAPER = 0.1
 #: Width of the moving average over the residual's periodogram that floors S's diagonal [Hz].
 RESIDUAL_SMOOTH_HZ = 1.0
-#: Width of the average over the whitened residual's 2×2 periodogram in the standard errors [Hz].
-SE_SMOOTH_HZ = 1.0
 
 
 @dataclass
@@ -257,60 +255,6 @@ def whitened_residuals(problem, d: np.ndarray, weighting: Weighting) -> tuple[np
     return z[:, 0], z[:, 1:]
 
 
-def whitened_score_variance(e: np.ndarray, jac: np.ndarray, weighting: Weighting, width_bins: float) -> np.ndarray:
-    """Covariance of the whitened score J̃ᵀẽ from the whitened residual's local 2×2 spectrum (sandwich meat).
-
-    With S right the whitened residual is white with unit variance and this is J̃ᵀJ̃; where S is off in
-    part of the band (the floor, the impulse response at a coarse step, the smoother's error spectrum)
-    the residual's power there is not 1, and a single χ² scale spreads that error over every frequency
-    although D's information sits in a few.  Per bin the 2×2 (P, Q) covariance is the whitened residual's
-    periodogram matrix averaged over ``width_bins`` bins, divided back by one minus the bin's leverage of
-    D's and the static part's directions (the fit takes residual power where the regressors have theirs).
-
-    Parameters
-    ----------
-    e, jac : ndarray
-        Whitened residual and Jacobian in the stacked real form of :func:`_stack` (4·m rows, m rfft bins).
-    weighting : Weighting
-        The whitening (its whitened static regressors give their leverage).
-    width_bins : float
-        Width of the average over bins [bins].
-
-    Returns
-    -------
-    ndarray, shape (4, 4)
-    """
-    m = e.size // 4
-    from aslm_core.identify import _reflected_mean
-
-    def per_bin(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return z[:m] + 1j * z[m:2 * m], z[2 * m:3 * m] + 1j * z[3 * m:]
-
-    ep, eq = per_bin(e)
-    jp, jq = per_bin(jac)
-    reg = np.hstack([weighting.nuisance, jac])
-    try:
-        hat = np.sum((reg @ np.linalg.inv(reg.T @ reg)) * reg, axis=1)
-    except np.linalg.LinAlgError:
-        return np.full((4, 4), np.nan)
-    lev = (hat[:m] + hat[m:2 * m] + hat[2 * m:3 * m] + hat[3 * m:]) / 4.0
-    width = max(1, int(round(width_bins)))
-    kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
-    scale = 1.0 / np.maximum(1.0 - _reflected_mean(lev, kernel), 0.25)
-    cpp = _reflected_mean(np.abs(ep) ** 2, kernel) * scale
-    cqq = _reflected_mean(np.abs(eq) ** 2, kernel) * scale
-    cpq = (_reflected_mean((ep * eq.conj()).real, kernel) + 1j * _reflected_mean((ep * eq.conj()).imag, kernel)) * scale
-    # Re(aᴴ·e) of a circular complex e has half of aᴴ·C·a as its variance; the real DC and Nyquist bins all of it.
-    half = np.full(m, 0.5)
-    half[0] = 1.0
-    if np.all(np.abs(ep[-1].imag) + np.abs(jp[-1].imag) == 0.0):
-        half[-1] = 1.0
-    meat = np.zeros((4, 4))
-    for a, b, c in ((jp, jp, cpp), (jq, jq, cqq), (jp, jq, cpq), (jq, jp, cpq.conj())):
-        meat += (a.conj().T @ ((half * c)[:, None] * b)).real
-    return meat
-
-
 def _descend(problem, d0: np.ndarray, weighting: Weighting, margin: float) -> dict:
     """Levenberg–Marquardt on ½‖ẽ‖² from d0 under the box and the linearised equilibrium constraint."""
     pb = problem
@@ -412,15 +356,10 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     dof = max(2 * pb.l - 4 - 2 * pb.basis.shape[1], 1)
     chi2 = float(e @ e) / dof
     try:
-        info_inv = np.linalg.inv(jac.T @ jac)
+        cov = np.linalg.inv(jac.T @ jac) * chi2
     except np.linalg.LinAlgError:
         return None
-    cov_chi2 = info_inv * chi2
-    cov = info_inv @ whitened_score_variance(e, jac, weighting, SE_SMOOTH_HZ * pb.l * pb.dt) @ info_inv
-    if not np.all(np.isfinite(cov)):
-        cov = cov_chi2
-    return {"d": d, "cost": out["cost"], "iterations": iters, "cov": cov, "cov_chi2": cov_chi2, "chi2": chi2,
-            "problem": pb}
+    return {"d": d, "cost": out["cost"], "iterations": iters, "cov": cov, "chi2": chi2, "problem": pb}
 
 
 def noisy_inputs(floors: dict[str, float]) -> bool:
