@@ -15,9 +15,8 @@ the smoother's cut-off, which P_x leaves out, still drives P and Q).  The residu
 where S is small) and taken to the frequency domain (an orthonormal DFT), whitened per frequency by S(f)^(−1/2) (the inverse of its Cholesky factor), the static part is
 projected out after whitening, and D is refined by Levenberg–Marquardt steps under the box and equilibrium
 constraint (:func:`aslm_core.optimize.qp_step`) on the Wiener-smoothed V, θ and the measured P, Q (no
-low-pass: the weighting takes its place), over the bins up to the default's input cut-off
-(``input_cutoff_hz``; above it the smoothed inputs carry little signal and the smoother's gain, when off,
-biases D).  Standard errors from the whitened problem's information, scaled
+low-pass: the weighting takes its place), over the bins up to a tenth of the reporting rate (above it the
+simulator's cubic interpolation of the inputs departs from their content and biased D at coarse rates).  Standard errors from the whitened problem's information, scaled
 by the whitened residual's variance.  Measurements: docs/numerics.md.
 """
 
@@ -44,6 +43,9 @@ ROUNDS = 1
 TAPER = 0.1
 #: Width of the moving average over the residual's periodogram that floors S's diagonal [Hz].
 RESIDUAL_SMOOTH_HZ = 1.0
+#: Highest frequency the fit uses, as a fraction of the reporting rate [-]: where the simulator's cubic
+#: interpolation of the inputs between samples is within ~0.5 % of a sinusoid's amplitude (5 % at 0.2).
+BAND_FRACTION = 0.1
 
 
 @dataclass
@@ -230,9 +232,9 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
         for c in range(2):
             pr = _reflected_mean(fr[:, c].real ** 2 + fr[:, c].imag ** 2, kernel)
             s[:, c, c] += np.maximum(pr - s[:, c, c].real, 0.0)
-    # Above the band the smoothed inputs hold little signal and the smoother's spectra are least sure: a
-    # smoother gain there that is off correlates the input error with the smoothed input (attenuation),
-    # which biased D at 25–30 frames/s, where that band is a third of the window's (docs/numerics.md).
+    # Above the band the model's interpolated inputs depart from the smoothed samples' content (the
+    # interpolation's error grows as a power of f·dt) and the error correlates with the inputs: it biased D
+    # at 25–30 frames/s, the unweighted fit on the same inputs as much (docs/numerics.md).
     keep = freqs <= band_hz
     w = tuple(x * keep for x in whitening(s))
     mult = bin_weights(pb.l)
@@ -354,7 +356,7 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     iters = 0
     out = None
     for _ in range(ROUNDS):
-        weighting = build_weighting(pb, d, prep.input_error, white, config.input_cutoff_hz)
+        weighting = build_weighting(pb, d, prep.input_error, white, BAND_FRACTION / pb.dt)
         if weighting is None:
             return None
         out = _descend(pb, d, weighting, margin)
