@@ -30,7 +30,9 @@ other motor data are the same).  Run::
 
 ``--input-noise``: white PMU noise on V and θ (issue 11's two classes) added to the exact ANDES record,
 many P/Q noise draws per window over seeds 1–10 of both scenarios, the default identifier against
-``input_smoother="none"`` (:func:`input_noise_study`; docs/andes_crosscheck.md, "Noise on V and θ").
+``input_smoother="none"`` (:func:`input_noise_study`; docs/andes_crosscheck.md, "Noise on V and θ");
+with ``--weighting`` the default against ``input_weighting="spectral"`` instead (JSON
+``andes_crosscheck_input_noise_weighting``).
 """
 
 from __future__ import annotations
@@ -191,12 +193,14 @@ def run_scenario(scenario: str, *, tf: float, tstep: float, amp: float, seed: in
 PMU_CLASSES = dict(zip(("exact", "pmu003", "pmu01"), INPUT_NOISE, strict=True))
 #: The identifier's default and the one before issue 11 (no input smoother, no low-pass; spectral SEs both).
 VARIANTS = {"default": IdentifyConfig(), "none": IdentifyConfig(input_smoother="none")}
+#: ``--weighting``: the default against the S-weighted option (:mod:`aslm_core.input_weighting`).
+WEIGHTING_VARIANTS = {"default": IdentifyConfig(), "spectral": IdentifyConfig(input_weighting="spectral")}
 #: Flags that say a window's answer is not to be trusted as it stands.
 WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "input_noise_too_large")
 
 
 def identify_draw(base: Window, rec: dict, span: tuple[float, float], snr_db: float, classes: list[str],
-                  key: list[int]) -> list[dict]:
+                  key: list[int], variants: dict[str, IdentifyConfig] = VARIANTS) -> list[dict]:
     """One P/Q noise draw on a window, then each PMU class's input noise on it, every variant identified.
 
     Parameters
@@ -212,11 +216,13 @@ def identify_draw(base: Window, rec: dict, span: tuple[float, float], snr_db: fl
     key : list of int
         Seed of the P/Q noise; a class's V/θ noise uses ``[*key, 1 + its index in PMU_CLASSES]``, so the
         draws do not depend on which classes are run, and P/Q noise is the same for every class.
+    variants : dict
+        Name → configuration identified on each draw (:data:`VARIANTS` or :data:`WEIGHTING_VARIANTS`).
 
     Returns
     -------
     list of dict
-        Per class and :data:`VARIANTS` entry: D, its standard errors, the flags, the noise estimates of V
+        Per class and variant: D, its standard errors, the flags, the noise estimates of V
         [pu] and θ [rad], ``input_ratio_v``, the low-pass applied [Hz], the time [s]; or the WindowError's reason.
     """
     w_pq = noisy_window(rec, *span, snr_db, np.random.default_rng(key))
@@ -225,7 +231,7 @@ def identify_draw(base: Window, rec: dict, span: tuple[float, float], snr_db: fl
         _, v_rel, th = PMU_CLASSES[cls]
         rng = np.random.default_rng([*key, 1 + list(PMU_CLASSES).index(cls)])
         w = with_input_noise(w_pq, base, v_rel, th, rng)
-        for variant, cfg in VARIANTS.items():
+        for variant, cfg in variants.items():
             try:
                 r = identify(w, config=cfg)
             except WindowError as exc:
@@ -241,11 +247,11 @@ def identify_draw(base: Window, rec: dict, span: tuple[float, float], snr_db: fl
 
 def input_noise_study(*, scenarios: list[str], seeds: list[int], windows: list[tuple[float, float]],
                       snrs: list[float], classes: list[str], draws: int, tf: float, tstep: float, amp: float,
-                      workers: int = 1) -> dict:
+                      workers: int = 1, variants: dict[str, IdentifyConfig] = VARIANTS) -> dict:
     """ANDES windows with white PMU noise on V and θ added to the exact record (``--input-noise``).
 
     Per scenario, seed and window: ``draws`` P/Q noise draws at each SNR [dB]; on each draw every class of
-    :data:`PMU_CLASSES` in ``classes`` (its own V/θ noise) and every :data:`VARIANTS` entry.  Also per window
+    :data:`PMU_CLASSES` in ``classes`` (its own V/θ noise) and every entry of ``variants``.  Also per window
     and variant the noise-free identification (exact inputs, no P/Q noise): the window's deterministic
     answer, the centre of the second coverage figure.
 
@@ -262,7 +268,7 @@ def input_noise_study(*, scenarios: list[str], seeds: list[int], windows: list[t
             rec, facts = scenario_record(scenario, tf=tf, tstep=tstep, amp=amp, seed=seed)
             for wi, span in enumerate(windows):
                 base = noisy_window(rec, *span, None, None)
-                centre = {v: identify(base, config=cfg).d for v, cfg in VARIANTS.items()}
+                centre = {v: identify(base, config=cfg).d for v, cfg in variants.items()}
                 per_window.append({"scenario": scenario, "seed": seed, "window_index": wi, "window": list(span),
                                    "truth": facts["truth"].tolist(), "tds_s": facts["tds_s"],
                                    "centre": {v: d.tolist() for v, d in centre.items()},
@@ -270,7 +276,7 @@ def input_noise_study(*, scenarios: list[str], seeds: list[int], windows: list[t
                 for snr in snrs:
                     keys = [[si, seed, wi, int(round(snr * 10)), k] for k in range(draws)]
                     with ThreadPoolExecutor(max_workers=workers) as pool:
-                        done = list(pool.map(partial(identify_draw, base, rec, span, snr, classes), keys))
+                        done = list(pool.map(partial(identify_draw, base, rec, span, snr, classes, variants=variants), keys))
                     for k, out in enumerate(done):
                         rows.extend({"scenario": scenario, "seed": seed, "window": wi, "snr_db": snr, "draw": k,
                                      "v_noise": PMU_CLASSES[o["class"]][1] * float(np.mean(base.V)),
@@ -421,6 +427,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, nargs="+", default=list(range(1, 11)), help="study: ambient seeds")
     p.add_argument("--draws", type=int, default=100, help="study: P/Q noise draws per window and SNR")
     p.add_argument("--workers", type=int, default=1, help="study: identification threads")
+    p.add_argument("--weighting", action="store_true",
+                   help="study: the default against input_weighting='spectral' (instead of input_smoother='none')")
     args = p.parse_args(argv)
     scen = list(MAIN_SCENARIOS) if args.scenario == "all" else [args.scenario]
     if args.input_noise is not None:
@@ -454,18 +462,21 @@ def study_main(args, scenarios: list[str]) -> int:
     snrs = args.meas_snr_db or [22.0]
     machine = common.machine()
     t_start = time.perf_counter()
+    variants = WEIGHTING_VARIANTS if args.weighting else VARIANTS
     out = input_noise_study(scenarios=scenarios, seeds=seeds, windows=windows, snrs=snrs, classes=classes,
-                            draws=args.draws, tf=tf, tstep=tstep, amp=args.amp, workers=args.workers)
+                            draws=args.draws, tf=tf, tstep=tstep, amp=args.amp, workers=args.workers,
+                            variants=variants)
     out = {"settings": {"scenarios": scenarios, "seeds": seeds, "windows": windows, "snr_db": snrs,
                         "classes": {c: PMU_CLASSES[c] for c in classes}, "draws": args.draws, "tf": tf,
-                        "tstep": tstep, "amp": args.amp, "variants": {k: v.to_dict() for k, v in VARIANTS.items()}},
+                        "tstep": tstep, "amp": args.amp, "variants": {k: v.to_dict() for k, v in variants.items()}},
            "machine": machine, "elapsed_s": time.perf_counter() - t_start,
            "load_avg_at_end": list(os.getloadavg()), **out}
     print(common.md_table(STUDY_HEAD, study_rows(out["cells"])))
     print(f"\n{time.perf_counter() - t_start:.0f} s; load at start {machine['load_avg_at_start']}, "
           f"at end {[round(x, 2) for x in os.getloadavg()]}")
     # --quick is a smoke run: it does not overwrite the documented results unless asked to.
-    path = args.json or (None if args.quick else str(common.RESULTS / "andes_crosscheck_input_noise.json"))
+    name = "andes_crosscheck_input_noise" + ("_weighting" if args.weighting else "")
+    path = args.json or (None if args.quick else str(common.RESULTS / f"{name}.json"))
     if path is None:
         return 0
     with open(path, "w") as fh:

@@ -254,13 +254,15 @@ def main(argv=None) -> dict:
     ap.add_argument("--cost", action="store_true", help="time per identification: the default against before")
     ap.add_argument("--weighting", action="store_true",
                     help="with --rates: the S-weighted option (input_weighting='spectral') next to the default")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="seed of the cases (default: 41 for the comparison, 43 for --supplement and --rates)")
     args = ap.parse_args(argv)
     if args.cost:
         return cost(args.n or 60, args.no_write)
     mode = "supplement" if args.supplement else ("rates" if args.rates else "compare")
     n = args.n or (20 if args.quick else {"compare": 200, "supplement": 300, "rates": 150}[mode])
     levels = args.levels or {"compare": [2, 3], "supplement": [1, 2, 3], "rates": [2]}[mode]
-    seed = SEED if mode == "compare" else CONFIRM_SEED
+    seed = args.seed if args.seed is not None else (SEED if mode == "compare" else CONFIRM_SEED)
     candidates = CANDIDATES if mode == "compare" else (WITH_WEIGHTING if args.weighting else DEFAULT_ONLY)
     t_all = time.perf_counter()
     out = {"machine": common.machine(), "mode": mode, "n_per_level": n, "seed": seed, "quick": args.quick,
@@ -296,6 +298,8 @@ def main(argv=None) -> dict:
             name += "_dl" + "-".join(str(x) for x in levels)
         if mode == "rates" and args.weighting:
             name += "_weighting"
+        if args.seed is not None and seed != (SEED if mode == "compare" else CONFIRM_SEED):
+            name += f"_seed{seed}"
         common.write_json(name + ("_quick" if args.quick else ""), out)
     return out
 

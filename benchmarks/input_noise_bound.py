@@ -28,7 +28,7 @@ minimum per window, median over windows); per level and class μ, σ, coverage o
 whose bound ``input_noise_bound.json`` holds (the first 100), σ over the RMS structural bound and the
 standardised spread (JSON ``input_noise_weighting``).
 
-    .venv/bin/python -m benchmarks.input_noise_bound --weighting [--n 300] [--reps 2]
+    .venv/bin/python -m benchmarks.input_noise_bound --weighting [--n 300] [--reps 2] [--seed 41]
 """
 
 from __future__ import annotations
@@ -291,11 +291,11 @@ def record(bounds: list[dict], ests: list[dict], args, t_all: float) -> dict:
 WEIGHTING = {"default": IdentifyConfig(), "spectral": IdentifyConfig(input_weighting="spectral")}
 
 
-def weighting_run(n: int, reps: int) -> dict:
+def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED) -> dict:
     """``--weighting`` (module docstring): per level, class and estimator the per-window D/D_real, SE/D_real
-    and the minimum time [s]."""
-    cases = {level: common.cases(n, level=level, seed=CONFIRM_SEED) for level in LEVELS}
-    rngs = {(level, k): np.random.default_rng([CONFIRM_SEED, level, k])  # as window_bounds
+    and the minimum time [s], on the windows and draws of ``seed``."""
+    cases = {level: common.cases(n, level=level, seed=seed) for level in LEVELS}
+    rngs = {(level, k): np.random.default_rng([seed, level, k])  # as window_bounds
             for level in LEVELS for k in range(len(INPUT_NOISE))}
     identify(cases[2][0].window, config=WEIGHTING["spectral"])  # numba compilation outside the timings
     per = {(level, cls, name): {"ratio": [], "se": [], "t": []} for level in LEVELS for cls, _, _ in INPUT_NOISE
@@ -393,10 +393,12 @@ def weighting_targets(summ: dict) -> list[list]:
 
 def weighting_main(args) -> dict:
     """``--weighting``: run (or ``--report``), summarise against the stored bounds, print, write."""
-    name = "input_noise_weighting" + ("_quick" if args.quick else "")
+    name = ("input_noise_weighting" + ("" if args.seed == CONFIRM_SEED else f"_seed{args.seed}")
+            + ("_quick" if args.quick else ""))
     bpath = common.RESULTS / "input_noise_bound.json"
+    # The stored bounds are those of the confirmation seed's windows.
     bounds = ([{int(k): v for k, v in w.items()} for w in json.loads(bpath.read_text())["per_window_relative_variance"]]
-              if bpath.exists() else [])
+              if bpath.exists() and args.seed == CONFIRM_SEED else [])
     bounds = [{str(k): v for k, v in b.items()} for b in bounds]
     if args.report:
         out = json.loads((common.RESULTS / f"{name}.json").read_text())
@@ -404,13 +406,13 @@ def weighting_main(args) -> dict:
         n = args.n or (6 if args.quick else 300)
         t_all = time.perf_counter()
         load0 = list(os.getloadavg())
-        out = {"machine": common.machine(), "n": n, "seed": CONFIRM_SEED, "reps": args.reps,
+        out = {"machine": common.machine(), "n": n, "seed": args.seed, "reps": args.reps,
                "configs": {k: v.to_dict() for k, v in WEIGHTING.items()}, "load_avg_at_start": load0,
-               "per_window": weighting_run(n, args.reps)}
+               "per_window": weighting_run(n, args.reps, args.seed)}
         out["total_s"] = time.perf_counter() - t_all
         out["load_avg_at_end"] = list(os.getloadavg())
     out["summary"] = weighting_summary(out["per_window"], bounds)
-    print(f"**S-weighted estimator against the default** ({out['n']} windows per level, seed {CONFIRM_SEED}):\n\n"
+    print(f"**S-weighted estimator against the default** ({out['n']} windows per level, seed {out['seed']}):\n\n"
           + common.md_table(W_HEAD, weighting_rows(out["summary"])))
     print("\n**Targets** (bias / σ / σ ≤ 1.3 × bound):\n\n"
           + common.md_table(["DL", "input noise", "estimator"] + list(common.PARAMS), weighting_targets(out["summary"])))
@@ -428,6 +430,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--report", action="store_true", help="print the tables of the JSON written before; no run")
     ap.add_argument("--weighting", action="store_true", help="the S-weighted estimator against the default")
     ap.add_argument("--reps", type=int, default=2, help="--weighting: runs per identification (time: minimum)")
+    ap.add_argument("--seed", type=int, default=CONFIRM_SEED,
+                    help="--weighting: seed of the windows (41 development, 43 confirmation; no bounds but for 43)")
     args = ap.parse_args(argv)
     if args.weighting:
         return weighting_main(args)
