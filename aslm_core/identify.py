@@ -340,10 +340,14 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
         w = input_weighting.weighted_fit(window, config, final["d"], final_problem.k0 * prep.dt, prep.noise,
                                          EQUILIBRIUM_MARGIN)
         if w is not None:
+            # The own-fluctuation indicators (and their flags, tuned on output error's residual) come from the
+            # output-error fit: the weighted fit's unfiltered residual carries the input noise's colour.
+            base = _result(final_problem, window, best, runs, prep, config, t_start, final=final)
+            extra = {k: base.quality[k] for k in EXCITATION_KEYS}
             it = final["iterations"] if final is not best else 0
             final_problem, prep, cov_d = w["problem"], w["problem"].prep, w["cov"]
             final = {"d": w["d"], "cost": w["objective"], "iterations": w["iterations"] + it}
-            extra = {"weighted_chi2": w["chi2"]}
+            extra["weighted_chi2"] = w["chi2"]
     if config.disturbance == "gated":
         # Output error unless its own fluctuation share says it is not consistent; then the IV fit, unless its
         # instruments are rejected (docs/numerics.md, "the gated composite").
@@ -423,13 +427,19 @@ def _descend(problem: Problem, start: np.ndarray, config: IdentifyConfig, known:
     return levenberg_marquardt(problem, start, max_iter=config.max_iter, known=known)
 
 
+#: The ``quality`` entries of :func:`_static_and_excitation` that describe the window's excitation (a caller's
+#: ``extra_quality`` may supply them from another fit of the same window).
+EXCITATION_KEYS = ("excitation_share_p", "excitation_share_q", "own_std_p", "own_std_q", "own_ratio_p", "own_ratio_q")
+
+
 def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prepared,
             config: IdentifyConfig, t_start: float, final: dict | None = None, cov_d: np.ndarray | None = None,
             extra_quality: dict | None = None) -> IdentificationResult:
     """The result at ``final`` (default ``best``, the best of ``runs``, which the restart checks use).
 
     ``cov_d``: the covariance of D when the estimator gives its own (the prediction-error fit); default the
-    output-error sandwich.  ``extra_quality``: further ``quality`` entries.
+    output-error sandwich.  ``extra_quality``: further ``quality`` entries (those of ``EXCITATION_KEYS``
+    replace this fit's own, before the flags read them).
     """
     final = best if final is None else final
     d = final["d"]
@@ -450,6 +460,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     flags = list(prep.flags)
     static_local, static_se, extra = _static_and_excitation(problem, prep, beta, (rr_p, rr_q), (rho_p, rho_q),
                                                             (ss_p, ss_q), cov_d)
+    extra.update({k: v for k, v in (extra_quality or {}).items() if k in EXCITATION_KEYS})
     if static.split_unidentifiable(static_se, math.hypot(float(pb.p_meas.mean()), float(pb.q_meas.mean())),
                                    config.static):
         flags.append("static_split_unidentifiable")

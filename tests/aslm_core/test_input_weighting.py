@@ -149,3 +149,15 @@ def test_the_fit_uses_the_bins_up_to_a_tenth_of_the_reporting_rate(windows):
     assert weighting.samples < 0.25 * pb.l  # 10 Hz of the 50 Hz band at 100 frames/s
     full = iw.build_weighting(pb, d, prep.input_error, white)
     assert full.samples == pytest.approx(pb.l)
+
+
+def test_the_own_fluctuation_indicators_and_flags_are_the_output_error_fits(windows):
+    """The weighted fit's unfiltered residual carries the input noise's colour; the own-fluctuation indicators
+    (and ``own_fluctuation_unmodelled``, tuned on output error) are read from the output-error fit instead."""
+    _, noisy = windows
+    for w in noisy[:6]:
+        rd, rw = identify(w), identify(w, config=SPECTRAL)
+        assert "weighted_chi2" in rw.quality
+        for k in ("own_ratio_p", "own_ratio_q", "excitation_share_p", "own_std_q"):
+            assert rw.quality[k] == rd.quality[k]
+        assert ("own_fluctuation_unmodelled" in rw.flags) == ("own_fluctuation_unmodelled" in rd.flags)
