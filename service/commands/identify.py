@@ -9,7 +9,7 @@ from typing import get_args
 
 from aslm_core import IdentifyConfig, WindowError, identify, warmup
 from aslm_core.preprocess import INPUT_SMOOTHERS
-from aslm_core.result import Disturbance
+from aslm_core.result import Disturbance, InputWeighting
 from service.commands._common import add_mapping_flags
 from service.files import read_window
 
@@ -34,6 +34,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "ar_iv (the same solved by instrumental variables, for own fluctuation fed back through the "
                         "network) or gated (none, and ar_iv where the window's own fluctuation share is above 0.3 "
                         "and its instruments pass; docs/numerics.md)")
+    p.add_argument("--input-weighting", choices=list(get_args(InputWeighting)), default=IdentifyConfig.input_weighting,
+                   help="spectral: refine D by weighting the residuals per frequency with the noise V and θ carry "
+                        "through the model (noisy inputs only; about 2x the time there; docs/numerics.md)")
     p.set_defaults(func=run)
 
 
@@ -41,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     config = IdentifyConfig(
         integrator=args.integrator, objective=args.objective, static=args.static,
         lowpass_hz=args.lowpass, input_smoother=args.input_smoother, n_starts=args.starts,
-        disturbance=args.disturbance,
+        disturbance=args.disturbance, input_weighting=args.input_weighting,
     )
     warmup()  # load the compiled kernels first so elapsed_s measures the identification alone
     status = 0

@@ -72,6 +72,10 @@ def test_human_output_shows_the_identifiable_static_part_and_the_disturbance_fla
     assert out["config"]["disturbance"] == "ar" and "ar_order_p" in out["quality"]
     iv = json.loads(run_cli("identify", "--json", "--disturbance", "ar_iv", str(d / "bus.npz")).stdout)
     assert iv["config"]["disturbance"] == "ar_iv" and 0.0 < iv["quality"]["iv_strength_p"] <= 1.0
+    gated = json.loads(run_cli("identify", "--json", "--disturbance", "gated", "--input-weighting", "spectral",
+                               str(d / "bus.npz")).stdout)
+    assert gated["config"]["disturbance"] == "gated" and gated["config"]["input_weighting"] == "spectral"
+    assert gated["quality"]["gated_ar_iv"] in (0.0, 1.0)
     assert {"P0", "dPdV", "Q0", "dQdV"} <= set(out["static_local"])
 
 
