@@ -3,6 +3,7 @@
     .venv/bin/python -m benchmarks.diagnosis_independent --set dev        # tune on these seeds
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm    # once, after tuning: the result
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm2   # the second confirmation (below)
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm3   # the third, once (docs/diagnosis.md)
 
 Each scenario of :mod:`aslm_sim.andes.effects` (a kind and a seed: the motor data, the effect's magnitude,
 the ambient noise) is simulated by ANDES for 22 s (10 ms step) and cut into two 10 s windows (2–12 s,
@@ -50,6 +51,10 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     "dev": {"clean": tuple(range(101, 105)), "effect": tuple(range(101, 103))},
     "confirm": {"clean": tuple(range(9001, 9011)), "effect": tuple(range(9001, 9005))},
     "confirm2": {"clean": tuple(range(9101, 9111)), "effect": tuple(range(9101, 9105))},
+    # Third round (issue 12): dev, confirm and confirm2 are all development data now, with dev3 (6 per kind,
+    # 10 clean) added to tune on; confirm3 was fixed here, committed, and simulated before any diagnosis of it.
+    "dev3": {"clean": tuple(range(301, 311)), "effect": tuple(range(301, 307))},
+    "confirm3": {"clean": tuple(range(9201, 9211)), "effect": tuple(range(9201, 9205))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
