@@ -25,7 +25,8 @@ Method (DESIGN §3)
 5. Verdict: the top significant candidate explains the mismatch when it removes at least
    ``explained_fraction`` of the held-out ambient-band residual above the noise expectation.  It is named
    (``explained``) only when a paired held-out test separates it from every rival — every other candidate
-   passing the score test and the penalty — with Holm's procedure over the rivals; otherwise the verdict
+   passing the score test and the penalty — with Holm's procedure over the rivals, and the rival does not
+   in turn beat it on the reverse paired test (non-nested models are compared both ways); otherwise the verdict
    is ``ambiguous`` and ``causes`` lists the unseparated ones, no pick.  ``unexplained`` when the residual
    exceeds the expected noise (or a candidate is significant but explains too little) — then only the
    location is reported; otherwise ``consistent``.
@@ -95,6 +96,11 @@ class DiagnosisConfig:
         Family-wise error rate (Holm) of the paired held-out comparisons of the top significant candidate
         with its rivals (the other candidates passing the score test and the penalty) [-]: a cause is
         named only when every rival is rejected, otherwise the verdict is ``ambiguous``.
+    encompassing_alpha : float or None
+        One-sided level of the reverse paired comparison [-]: a rival the top candidate beats is still not
+        separated from it when the rival, in turn, explains held-out data the top candidate leaves (its own
+        paired statistic against the top one above the level's critical value): then each holds something
+        the other lacks and neither is named.  None: the reverse comparison is not made.
     """
 
     train_fraction: float = 0.65
@@ -106,6 +112,7 @@ class DiagnosisConfig:
     band_hz: float = BAND_HZ
     prediction_variance: bool = True
     separation_alpha: float = 0.05
+    encompassing_alpha: float | None = 0.05
 
 
 @dataclass
@@ -439,6 +446,14 @@ def _unseparated(analyses: list[_WindowAnalysis], best: CandidateEntry, rivals: 
         if pvals[name] > config.separation_alpha / (m - j):
             break
         next(e for e in rivals if e.name == name).separated = True
+    if config.encompassing_alpha is not None:
+        # Non-nested models are tested both ways (encompassing): beating a rival is not enough when the rival
+        # also beats the top candidate — on the ANDES development data a frequency dependence and a torque
+        # law each explained part of the other's held-out residual, and the larger gain was named.
+        zr = stats.norm.isf(config.encompassing_alpha)
+        for e in rivals:
+            if e.separated and _separation_z(analyses, e.name, best.name, config) > zr:
+                e.separated = False
     for e in rivals:  # JSON has no infinity
         if not math.isfinite(e.separation_z):
             e.separation_z = None
