@@ -18,14 +18,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
-
-import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -82,30 +79,22 @@ def run_job(job: tuple) -> list[dict]:
 
 
 def summarise(recs: list[dict]) -> dict:
-    """Per pair, kind and noise mode: windows where a member explains the data, right and wrong separations."""
+    """Per pair, kind, noise mode and level, over the windows where a member explains the held-out data: how the
+    paired test comes out both ways — ``x-`` the true member (or, for an outside kind, the pair's first)
+    beats the other and not in turn (separated rightly), ``-y`` the other beats it and not in turn
+    (separated wrongly), ``xy`` each beats the other (not separated with the reverse comparison), ``--``
+    neither (not separated)."""
     out: dict = {}
     for r in recs:
-        if "failed" in r:
+        if "failed" in r or not any(m["fits"] for m in r["members"].values()):
             continue
         a, b = r["pair"]
-        key = f"{a} / {b}"
-        mode = "input" if r["input_noise"] else "pq"
-        row = out.setdefault(key, {}).setdefault(r["kind"], {}).setdefault(
-            mode, {"windows": 0, "a_member_fits": 0, "true_over_other": 0, "other_over_true": 0,
-                   "a_over_b": 0, "b_over_a": 0, "z": []})
-        row["windows"] += 1
-        if not any(m["fits"] for m in r["members"].values()):
-            continue
-        row["a_member_fits"] += 1
-        zab, zba = r["separation_z"][f"{a}>{b}"], r["separation_z"][f"{b}>{a}"]
-        row["a_over_b"] += bool(zab > Z_ONE)
-        row["b_over_a"] += bool(zba > Z_ONE)
-        t = r["truth"]
-        if t is not None:
-            other = b if t == a else a
-            row["true_over_other"] += bool(r["separation_z"][f"{t}>{other}"] > Z_ONE)
-            row["other_over_true"] += bool(r["separation_z"][f"{other}>{t}"] > Z_ONE)
-        row["z"].append([round(zab, 2) if math.isfinite(zab) else None, round(zba, 2) if math.isfinite(zba) else None])
+        x = r["truth"] or a
+        y = b if x == a else a
+        cls = ("x" if r["separation_z"][f"{x}>{y}"] > Z_ONE else "-") + ("y" if r["separation_z"][f"{y}>{x}"] > Z_ONE else "-")
+        row = out.setdefault(f"{a} / {b}", {}).setdefault(r["kind"], {}).setdefault(
+            "input" if r["input_noise"] else "pq", {}).setdefault(str(r["level"]), {"x-": 0, "-y": 0, "xy": 0, "--": 0})
+        row[cls] += 1
     return out
 
 
@@ -142,11 +131,10 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{futs[f][0]}/{futs[f][1]}: {len(rows)} rows", flush=True)
     summary = summarise(recs)
     for key, per_kind in summary.items():
-        for kind, modes in per_kind.items():
-            for mode, row in modes.items():
-                print(f"{key:45s} {kind:24s} {mode:5s} windows {row['windows']:3d} fits {row['a_member_fits']:3d} "
-                      f"true>other {row['true_over_other']:3d} other>true {row['other_over_true']:3d} "
-                      f"a>b {row['a_over_b']:3d} b>a {row['b_over_a']:3d}")
+        for kind, per_mode in per_kind.items():
+            for mode, per_level in per_mode.items():
+                for level, row in per_level.items():
+                    print(f"{key:45s} {kind:24s} {mode:5s} L{level} " + "  ".join(f"{c} {n:2d}" for c, n in row.items()))
     Path(args.out).write_text(json.dumps({
         "sets": sets, "wall_s": time.perf_counter() - t0, "load_avg": os.getloadavg(), "z_one": Z_ONE,
         "command": "benchmarks/diagnosis_pairs.py " + " ".join(argv if argv is not None else sys.argv[1:]),
