@@ -107,3 +107,18 @@ def test_a_rival_is_separated_only_when_the_reverse_paired_test_does_not_beat_th
     rival2 = SimpleNamespace(name="rival")
     pipeline._unseparated([], top, [rival2], pipeline.DiagnosisConfig(encompassing_alpha=None))
     assert rival2.separated is (forward > 1.645)
+
+
+def test_the_reverse_comparisons_are_a_family(monkeypatch):
+    """With several rivals the reverse statistics are Holm-corrected: z 3.0 back (p 0.0013 ≤ 0.05/3) unseparates
+    its rival, z 1.9 back (p 0.029: above one-sided 5 %'s 1.645, but Holm's second step asks p ≤ 0.05/2) does not."""
+    from types import SimpleNamespace
+
+    from aslm_core.diagnosis import pipeline
+
+    back = {"r1": 1.9, "r2": 3.0, "r3": 0.0}
+    monkeypatch.setattr(pipeline, "_separation_z",
+                        lambda analyses, a, b, config: 6.0 if a == "top" else back[a])
+    rivals = [SimpleNamespace(name=n) for n in back]
+    left = pipeline._unseparated([], SimpleNamespace(name="top"), rivals, pipeline.DiagnosisConfig())
+    assert [e.name for e in left] == ["r2"]
