@@ -3,6 +3,7 @@
     .venv/bin/python -m benchmarks.diagnosis_independent --set dev        # tune on these seeds
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm    # once, after tuning: the result
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm2   # the second confirmation (below)
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm3   # the third, once (docs/diagnosis.md)
 
 Each scenario of :mod:`aslm_sim.andes.effects` (a kind and a seed: the motor data, the effect's magnitude,
 the ambient noise) is simulated by ANDES for 22 s (10 ms step) and cut into two 10 s windows (2–12 s,
@@ -50,6 +51,10 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     "dev": {"clean": tuple(range(101, 105)), "effect": tuple(range(101, 103))},
     "confirm": {"clean": tuple(range(9001, 9011)), "effect": tuple(range(9001, 9005))},
     "confirm2": {"clean": tuple(range(9101, 9111)), "effect": tuple(range(9101, 9105))},
+    # Third round (issue 12): dev, confirm and confirm2 are all development data now, with dev3 (6 per kind,
+    # 10 clean) added to tune on; confirm3 was fixed here, committed, and simulated before any diagnosis of it.
+    "dev3": {"clean": tuple(range(301, 311)), "effect": tuple(range(301, 307))},
+    "confirm3": {"clean": tuple(range(9201, 9211)), "effect": tuple(range(9201, 9205))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
@@ -241,6 +246,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--noise", choices=("pq", "input", "both"), default="both",
                    help="noise on P and Q only, on V and θ too, or both runs (default)")
     p.add_argument("--no-write", action="store_true")
+    p.add_argument("--tag", default="", help="written as diagnosis_independent_<set>_<tag>.json (a rerun of a "
+                   "set already reported keeps its run of record)")
+    p.add_argument("--cached-only", action="store_true",
+                   help="diagnose only the scenarios already in the recording cache (no ANDES run)")
     p.add_argument("--simulate-only", action="store_true",
                    help="only fill the recording cache (ANDES), diagnose and score nothing")
     args = p.parse_args(argv)
@@ -249,8 +258,9 @@ def main(argv: list[str] | None = None) -> int:
     from aslm_core.diagnosis.candidates import MODULES
 
     modes = {"pq": (False,), "input": (True,), "both": (False, True)}[args.noise]
-    todo = [(k, s, modes) for k, s in jobs(args.set, [k for k in args.kinds.split(",") if k] or None)]
-    partial = cache_dir() / f"diagnosis_independent_{args.set}.partial.jsonl"
+    todo = [(k, s, modes) for k, s in jobs(args.set, [k for k in args.kinds.split(",") if k] or None)
+            if not args.cached_only or any(cache_dir().glob(f"v*-{k}-{s}-*.npz"))]
+    partial = cache_dir() / f"diagnosis_independent_{args.set}{'_' + args.tag if args.tag else ''}.partial.jsonl"
     partial.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     recs: list[dict] = []
@@ -268,7 +278,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{k}/{s}: " + ", ".join(outcome(r) for r in rows)
                   + (f" (sim {rows[0]['sim_s']:.0f} s)" if rows else " FAILED"), flush=True)
     wall = time.perf_counter() - t0
-    out_path = RESULTS / f"diagnosis_independent_{args.set}.json"
+    out_path = RESULTS / f"diagnosis_independent_{args.set}{'_' + args.tag if args.tag else ''}.json"
     if out_path.exists():  # a run of the other noise mode: keep its records, this run replaces its own mode's
         ran = {k for k, _, _ in todo}
         kept = [r for r in json.loads(out_path.read_text())["records"]

@@ -118,7 +118,7 @@ class CandidateEntryModel(BaseModel):
     explained_fraction: float | None = Field(None, description="Share of the held-out ambient-band excess the candidate removes [-]; set on the top significant candidate only.")
     remaining_excess_channels: list[str] | None = Field(None, description="Channels still above the noise floor after the candidate; set on the top significant candidate only.")
     separation_z: float | None = Field(None, description="Paired held-out statistic that the top significant candidate explains what this one leaves (N(0, 1) when this one is right) [-]; set on every other candidate that passes the held-out test and the penalty (its magnitude aside) when the top significant one explains the mismatch, null otherwise.")
-    separated: bool | None = Field(None, description="Whether the top significant candidate is significantly better than this one (Holm over the rivals); set with separation_z.")
+    separated: bool | None = Field(None, description="Whether the top significant candidate is significantly better than this one (Holm over the rivals) and this one is not significantly better than it in turn (the reverse paired test); set with separation_z.")
 
 
 class NoiseFloorModel(BaseModel):

@@ -135,7 +135,7 @@ class CandidateEntry(_Part):
     separation_z : float or None
         Paired held-out statistic that the top significant candidate explains what this one leaves (N(0, 1) when this one is right) [-]; set on every other candidate that passes the held-out test and the penalty (its magnitude aside) when the top significant one explains the mismatch, null otherwise.
     separated : bool or None
-        Whether the top significant candidate is significantly better than this one (Holm over the rivals); set with separation_z.
+        Whether the top significant candidate is significantly better than this one (Holm over the rivals) and this one is not significantly better than it in turn (the reverse paired test); set with separation_z.
     """
 
     name: str

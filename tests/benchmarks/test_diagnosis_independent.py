@@ -20,6 +20,16 @@ def test_the_sets_are_disjoint_and_the_confirmation_set_has_the_issues_size():
     assert len(di.SETS["confirm"]["effect"]) * per_scenario >= 20
 
 
+def test_every_confirmation_set_uses_seeds_no_other_set_uses_and_the_third_round_has_its_sizes():
+    seeds = {name: {s for v in sets.values() for s in v} for name, sets in di.SETS.items()}
+    for name in (n for n in di.SETS if n.startswith("confirm")):
+        others = set().union(*(v for n, v in seeds.items() if n != name))
+        assert not seeds[name] & others, name
+    assert len(di.SETS["dev3"]["effect"]) >= 6 and len(di.SETS["dev3"]["clean"]) >= 10
+    assert len(di.SETS["confirm3"]["effect"]) >= 4 and len(di.SETS["confirm3"]["clean"]) >= 10
+    assert not seeds["dev3"] & (seeds["dev"] | seeds["confirm"] | seeds["confirm2"])
+
+
 def test_jobs_are_seed_major_so_that_a_partial_run_covers_every_kind():
     jobs = di.jobs("confirm")
     first = jobs[: len(di.KINDS)]

@@ -94,3 +94,19 @@ def test_a_second_andes_motor_is_not_named_inverter_der():
         w, _ = di._window(rec, t0, t1, 3, False, "second_motor/9001")
         rep = diagnose(w)
         assert rep.cause != "inverter_der", rep.message
+
+
+def test_an_andes_frequency_dependence_the_torque_law_also_explains_is_ambiguous_not_named():
+    from aslm_sim.andes import effects
+    from benchmarks import diagnosis_independent as di
+
+    # Scenario 9102 of the second confirmation set (seen, development data since), second window at L3: it was
+    # named `speed_dependent_torque`, which beat the frequency term on the paired test (z 5.2) — but the
+    # frequency term beats the torque law in turn (z 3.4): each explains held-out data the other leaves.
+    rec = effects.recording("frequency_dependence", 9102, tf=di.TF, tstep=di.TSTEP)
+    w, _ = di._window(rec, *di.WINDOWS[1], 3, False, "frequency_dependence/9102")
+    rep = diagnose(w)
+    assert rep.verdict == "ambiguous" and rep.cause is None, rep.message
+    assert {"frequency_dependence", "speed_dependent_torque"} <= set(rep.causes)
+    fd = rep.candidate("frequency_dependence")
+    assert fd.separation_z > 1.645 and fd.separated is False  # beaten forward, not separated (reverse)
