@@ -30,7 +30,9 @@ import numpy as np
 from scipy import signal
 
 from aslm_core import motor, optimize, static
+from aslm_core.noise import reflected_mean
 from aslm_core.preprocess import FLOOR_TILT_MAX, Prepared, prepare
+from aslm_core.problem import Problem
 from aslm_core.window import Window
 
 #: Size of the single-sample perturbation whose response gives H [pu for V, rad for θ].
@@ -223,14 +225,13 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
     freqs = np.fft.rfftfreq(pb.l, pb.dt)
     s = disturbance_spectrum(h, freqs, *input_error, white_var)
     if RESIDUAL_SMOOTH_HZ > 0:
-        from aslm_core.identify import _reflected_mean
 
         width = max(1, int(round(RESIDUAL_SMOOTH_HZ * pb.l * pb.dt)))
         kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
         resid -= pb.basis @ (pb.basis.T @ resid)
         fr = np.fft.rfft(resid * _taper(pb.l), axis=0, norm="ortho")
         for c in range(2):
-            pr = _reflected_mean(fr[:, c].real ** 2 + fr[:, c].imag ** 2, kernel)
+            pr = reflected_mean(fr[:, c].real ** 2 + fr[:, c].imag ** 2, kernel)
             s[:, c, c] += np.maximum(pr - s[:, c, c].real, 0.0)
     # Above the band the model's interpolated inputs depart from the smoothed samples' content (the
     # interpolation's error grows as a power of f·dt) and the error correlates with the inputs: it biased D
@@ -348,7 +349,6 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
         :class:`~aslm_core.identify.Problem`, its buffers at D); None when H cannot be formed or the
         whitened information is singular.
     """
-    from aslm_core.identify import Problem  # identify imports this module
 
     pb = Problem(prep, f0, replace(config, skip_s=skip_s))
     white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)

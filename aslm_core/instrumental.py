@@ -22,6 +22,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from aslm_core import disturbance
+from aslm_core.noise import reflected_mean
 
 #: Number of instrument lags: FIRST_LAG … FIRST_LAG + IV_LAGS − 1 samples.
 IV_LAGS = 2
@@ -166,7 +167,6 @@ class Instrumented(_Weighted):
         j : float
             Hansen's statistic [-] (χ² with instruments − parameters degrees of freedom when they are valid).
         """
-        from aslm_core.identify import _reflected_mean  # a function import: identify imports this module
 
         zs = disturbance.whitened_columns(self.pb, self.polys, d, self.skip)
         if zs is None:
@@ -190,7 +190,7 @@ class Instrumented(_Weighted):
         for a in range(2):
             for b in range(2):
                 cross = fe[a] * fe[b].conj()
-                spectra[a, b] = mult * (_reflected_mean(cross.real, kernel) + 1j * _reflected_mean(cross.imag, kernel))
+                spectra[a, b] = mult * (reflected_mean(cross.real, kernel) + 1j * reflected_mean(cross.imag, kernel))
         # The fitted D and static part take their share of the residual's power.
         dof = l / max(l - 4 - self.n_static, 1)
 

@@ -318,3 +318,9 @@ def _returned(out: np.ndarray, cutoffs: np.ndarray, freqs: np.ndarray, px: np.nd
     """:func:`wiener_smooth`'s return value for the outputs asked for."""
     extra = ((cutoffs,) if with_cutoffs else ()) + ((freqs, px) if with_error else ())
     return (out, *extra) if extra else out
+
+
+def reflected_mean(x: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """Moving average of a one-sided spectrum, reflected at DC and Nyquist (as the full DFT continues it)."""
+    h = kernel.size // 2
+    return np.convolve(np.concatenate((x[h:0:-1], x, x[-2:-h - 2:-1])), kernel, mode="valid") if h else x
