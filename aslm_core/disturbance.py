@@ -83,7 +83,7 @@ class Whitened:
 
     Parameters
     ----------
-    problem : aslm_core.identify.Problem
+    problem : aslm_core.problem.Problem
         The output-error problem (inputs, regression samples, bounds, buffers).
     polys : tuple of ndarray
         A(q) of P and of Q.
@@ -125,7 +125,7 @@ def whitened_columns(pb, polys: tuple[np.ndarray, np.ndarray], d: np.ndarray, sk
 
     Parameters
     ----------
-    pb : aslm_core.identify.Problem
+    pb : aslm_core.problem.Problem
     polys : tuple of ndarray
         A(q) of P and of Q.
     d : ndarray

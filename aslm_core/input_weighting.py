@@ -86,7 +86,7 @@ def impulse_response(problem, d: np.ndarray, beta_p: np.ndarray, beta_q: np.ndar
 
     Parameters
     ----------
-    problem : aslm_core.identify.Problem
+    problem : aslm_core.problem.Problem
         The window (its inputs, integrator and regression samples).
     d : ndarray
         D = [a, b, H2, Tm].
@@ -346,7 +346,7 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     dict or None
         ``d``, ``cost`` (½‖ẽ‖²), ``iterations``, ``cov`` (4×4 covariance of D), ``chi2`` (the whitened
         residual's mean square, ~1 when S is right), ``problem`` (the refinement's
-        :class:`~aslm_core.identify.Problem`, its buffers at D); None when H cannot be formed or the
+        :class:`~aslm_core.problem.Problem`, its buffers at D); None when H cannot be formed or the
         whitened information is singular.
     """
 

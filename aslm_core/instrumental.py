@@ -82,7 +82,7 @@ class Instrumented(_Weighted):
 
     Parameters
     ----------
-    problem : aslm_core.identify.Problem
+    problem : aslm_core.problem.Problem
     polys : tuple of ndarray
         A(q) of P and of Q.
     d_ref : ndarray
@@ -325,7 +325,7 @@ def fit_pooled(pool, problems: list, d0: np.ndarray, max_iter: int = 40, xtol: f
     ----------
     pool
         The windows' common bounds and equilibrium set (:class:`aslm_core.pooled._Pool`).
-    problems : list of aslm_core.identify.Problem
+    problems : list of aslm_core.problem.Problem
         One per window.
     d0 : ndarray
         Start (the pooled output-error optimum).
