@@ -162,6 +162,8 @@ class IdentificationResult:
         white-noise fit's D and standard errors are not to be trusted; ``disturbance="ar_iv"`` models it),
         ``iv_instruments_rejected`` (``ar_iv``: ``iv_overid`` above 3, the instruments are correlated with the
         innovations and the IV estimate is biased),
+        ``iv_error_may_exceed_20pct`` (``ar_iv``, and ``gated`` where the IV answers: a standard error above 6 %
+        of its parameter, so an error above 20 % is not a rare draw),
         ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
         variation and D is not trustworthy).
     static_stderr : dict

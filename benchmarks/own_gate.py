@@ -19,7 +19,8 @@ from benchmarks import common
 
 #: Every flag that tells the user not to trust a window's D.
 WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "unexplained_fluctuation", "low_excitation",
-                 "equilibrium_constraint_active", "own_fluctuation_unmodelled", "iv_instruments_rejected")
+                 "equilibrium_constraint_active", "own_fluctuation_unmodelled", "iv_instruments_rejected",
+                 "iv_error_may_exceed", "input_noise_too_large")
 #: Per-window quality entries kept in the JSON (to develop flags and gates on).
 QUALITY_KEYS = ("own_ratio_p", "own_ratio_q", "excitation_share_p", "iv_strength_p", "iv_strength_q", "iv_overid",
                 "iv_overid_white", "ar_order_p", "static_cond", "lowpass_hz")
