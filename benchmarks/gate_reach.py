@@ -115,6 +115,8 @@ def part_iv_flag() -> dict:
         within = [w for w in wins if not w["off"]]
         entry = {"role": role, "off": len(off), "within": len(within),
                  "off_noisy_inputs": sum(w["noisy"] for w in off), "off_ratio_0.5": sum(w["ratio"] == 0.5 for w in off),
+                 # Calibration of the IV's standard errors on these windows: std of error/SE per parameter (1: right).
+                 "z_std_ratio_0.5": np.std([w["z"] for w in wins if w["ratio"] == 0.5], axis=0).tolist(),
                  "indicators": {k: {"off": spread([f(w) for w in off]), "within": spread([f(w) for w in within])}
                                 for k, f in indicators.items()},
                  "sweep": [{"bound": b, "off_unflagged": sum(w["se_rel"].max() <= b for w in off),
