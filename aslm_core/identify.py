@@ -218,7 +218,8 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
             final, final_problem = r, longer
     cov_d = None
     extra: dict[str, float] = {}
-    if config.input_weighting == "spectral" and config.disturbance == "none":
+    oe_final, oe_problem, oe_prep = final, final_problem, prep  # the IV of the gated estimator starts here
+    if config.input_weighting == "spectral" and config.disturbance in ("none", "gated"):
         w = input_weighting.weighted_fit(window, config, final["d"], final_problem.k0 * prep.dt, prep.noise,
                                          EQUILIBRIUM_MARGIN)
         if w is not None:
@@ -231,15 +232,16 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
             final = {"d": w["d"], "cost": w["objective"], "iterations": w["iterations"] + it}
             extra["weighted_chi2"] = w["chi2"]
     if config.disturbance == "gated":
-        # Output error unless its own fluctuation share says it is not consistent; then the IV fit, unless its
-        # instruments are rejected (docs/numerics.md, "the gated composite").
+        # Output error (or its S-weighted refinement) unless output error's own fluctuation share says it is not
+        # consistent; then the IV fit from the output-error optimum, unless its instruments are rejected
+        # (docs/numerics.md, "the gated composite").  The share and its flags are output error's in both cases.
         oe = _result(final_problem, window, best, runs, prep, replace(config, disturbance="none"), t_start,
                      final=final, cov_d=cov_d, extra_quality={**extra, "gated_ar_iv": 0.0})
         if not oe.quality["own_ratio_p"] > OWN_UNMODELLED_RATIO:
             return replace(oe, config=config.to_dict())
-        iv_final, iv_cov, iv_extra = _disturbance_fit("ar_iv", final_problem, final, best, config)
+        iv_final, iv_cov, iv_extra = _disturbance_fit("ar_iv", oe_problem, oe_final, best, config)
         if iv_cov is not None and iv_extra["iv_overid"] <= IV_OVERID_MAX:
-            iv = _result(final_problem, window, best, runs, prep, replace(config, disturbance="ar_iv"), t_start,
+            iv = _result(oe_problem, window, best, runs, oe_prep, replace(config, disturbance="ar_iv"), t_start,
                          final=iv_final, cov_d=iv_cov, extra_quality={**iv_extra, "gated_ar_iv": 1.0})
             return replace(iv, config=config.to_dict())
         oe.quality.update({k: v for k, v in iv_extra.items() if k.startswith("iv_")})

@@ -92,8 +92,9 @@ class IdentifyConfig:
         ``iv_overid``), or the white-noise IV covariance and Sargan's statistic.  See docs/numerics.md.
     input_weighting : {"none", "spectral"}
         ``spectral``: where V or θ carries white PMU noise (exact inputs: today's fit, untouched) and
-        ``disturbance="none"``, D is refined from the output-error fit by weighting the residuals per frequency
-        by the inverse of the disturbance spectrum the inputs' noise adds through the model
+        ``disturbance="none"`` (or ``"gated"`` where its gate stays shut), D is refined from the output-error fit
+        by weighting the residuals per frequency by the inverse of the disturbance spectrum the inputs' noise
+        adds through the model
         (:mod:`aslm_core.input_weighting`), on the Wiener-smoothed V, θ and the unfiltered P, Q; standard errors
         from the weighted fit.  See docs/numerics.md.
     """
