@@ -55,6 +55,7 @@ CANDIDATES = {
     "Wiener V/θ + AR disturbance (IV)": IdentifyConfig(input_smoother="wiener", disturbance="ar_iv"),
     "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1"),
     "gated": IdentifyConfig(disturbance="gated"),
+    "gated, spectral weighting": IdentifyConfig(disturbance="gated", input_weighting="spectral"),
 }
 
 
@@ -148,7 +149,7 @@ def main(argv=None) -> dict:
     name = "own_fluctuation" + (f"_{args.tag}" if args.tag else "") + ("" if args.seed == SEED else f"_seed{args.seed}")
     if args.gate:
         recorded = common.read_json(name)
-        if "gated" in recorded["candidates"]:
+        if any(k.startswith("gated") for k in recorded["candidates"]):
             print_confirm(recorded, lambda run: f"{run['shape']}, {run['input_noise']}")
             return recorded
         return print_gate(recorded)
@@ -180,8 +181,8 @@ def main(argv=None) -> dict:
                 print(f"{shape} {ratio}, {cls}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
     out["total_s"] = time.perf_counter() - t_all
     print(common.md_table(HEAD, table))
-    if "output error" in names and "gated" in names:
-        out["gated"] = print_confirm(out, lambda run: f"{run['shape']}, {run['input_noise']}")
+    if "output error" in names and any(k.startswith("gated") for k in names):
+        out["confirm"] = print_confirm(out, lambda run: f"{run['shape']}, {run['input_noise']}")
     if not args.no_write:
         common.write_json(name + ("_quick" if args.quick else ""), out)
     if "output error" in names and "AR disturbance (IV)" in names:

@@ -151,7 +151,7 @@ def main(argv=None) -> dict:
     if args.gate:
         name = "own_fluctuation_andes" + (f"_{args.tag}" if args.tag else "") + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
         recorded = common.read_json(name)
-        if "gated" in recorded["candidates"]:
+        if any(k.startswith("gated") for k in recorded["candidates"]):
             print_confirm(recorded)
             return recorded
         for title, bound in (("gate on own_ratio_p", None), (f"and iv_overid ≤ {IV_OVERID_MAX:g}", IV_OVERID_MAX)):
@@ -186,8 +186,8 @@ def main(argv=None) -> dict:
             print(f"{shape} {ratio}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
     out["total_s"] = time.perf_counter() - t_all
     print(common.md_table(HEAD, table))
-    if "output error" in names and "gated" in names:
-        out["gated"] = print_confirm(out)
+    if "output error" in names and any(k.startswith("gated") for k in names):
+        out["confirm"] = print_confirm(out)
     if not args.no_write:
         name = "own_fluctuation_andes" + (f"_{args.tag}" if args.tag else "") + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
         common.write_json(name + ("_quick" if args.quick else ""), out)

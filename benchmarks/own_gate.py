@@ -110,12 +110,15 @@ def confirm_row(run: dict, label: str, gated: str = "gated", fallback: str = "ou
 
 
 def print_confirm(recorded: dict, label=lambda run: run["shape"]) -> dict:
-    """Print the gated estimator's confirmation table of a run (``gated`` and output error among its candidates)
-    and return its counts per row."""
-    body, counts = [], []
-    for run in recorded["runs"]:
-        row, c = confirm_row(run, label(run))
-        body.append(row)
-        counts.append({"shape": run["shape"], "ratio": run["ratio"], "input_noise": run.get("input_noise"), **c})
-    print("\ngated estimator (disturbance=\"gated\")\n" + common.md_table(CONFIRM_HEAD, body))
-    return {"rows": counts}
+    """Print the confirmation table of each gated candidate of a run (``gated``, ``gated, ...``; output error among
+    the candidates too) and return its counts per row, by candidate."""
+    out = {}
+    for name in (k for k in recorded["candidates"] if k.startswith("gated")):
+        body, counts = [], []
+        for run in recorded["runs"]:
+            row, c = confirm_row(run, label(run), gated=name)
+            body.append(row)
+            counts.append({"shape": run["shape"], "ratio": run["ratio"], "input_noise": run.get("input_noise"), **c})
+        print(f"\n{name}\n" + common.md_table(CONFIRM_HEAD, body))
+        out[name] = {"rows": counts}
+    return out
