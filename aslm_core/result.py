@@ -92,8 +92,9 @@ class IdentifyConfig:
         ``iv_overid``), or the white-noise IV covariance and Sargan's statistic.  See docs/numerics.md.
     input_weighting : {"none", "spectral"}
         ``spectral``: where V or θ carries white PMU noise (exact inputs: today's fit, untouched) and
-        ``disturbance="none"``, D is refined from the output-error fit by weighting the residuals per frequency
-        by the inverse of the disturbance spectrum the inputs' noise adds through the model
+        ``disturbance="none"`` (or ``"gated"`` where its gate stays shut), D is refined from the output-error fit
+        by weighting the residuals per frequency by the inverse of the disturbance spectrum the inputs' noise
+        adds through the model
         (:mod:`aslm_core.input_weighting`), on the Wiener-smoothed V, θ and the unfiltered P, Q; standard errors
         from the weighted fit.  See docs/numerics.md.
     """
@@ -162,6 +163,8 @@ class IdentificationResult:
         white-noise fit's D and standard errors are not to be trusted; ``disturbance="ar_iv"`` models it),
         ``iv_instruments_rejected`` (``ar_iv``: ``iv_overid`` above 3, the instruments are correlated with the
         innovations and the IV estimate is biased),
+        ``iv_error_may_exceed_20pct`` (``ar_iv``, and ``gated`` where the IV answers: a standard error above 6 %
+        of its parameter, so an error above 20 % is not a rare draw),
         ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
         variation and D is not trustworthy).
     static_stderr : dict

@@ -36,11 +36,12 @@ from aslm_core import IdentifyConfig, WindowError, identify  # noqa: E402
 from aslm_sim.cases import make_cases  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise import INPUT_NOISE, with_input_noise  # noqa: E402
-from benchmarks.own_gate import GATE_HEAD, WARNING_FLAGS, gated_row, window_records  # noqa: E402
+from benchmarks.own_gate import GATE_HEAD, WARNING_FLAGS, gated_row, print_confirm, window_records  # noqa: E402
 
 SEED = 43
-#: Seeds of the confirmation runs, fixed before any run on them.
-CONFIRM_SEEDS = (143,)
+#: Seeds of the confirmation runs, fixed before any run on them (243: the gated estimator's flag
+#: ``iv_error_may_exceed_20pct``, 2026-11-24, with ``--candidates "output error" gated``).
+CONFIRM_SEEDS = (143, 243)
 LEVEL = 2
 #: Target std(own ΔP) / std(clean P) of the windows.
 RATIOS = (0.0, 0.5, 0.9)
@@ -53,6 +54,8 @@ CANDIDATES = {
     "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv"),
     "Wiener V/θ + AR disturbance (IV)": IdentifyConfig(input_smoother="wiener", disturbance="ar_iv"),
     "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1"),
+    "gated": IdentifyConfig(disturbance="gated"),
+    "gated, spectral weighting": IdentifyConfig(disturbance="gated", input_weighting="spectral"),
 }
 
 
@@ -145,7 +148,11 @@ def main(argv=None) -> dict:
     args = ap.parse_args(argv)
     name = "own_fluctuation" + (f"_{args.tag}" if args.tag else "") + ("" if args.seed == SEED else f"_seed{args.seed}")
     if args.gate:
-        return print_gate(common.read_json(name))
+        recorded = common.read_json(name)
+        if any(k.startswith("gated") for k in recorded["candidates"]):
+            print_confirm(recorded, lambda run: f"{run['shape']}, {run['input_noise']}")
+            return recorded
+        return print_gate(recorded)
     names = args.candidates
     noisy = args.noise_shapes if args.noise_shapes is not None else args.shapes[:1]
     n = args.n or (8 if args.quick else 50)
@@ -174,6 +181,8 @@ def main(argv=None) -> dict:
                 print(f"{shape} {ratio}, {cls}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
     out["total_s"] = time.perf_counter() - t_all
     print(common.md_table(HEAD, table))
+    if "output error" in names and any(k.startswith("gated") for k in names):
+        out["confirm"] = print_confirm(out, lambda run: f"{run['shape']}, {run['input_noise']}")
     if not args.no_write:
         common.write_json(name + ("_quick" if args.quick else ""), out)
     if "output error" in names and "AR disturbance (IV)" in names:

@@ -161,3 +161,38 @@ def test_the_own_fluctuation_indicators_and_flags_are_the_output_error_fits(wind
         for k in ("own_ratio_p", "own_ratio_q", "excitation_share_p", "own_std_q"):
             assert rw.quality[k] == rd.quality[k]
         assert ("own_fluctuation_unmodelled" in rw.flags) == ("own_fluctuation_unmodelled" in rd.flags)
+
+
+def test_the_gated_estimator_composes_with_the_weighting(windows):
+    """``disturbance="gated"`` with ``input_weighting="spectral"``: the gate-shut answer is the S-weighted
+    refinement (on noisy inputs without own fluctuation exactly ``input_weighting="spectral"``'s), exact inputs
+    are identified exactly as by the gated estimator alone, and where the gate opens the answer is the IV's from
+    the output-error optimum, as without the weighting."""
+    gated = IdentifyConfig(disturbance="gated")
+    both = IdentifyConfig(disturbance="gated", input_weighting="spectral")
+    cases, noisy = windows
+    for w in noisy[:4]:
+        rs, rb = identify(w, config=SPECTRAL), identify(w, config=both)
+        assert rb.quality["gated_ar_iv"] == 0.0 and "weighted_chi2" in rb.quality
+        np.testing.assert_array_equal(rb.d, rs.d)
+        assert rb.stderr == rs.stderr and rb.flags == rs.flags and rb.objective == rs.objective
+        assert {k: v for k, v in rb.quality.items() if k != "gated_ar_iv"} == rs.quality
+    own = make_cases(3, level=2, seed=21, input_noise=False, own_sigma=0.0015)
+    exact = [c.window for c in cases[:2]] + [c.window for c in own]
+    opened = 0
+    for w in exact:
+        rg, rb = identify(w, config=gated), identify(w, config=both)
+        np.testing.assert_array_equal(rb.d, rg.d)
+        assert rb.stderr == rg.stderr and rb.flags == rg.flags and rb.quality == rg.quality
+        opened += rg.quality["gated_ar_iv"] == 1.0
+    assert opened >= 1  # the own fluctuation opens the gate on exact inputs too
+    opened = 0
+    for i, c in enumerate(own):
+        w = with_input_noise(c.window, V_REL, THETA_RAD, seed=100 + i)
+        rg, rb = identify(w, config=gated), identify(w, config=both)
+        assert rb.quality["gated_ar_iv"] == rg.quality["gated_ar_iv"]  # the gate reads output error's fit
+        if rg.quality["gated_ar_iv"] == 1.0:
+            np.testing.assert_array_equal(rb.d, rg.d)
+            assert rb.stderr == rg.stderr and rb.flags == rg.flags
+            opened += 1
+    assert opened >= 1

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from aslm_core import IdentifyConfig, identify
+from aslm_core.identify import IV_SE_MAX
 from aslm_core.instrumental import FIRST_LAG, instruments
 from aslm_sim.cases import make_cases
 
@@ -123,3 +124,18 @@ def test_the_gated_estimator_picks_output_error_or_the_iv_as_documented(grid_and
         assert rg.quality["gated_ar_iv"] == float(want is ri)
         picked_iv += want is ri
     assert picked_iv >= 3  # the fixture's own fluctuation is large enough that the gate opens on most windows
+
+
+def test_iv_answers_whose_standard_errors_allow_a_20_percent_error_are_flagged(grid_and_own):
+    """``iv_error_may_exceed_20pct``: on ``ar_iv``'s (and the gated estimator's IV) answers exactly where some
+    standard error exceeds ``IV_SE_MAX`` of its parameter; never on output error's."""
+    grid, own = grid_and_own
+    flagged = clear = 0
+    for c in grid[:2] + own:
+        ri, ro = identify(c.window, config=IV), identify(c.window)
+        wide = any(ri.stderr[k] > IV_SE_MAX * abs(ri.dynamic[k]) for k in ri.stderr)
+        assert ("iv_error_may_exceed_20pct" in ri.flags) == wide
+        assert "iv_error_may_exceed_20pct" not in ro.flags
+        flagged += wide
+        clear += not wide
+    assert flagged >= 1 and clear >= 1  # both sides of the bound occur on these windows
