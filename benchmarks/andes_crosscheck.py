@@ -192,7 +192,8 @@ def run_scenario(scenario: str, *, tf: float, tstep: float, amp: float, seed: in
 #: fraction of the window's mean V [-], θ noise std [rad]).
 PMU_CLASSES = dict(zip(("exact", "pmu003", "pmu01"), INPUT_NOISE, strict=True))
 #: The identifier's default and the one before issue 11 (no input smoother, no low-pass; spectral SEs both).
-VARIANTS = {"default": IdentifyConfig(), "none": IdentifyConfig(input_smoother="none")}
+#: "none": the identifier before issue 11 (no input smoother, no S-weighting).
+VARIANTS = {"default": IdentifyConfig(), "none": IdentifyConfig(input_smoother="none", input_weighting="none")}
 #: ``--weighting``: the default (the S-weighted refinement, :mod:`aslm_core.input_weighting`) against
 #: ``input_weighting="none"`` (the default until issue 11's follow-up).
 WEIGHTING_VARIANTS = {"default": IdentifyConfig(), "weighting none": IdentifyConfig(input_weighting="none")}
