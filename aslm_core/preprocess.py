@@ -25,11 +25,11 @@ FLOOR_TILT_MAX = 5.0
 #: input) is at most this, and at least :data:`STEP_SLOPE_Z` standard errors below 0, is taken as exact: the band
 #: holds the response to steps (e.g. the load's own switching seen through the network), not PMU noise.  −0.5 is
 #: halfway between the two shapes; development windows (docs/numerics.md, "The floor test on step-driven inputs"):
-#: white noise at 25–120 frames/s −1.9 to +1.7 (z ≥ −5.0), step-driven exact inputs at 100 frames/s −2.4 to −0.9.
+#: white noise at 25–120 frames/s −1.9 to +1.7 (z ≥ −6.4), step-driven exact inputs at 100 frames/s −2.4 to −0.9.
 STEP_SLOPE_MAX = -0.5
 #: Standard errors (``floor_slope_se``) the slope must lie below 0 for :data:`STEP_SLOPE_MAX` to apply [-]: at low
 #: rates the band is short and the slope's scatter wide, and white noise with ambient content at the band's lower
-#: edge reached z = −5.0 on the development windows.
+#: edge reached z = −6.4 on the development windows (θ, 0.03 % / 3e-4 rad).
 STEP_SLOPE_Z = 8.0
 
 
