@@ -31,7 +31,7 @@ from scipy import signal
 
 from aslm_core import motor, optimize, static
 from aslm_core.noise import reflected_mean
-from aslm_core.preprocess import FLOOR_TILT_MAX, Prepared, prepare
+from aslm_core.preprocess import Prepared, prepare, white_floor
 from aslm_core.problem import Problem
 from aslm_core.window import Window
 
@@ -375,9 +375,9 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
 
 
 def noisy_inputs(floors: dict[str, float]) -> bool:
-    """Whether V or θ carries white PMU noise by the smoother's rule (a flat floor band, ``floor_tilt_*`` at
-    most ``preprocess.FLOOR_TILT_MAX``, and a positive floor); exact inputs are left to the output-error fit."""
-    return any(floors.get(f"floor_tilt_{c}", math.inf) <= FLOOR_TILT_MAX and floors.get(f"noise_{c}", 0.0) > 0.0
+    """Whether V or θ carries white PMU noise by the smoother's rule (:func:`aslm_core.preprocess.white_floor`,
+    and a positive floor); exact inputs are left to the output-error fit."""
+    return any(f"floor_tilt_{c}" in floors and white_floor(floors, c) and floors.get(f"noise_{c}", 0.0) > 0.0
                for c in ("v", "theta"))
 
 

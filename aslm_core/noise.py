@@ -124,20 +124,44 @@ def channel_floors(V: np.ndarray, theta: np.ndarray, P: np.ndarray, Q: np.ndarra
     Returns
     -------
     dict
-        ``noise_v`` [pu], ``noise_theta`` [rad], ``noise_p``, ``noise_q`` [pu], and ``floor_tilt_v``,
+        ``noise_v`` [pu], ``noise_theta`` [rad], ``noise_p``, ``noise_q`` [pu], ``floor_tilt_v``,
         ``floor_tilt_theta`` [-]: the median power of the floor band's lower half over its upper half's
-        (~1 for white noise; well above where the band holds the input's own falling spectrum: exact inputs).
+        (~1 for white noise; well above where the band holds the input's own falling spectrum: exact inputs),
+        and ``floor_slope_v``, ``floor_slope_theta`` [-] with their standard error ``floor_slope_se`` [-]: the
+        slope of the band's log-periodogram on log(4·sin²(π·f/fs)) (:func:`_slope_design`), 0 for white noise,
+        −1 for an input driven by steps (a sampled random walk: white increments).
     """
     # One FFT call for the four and a partition instead of np.median: this runs for every window.
     x = np.stack([V, theta, P, Q])
     _, pxx = periodogram(x, fs)
-    vals = pxx[:, _floor_bins(x.shape[1], round(fs, 3), FLOOR_FROM_HZ)]
+    bins = _floor_bins(x.shape[1], round(fs, 3), FLOOR_FROM_HZ)
+    vals = pxx[:, bins]
     psd = _median(vals) / math.log(2.0)
     h = vals.shape[1] // 2
     tilt = _median(vals[:2, :h]) / np.maximum(_median(vals[:2, h:]), 1e-300)
+    xc, se = _slope_design(x.shape[1], round(fs, 3), FLOOR_FROM_HZ)
+    slope = np.log(np.maximum(vals[:2], 1e-300)) @ xc
     return {"noise_v": math.sqrt(psd[0] * fs / 2), "noise_theta": math.sqrt(psd[1] * fs / 2),
             "noise_p": math.sqrt(psd[2] * fs / 2), "noise_q": math.sqrt(psd[3] * fs / 2),
-            "floor_tilt_v": float(tilt[0]), "floor_tilt_theta": float(tilt[1])}
+            "floor_tilt_v": float(tilt[0]), "floor_tilt_theta": float(tilt[1]),
+            "floor_slope_v": float(slope[0]), "floor_slope_theta": float(slope[1]), "floor_slope_se": se}
+
+
+@lru_cache(maxsize=32)
+def _slope_design(n: int, fs: float, from_hz: float) -> tuple[np.ndarray, float]:
+    """The floor band's regressor of the log-periodogram slope, centred and scaled so that its dot product with
+    the bins' log power is the least-squares slope, and that slope's standard error for white noise [-].
+
+    The regressor is log(4·sin²(π·f/fs)), the log-spectrum of white noise's first difference: a random walk
+    (white increments, the sampled response to many small steps) has slope −1 on it at every rate, white
+    noise 0.  The log of a periodogram bin of a Gaussian series has variance π²/6 whatever its spectrum (a
+    log χ²₂), which gives the standard error without estimating a variance.
+    """
+    f = np.fft.rfftfreq(n, 1.0 / fs)[_floor_bins(n, fs, from_hz)]
+    x = np.log(4.0 * np.sin(np.pi * f / fs) ** 2)
+    x -= x.mean()
+    sxx = float(x @ x)
+    return x / sxx, math.sqrt(math.pi**2 / 6.0 / sxx)
 
 
 def _median(vals: np.ndarray) -> np.ndarray:

@@ -21,6 +21,16 @@ PREFILTER_FRACTION = 0.5
 #: white PMU noise: it is taken as exact (not smoothed).  Measured at 25–120 frames/s: white noise 0.4–2.3,
 #: exact inputs of the synthetic generator 14–1,600, 2 Hz low-passed noise (tests' equation window) 42–165.
 FLOOR_TILT_MAX = 5.0
+#: An input whose floor band's log-periodogram slope (``floor_slope_*``, 0 for white noise, −1 for a step-driven
+#: input) is at most this, and at least :data:`STEP_SLOPE_Z` standard errors below 0, is taken as exact: the band
+#: holds the response to steps (e.g. the load's own switching seen through the network), not PMU noise.  −0.5 is
+#: halfway between the two shapes; development windows (docs/numerics.md, "The floor test on step-driven inputs"):
+#: white noise at 25–120 frames/s −1.9 to +1.7 (z ≥ −6.4), step-driven exact inputs at 100 frames/s −2.4 to −0.9.
+STEP_SLOPE_MAX = -0.5
+#: Standard errors (``floor_slope_se``) the slope must lie below 0 for :data:`STEP_SLOPE_MAX` to apply [-]: at low
+#: rates the band is short and the slope's scatter wide, and white noise with ambient content at the band's lower
+#: edge reached z = −6.4 on the development windows (θ, 0.03 % / 3e-4 rad).
+STEP_SLOPE_Z = 8.0
 
 
 @dataclass
@@ -75,6 +85,28 @@ def _zero_phase(cutoff_hz: float, fs: float) -> np.ndarray:
     return signal.butter(4, cutoff_hz, fs=fs, output="sos")
 
 
+def white_floor(floors: dict[str, float], channel: str) -> bool:
+    """Whether an input's floor band holds white PMU noise rather than its own spectrum.
+
+    Parameters
+    ----------
+    floors : dict
+        :func:`aslm_core.noise.channel_floors`'s output.
+    channel : {"v", "theta"}
+
+    Returns
+    -------
+    bool
+        False (an exact input) where the band falls (``floor_tilt_*`` above :data:`FLOOR_TILT_MAX`) or has a
+        step-driven input's shape (``floor_slope_*`` at most :data:`STEP_SLOPE_MAX` and :data:`STEP_SLOPE_Z`
+        standard errors below 0).
+    """
+    if floors[f"floor_tilt_{channel}"] > FLOOR_TILT_MAX:
+        return False
+    slope = floors[f"floor_slope_{channel}"]
+    return not (slope <= STEP_SLOPE_MAX and slope <= -STEP_SLOPE_Z * floors["floor_slope_se"])
+
+
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,
             lowpass_hz: float | None = None, floors: bool = False, input_smoother: str = "none",
             input_cutoff_hz: float = 3.0) -> Prepared:
@@ -97,7 +129,7 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     input_smoother : {"none", "wiener", "wiener_lowpass", "zero_phase"}
         Applied to V and θ only, before the low-pass: ``wiener`` replaces them by their conditional
         mean given the window, with the noise std from their floors (:func:`aslm_core.noise.wiener_smooth`;
-        an input whose floor band is not flat, ``floor_tilt_*`` above ``FLOOR_TILT_MAX``, is taken as exact);
+        an input whose floor band is not white noise's, :func:`white_floor`, is taken as exact);
         ``wiener_lowpass`` does the same and then, unless ``lowpass_hz`` is given, low-passes all four
         channels as ``lowpass_hz`` would at ``PREFILTER_FRACTION`` × the lower of V's and θ's signal
         cut-off (where their power sinks to the noise floor; no low-pass when neither does: exact inputs);
@@ -174,9 +206,8 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         raise ValueError(f"input_smoother must be one of {INPUT_SMOOTHERS}, got {input_smoother!r}")
     wiener = input_smoother in ("wiener", "wiener_lowpass")
     est = noise.channel_floors(V, theta, P, Q, 1.0 / dt) if floors or wiener else {}
-    # The inputs' white noise: none where the floor band is not flat (an exact input's own spectrum).
-    white = {k: (est[k] if est[f"floor_tilt_{k[6:]}"] <= FLOOR_TILT_MAX else 0.0) for k in ("noise_v", "noise_theta")
-             if k in est}
+    # The inputs' white noise: none where the floor band is not white (an exact input's own spectrum).
+    white = {k: (est[k] if white_floor(est, k[6:]) else 0.0) for k in ("noise_v", "noise_theta") if k in est}
     if est:
         est.update(noise.input_ratios(V, theta, white))
     input_error = None

@@ -31,7 +31,7 @@ other motor data are the same).  Run::
 ``--input-noise``: white PMU noise on V and θ (issue 11's two classes) added to the exact ANDES record,
 many P/Q noise draws per window over seeds 1–10 of both scenarios, the default identifier against
 ``input_smoother="none"`` (:func:`input_noise_study`; docs/andes_crosscheck.md, "Noise on V and θ");
-with ``--weighting`` the default against ``input_weighting="spectral"`` instead (JSON
+with ``--weighting`` the default (``input_weighting="spectral"``) against ``input_weighting="none"`` instead (JSON
 ``andes_crosscheck_input_noise_weighting``).
 """
 
@@ -192,9 +192,11 @@ def run_scenario(scenario: str, *, tf: float, tstep: float, amp: float, seed: in
 #: fraction of the window's mean V [-], θ noise std [rad]).
 PMU_CLASSES = dict(zip(("exact", "pmu003", "pmu01"), INPUT_NOISE, strict=True))
 #: The identifier's default and the one before issue 11 (no input smoother, no low-pass; spectral SEs both).
-VARIANTS = {"default": IdentifyConfig(), "none": IdentifyConfig(input_smoother="none")}
-#: ``--weighting``: the default against the S-weighted option (:mod:`aslm_core.input_weighting`).
-WEIGHTING_VARIANTS = {"default": IdentifyConfig(), "spectral": IdentifyConfig(input_weighting="spectral")}
+#: "none": the identifier before issue 11 (no input smoother, no S-weighting).
+VARIANTS = {"default": IdentifyConfig(), "none": IdentifyConfig(input_smoother="none", input_weighting="none")}
+#: ``--weighting``: the default (the S-weighted refinement, :mod:`aslm_core.input_weighting`) against
+#: ``input_weighting="none"`` (the default until issue 11's follow-up).
+WEIGHTING_VARIANTS = {"default": IdentifyConfig(), "weighting none": IdentifyConfig(input_weighting="none")}
 #: Flags that say a window's answer is not to be trusted as it stands.
 WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "input_noise_too_large")
 
@@ -428,7 +430,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--draws", type=int, default=100, help="study: P/Q noise draws per window and SNR")
     p.add_argument("--workers", type=int, default=1, help="study: identification threads")
     p.add_argument("--weighting", action="store_true",
-                   help="study: the default against input_weighting='spectral' (instead of input_smoother='none')")
+                   help="study: the default against input_weighting='none' (instead of input_smoother='none')")
     args = p.parse_args(argv)
     scen = list(MAIN_SCENARIOS) if args.scenario == "all" else [args.scenario]
     if args.input_noise is not None:

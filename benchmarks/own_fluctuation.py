@@ -45,16 +45,19 @@ CONFIRM_SEEDS = (143, 243)
 LEVEL = 2
 #: Target std(own ΔP) / std(clean P) of the windows.
 RATIOS = (0.0, 0.5, 0.9)
+#: Each with the options it was measured with, not the defaults (which became the S-weighted, gated estimator).
 CANDIDATES = {
-    "output error": IdentifyConfig(),
-    "low-pass 2 Hz": IdentifyConfig(lowpass_hz=2.0),
-    "Wiener V/θ + adaptive low-pass": IdentifyConfig(input_smoother="wiener_lowpass"),
-    "AR disturbance (PEM)": IdentifyConfig(disturbance="ar"),
-    "Wiener V/θ + AR disturbance": IdentifyConfig(input_smoother="wiener", disturbance="ar"),
-    "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv"),
-    "Wiener V/θ + AR disturbance (IV)": IdentifyConfig(input_smoother="wiener", disturbance="ar_iv"),
-    "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1"),
-    "gated": IdentifyConfig(disturbance="gated"),
+    "output error": IdentifyConfig(disturbance="none", input_weighting="none"),
+    "low-pass 2 Hz": IdentifyConfig(lowpass_hz=2.0, input_weighting="none"),
+    "Wiener V/θ + adaptive low-pass": IdentifyConfig(input_smoother="wiener_lowpass", input_weighting="none"),
+    "AR disturbance (PEM)": IdentifyConfig(disturbance="ar", input_weighting="none"),
+    "Wiener V/θ + AR disturbance": IdentifyConfig(input_smoother="wiener", disturbance="ar",
+                                                  input_weighting="none"),
+    "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv", input_weighting="none"),
+    "Wiener V/θ + AR disturbance (IV)": IdentifyConfig(input_smoother="wiener", disturbance="ar_iv",
+                                                       input_weighting="none"),
+    "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1", input_weighting="none"),
+    "gated": IdentifyConfig(disturbance="gated", input_weighting="none"),
     "gated, spectral weighting": IdentifyConfig(disturbance="gated", input_weighting="spectral"),
 }
 

@@ -54,10 +54,13 @@ SHAPES = ("lowpass", "switching", "pink", "ramp")
 #: Own-process seeds of the confirmation runs, fixed before them (the development windows are seed 1's; 21: the
 #: gated estimator's flag ``iv_error_may_exceed_20pct``, 2026-11-24, ``--candidates "output error" gated``).
 CONFIRM_OWN_SEEDS = (11, 21)
-CANDIDATES = {"output error": IdentifyConfig(), "AR disturbance (PEM)": IdentifyConfig(disturbance="ar"),
-              "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv"),
-              "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1"),
-              "gated": IdentifyConfig(disturbance="gated")}
+#: Each with the options it was measured with, not the defaults (which became the S-weighted, gated estimator).
+CANDIDATES = {"output error": IdentifyConfig(disturbance="none", input_weighting="none"),
+              "AR disturbance (PEM)": IdentifyConfig(disturbance="ar", input_weighting="none"),
+              "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv", input_weighting="none"),
+              "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1",
+                                                               input_weighting="none"),
+              "gated": IdentifyConfig(disturbance="gated", input_weighting="none")}
 F0 = 60.0
 
 

@@ -35,8 +35,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "network) or gated (none, and ar_iv where the window's own fluctuation share is above 0.3 "
                         "and its instruments pass; docs/numerics.md)")
     p.add_argument("--input-weighting", choices=list(get_args(InputWeighting)), default=IdentifyConfig.input_weighting,
-                   help="spectral: refine D by weighting the residuals per frequency with the noise V and θ carry "
-                        "through the model (noisy inputs only; about 2x the time there; docs/numerics.md)")
+                   help="spectral (default): refine D by weighting the residuals per frequency with the noise V and "
+                        "θ carry through the model (noisy inputs only; about 2x the time there); none: the "
+                        "output-error fit alone (docs/numerics.md)")
     p.set_defaults(func=run)
 
 

@@ -14,6 +14,8 @@ from aslm_sim import make_cases
 from tests.aslm_core.test_noise import THETA_RAD, V_REL, with_input_noise
 
 SPECTRAL = IdentifyConfig(input_weighting="spectral")
+#: The output-error fit alone (the default until issue 11's follow-up): what the refinement starts from.
+NONE = IdentifyConfig(input_weighting="none")
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +30,7 @@ def test_weighting_lowers_the_spread_on_noisy_inputs_and_stays_unbiased(windows)
     0.082 / 0.043 / 0.044 / 0.041; the summed mean square falls by 67 %, held here to at least 40 %."""
     cases, noisy = windows
     truth = np.array([c.truth.d for c in cases])
-    default = np.array([identify(w).d for w in noisy]) / truth
+    default = np.array([identify(w, config=NONE).d for w in noisy]) / truth
     weighted = np.array([identify(w, config=SPECTRAL).d for w in noisy]) / truth
     ms_default = np.mean((default - 1.0) ** 2, axis=0)
     ms_weighted = np.mean((weighted - 1.0) ** 2, axis=0)
@@ -43,12 +45,12 @@ def test_weighted_result_reports_its_fit(windows):
     assert 0.3 < r.quality["weighted_chi2"] < 3.0  # the whitened residual's mean square, ~1 when S is right
     assert r.quality["lowpass_hz"] == 0.0  # the weighting replaces the low-pass
     assert all(np.isfinite(list(r.stderr.values())))
-    assert "weighted_chi2" not in identify(noisy[0]).quality
+    assert "weighted_chi2" not in identify(noisy[0], config=NONE).quality
 
 
 def test_exact_inputs_are_identified_exactly_as_without_the_option(windows):
     for c in windows[0][:3]:
-        r0, r1 = identify(c.window), identify(c.window, config=SPECTRAL)
+        r0, r1 = identify(c.window, config=NONE), identify(c.window, config=SPECTRAL)
         np.testing.assert_array_equal(r1.d, r0.d)
         assert r1.stderr == r0.stderr
         assert r1.flags == r0.flags
@@ -99,7 +101,7 @@ def test_impulse_response_is_the_models_response_to_an_input_error(windows):
     0.6–4.3 % per input and channel; 10–12 % when H was taken at the regression start with the static slope
     at that sample's V)."""
     w = windows[1][0]
-    d = identify(w).d
+    d = identify(w, config=NONE).d
     prep = prepare(w, floors=True, input_smoother="wiener")
     pb = Problem(prep, w.f0, IdentifyConfig())
     assert iw._simulate(pb, d)
@@ -132,7 +134,7 @@ def test_the_fit_uses_the_bins_up_to_a_tenth_of_the_reporting_rate(windows):
     biased D at 25–30 frames/s (docs/numerics.md): those bins get zero weight, and the χ²'s degrees of freedom
     count only the kept ones."""
     w = windows[1][0]
-    d = identify(w).d
+    d = identify(w, config=NONE).d
     prep = prepare(w, floors=True, input_smoother="wiener")
     pb = Problem(prep, w.f0, IdentifyConfig())
     white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
@@ -156,7 +158,7 @@ def test_the_own_fluctuation_indicators_and_flags_are_the_output_error_fits(wind
     (and ``own_fluctuation_unmodelled``, tuned on output error) are read from the output-error fit instead."""
     _, noisy = windows
     for w in noisy[:6]:
-        rd, rw = identify(w), identify(w, config=SPECTRAL)
+        rd, rw = identify(w, config=NONE), identify(w, config=SPECTRAL)
         assert "weighted_chi2" in rw.quality
         for k in ("own_ratio_p", "own_ratio_q", "excitation_share_p", "own_std_q"):
             assert rw.quality[k] == rd.quality[k]
@@ -168,7 +170,7 @@ def test_the_gated_estimator_composes_with_the_weighting(windows):
     refinement (on noisy inputs without own fluctuation exactly ``input_weighting="spectral"``'s), exact inputs
     are identified exactly as by the gated estimator alone, and where the gate opens the answer is the IV's from
     the output-error optimum, as without the weighting."""
-    gated = IdentifyConfig(disturbance="gated")
+    gated = IdentifyConfig(disturbance="gated", input_weighting="none")
     both = IdentifyConfig(disturbance="gated", input_weighting="spectral")
     cases, noisy = windows
     for w in noisy[:4]:
@@ -196,3 +198,8 @@ def test_the_gated_estimator_composes_with_the_weighting(windows):
             assert rb.stderr == rg.stderr and rb.flags == rg.flags
             opened += 1
     assert opened >= 1
+
+
+def test_the_weighting_is_the_default():
+    """Issue 11: one default for the Python API, the CLI and the service (both build IdentifyConfig)."""
+    assert IdentifyConfig().input_weighting == "spectral"

@@ -42,7 +42,7 @@ def test_weighting_part_runs_both_estimators_on_the_same_windows():
     per = weighting_run(1, 1)
     assert len(per) == len(LEVELS) * len(INPUT_NOISE) * len(WEIGHTING)
     for level in LEVELS:
-        assert per[f"{level}|none|default"]["ratio"] == per[f"{level}|none|spectral"]["ratio"]
+        assert per[f"{level}|none|none"]["ratio"] == per[f"{level}|none|spectral"]["ratio"]  # estimator "none": no weighting
     var = {str(level): {"exact": [1e-4] * 4, **{f"{c}|structural": [1e-3] * 4 for c, _, _ in INPUT_NOISE[1:]}}
            for level in LEVELS}
     per2 = {k: {f: v[f] * 2 for f in v} for k, v in per.items()}  # two windows: σ needs more than one
