@@ -78,6 +78,8 @@ class IdentifyConfig:
         IV covariance (``"ar1"``).  ``gated``: output error's answer where its ``own_ratio_p`` is at most
         0.3 (``OWN_UNMODELLED_RATIO``), else ``ar_iv``'s unless its instruments are rejected (``iv_overid`` above
         ``IV_OVERID_MAX``), then output error's with its warning; ``quality["gated_ar_iv"]`` says which (1: IV).
+        ``gated`` is the default (one default for the Python API, the CLI and the service, with
+        ``input_weighting="spectral"``: issues 11 and 20); ``none`` is output error alone.
         See docs/numerics.md.
     ar_max_order : int
         Longest AR noise model tried [samples].
@@ -115,7 +117,7 @@ class IdentifyConfig:
     max_gap_samples: int = 5
     min_duration_s: float = 5.0
     coarse_to_fine: bool = True
-    disturbance: Disturbance = "none"
+    disturbance: Disturbance = "gated"
     ar_max_order: int = 30
     stderr_method: StderrMethod = "spectral"
     input_weighting: InputWeighting = "spectral"

@@ -16,6 +16,8 @@ from aslm_core.instrumental import FIRST_LAG, instruments
 from aslm_sim.cases import make_cases
 
 IV = IdentifyConfig(disturbance="ar_iv")
+#: Output error, explicitly: the default is the gated estimator, which picks output error or the IV per window.
+OE = IdentifyConfig(disturbance="none")
 
 
 def test_instruments_are_the_regressors_lagged_from_the_first_lag_on():
@@ -49,10 +51,10 @@ def test_strong_valid_instruments_without_own_fluctuation(grid_and_own):
 def test_output_error_flags_an_own_fluctuation_it_does_not_model(grid_and_own):
     grid, own = grid_and_own
     for c in grid:
-        assert "own_fluctuation_unmodelled" not in identify(c.window).flags
+        assert "own_fluctuation_unmodelled" not in identify(c.window, config=OE).flags
     flagged = 0
     for c in own:
-        ro, ri = identify(c.window), identify(c.window, config=IV)
+        ro, ri = identify(c.window, config=OE), identify(c.window, config=IV)
         assert ("own_fluctuation_unmodelled" in ro.flags) == (ro.quality["own_ratio_p"] > 0.3)
         assert "own_fluctuation_unmodelled" not in ri.flags  # ar_iv models it
         flagged += "own_fluctuation_unmodelled" in ro.flags
@@ -105,13 +107,13 @@ def test_the_gated_estimator_picks_output_error_or_the_iv_as_documented(grid_and
     grid, own = grid_and_own
     gated = IdentifyConfig(disturbance="gated")
     for c in grid:
-        ro, rg = identify(c.window), identify(c.window, config=gated)
+        ro, rg = identify(c.window, config=OE), identify(c.window, config=gated)
         np.testing.assert_array_equal(rg.d, ro.d)
         assert rg.stderr == ro.stderr and rg.flags == ro.flags and rg.quality["gated_ar_iv"] == 0.0
         assert rg.config["disturbance"] == "gated"
     picked_iv = 0
     for c in own:
-        ro, ri, rg = identify(c.window), identify(c.window, config=IV), identify(c.window, config=gated)
+        ro, ri, rg = identify(c.window, config=OE), identify(c.window, config=IV), identify(c.window, config=gated)
         if not ro.quality["own_ratio_p"] > 0.3:
             want = ro
         elif ri.quality["iv_overid"] <= 3.0:
@@ -132,7 +134,7 @@ def test_iv_answers_whose_standard_errors_allow_a_20_percent_error_are_flagged(g
     grid, own = grid_and_own
     flagged = clear = 0
     for c in grid[:2] + own:
-        ri, ro = identify(c.window, config=IV), identify(c.window)
+        ri, ro = identify(c.window, config=IV), identify(c.window, config=OE)
         wide = any(ri.stderr[k] > IV_SE_MAX * abs(ri.dynamic[k]) for k in ri.stderr)
         assert ("iv_error_may_exceed_20pct" in ri.flags) == wide
         assert "iv_error_may_exceed_20pct" not in ro.flags
