@@ -4,6 +4,7 @@
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm    # once, after tuning: the result
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm2   # the second confirmation (below)
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm3   # the third, once (docs/diagnosis.md)
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once
 
 Each scenario of :mod:`aslm_sim.andes.effects` (a kind and a seed: the motor data, the effect's magnitude,
 the ambient noise) is simulated by ANDES for 22 s (10 ms step) and cut into two 10 s windows (2–12 s,
@@ -55,6 +56,9 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     # 10 clean) added to tune on; confirm3 was fixed here, committed, and simulated before any diagnosis of it.
     "dev3": {"clean": tuple(range(301, 311)), "effect": tuple(range(301, 307))},
     "confirm3": {"clean": tuple(range(9201, 9211)), "effect": tuple(range(9201, 9205))},
+    # Fourth round (issue 12): confirm3 has been seen too; confirm4 was fixed here and committed before it was
+    # simulated or diagnosed, its seeds disjoint from every seed above.
+    "confirm4": {"clean": tuple(range(9301, 9311)), "effect": tuple(range(9301, 9305))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
