@@ -44,6 +44,7 @@ from scipy import stats
 
 from aslm_core.diagnosis import engine
 from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
+from aslm_core.diagnosis.identify_options import pinned_config
 from aslm_core.diagnosis.locate import locate, periodogram
 from aslm_core.diagnosis.noise import BAND_HZ, NoiseModel, dct_band
 from aslm_core.diagnosis.noise import estimate as estimate_noise
@@ -63,7 +64,6 @@ from aslm_core.diagnosis.report import (
 from aslm_core.diagnosis.segment import Segment, make_segment
 from aslm_core.identify import identify
 from aslm_core.params import DYNAMIC_NAMES
-from aslm_core.result import IdentifyConfig
 from aslm_core.window import Window
 
 _PLAIN = Candidate()
@@ -139,9 +139,10 @@ def _plain_d(seg: Segment, previous, config: DiagnosisConfig) -> np.ndarray:
     warm = None
     if previous is not None:
         warm = previous.d if hasattr(previous, "d") else np.array([previous["dynamic"][k] for k in DYNAMIC_NAMES])
-    # The diagnosis's own fits use its fixed skip; the plain D is their start, on the same samples.
-    cfg = IdentifyConfig(skip_s=config.skip_s, transient_tau=0.0, min_duration_s=2.0,
-                         n_starts=1 if warm is not None else 3)
+    # The diagnosis's own fits use its fixed skip; the plain D is their start, on the same samples.  The
+    # identifier's other options are pinned (identify_options), not taken from its defaults.
+    cfg = pinned_config(skip_s=config.skip_s, transient_tau=0.0, min_duration_s=2.0,
+                        n_starts=1 if warm is not None else 3)
     return identify(w, warm_start=warm, config=cfg).d
 
 
