@@ -247,6 +247,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--set", choices=list(SETS), required=True)
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     p.add_argument("--kinds", default="", help="comma-separated kinds (default: all)")
+    p.add_argument("--seeds", default="", help="comma-separated seeds of the set to run (default: all)")
     p.add_argument("--noise", choices=("pq", "input", "both"), default="both",
                    help="noise on P and Q only, on V and θ too, or both runs (default)")
     p.add_argument("--no-write", action="store_true")
@@ -257,13 +258,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--simulate-only", action="store_true",
                    help="only fill the recording cache (ANDES), diagnose and score nothing")
     args = p.parse_args(argv)
+    only = {int(x) for x in args.seeds.split(",") if x}
+    todo_jobs = [(k, s) for k, s in jobs(args.set, [k for k in args.kinds.split(",") if k] or None)
+                 if not only or s in only]
     if args.simulate_only:
-        return simulate_only(jobs(args.set, [k for k in args.kinds.split(",") if k] or None), args.workers)
+        return simulate_only(todo_jobs, args.workers)
     from aslm_core.diagnosis.candidates import MODULES
 
     modes = {"pq": (False,), "input": (True,), "both": (False, True)}[args.noise]
-    todo = [(k, s, modes) for k, s in jobs(args.set, [k for k in args.kinds.split(",") if k] or None)
-            if not args.cached_only or any(cache_dir().glob(f"v*-{k}-{s}-*.npz"))]
+    todo = [(k, s, modes) for k, s in todo_jobs if not args.cached_only or any(cache_dir().glob(f"v*-{k}-{s}-*.npz"))]
     partial = cache_dir() / f"diagnosis_independent_{args.set}{'_' + args.tag if args.tag else ''}.partial.jsonl"
     partial.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
