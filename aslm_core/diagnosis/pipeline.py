@@ -357,13 +357,7 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         left = _remaining(analyses, best.name)
         best.remaining_excess_channels = left
         if frac >= config.explained_fraction or not left:
-            # Rivals: every other candidate that explains the held-out data (score test and penalty), the
-            # magnitude guard aside — a rival whose magnitude is loosely determined still fits as well.
-            # A candidate's declared look-alikes (``Candidate.confusable``) are rivals whenever they were
-            # fitted: the best one must beat them on the paired test even when they miss the score test.
-            look_alikes = LIBRARY[best.name].confusable
-            rivals = [e for e in entries if e is not best and e.tested and e.penalised_gain is not None
-                      and ((e.score_z > zcrit and e.penalised_gain > 0) or e.name in look_alikes)]
+            rivals = _rivals(analyses, entries, best, zcrit)
             tied = sorted([best, *_unseparated(analyses, best, rivals, config)], key=lambda e: -e.penalised_gain)
             causes = [e.name for e in tied]
             if len(tied) == 1:
@@ -409,6 +403,24 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         message=message, elapsed_s=time.perf_counter() - t0, mode=a0.ctx.mode,
         parameter_mismatch=mismatch_info, series=series,
     )
+
+
+def _rivals(analyses: list[_WindowAnalysis], entries: list[CandidateEntry], best: CandidateEntry,
+            zcrit: float) -> list[CandidateEntry]:
+    """The candidates the best one must be separated from before it is named.
+
+    Every other tested candidate that explains the held-out data (score test and penalty), the magnitude
+    guard aside — a rival whose magnitude is loosely determined still fits as well — and the best one's
+    declared look-alikes (``Candidate.confusable``) whenever they were fitted, even when they miss the score
+    test.  Not a rival: a fit whose parameters are outside what its physics can be (``Candidate.implausible``,
+    round 4 of issue 12): it fits something else, e.g. a "second motor" with a flywheel's inertia and no load
+    torque standing in for a torque-speed law, and is no competing explanation.
+    """
+    a0 = analyses[0]
+    look_alikes = LIBRARY[best.name].confusable
+    return [e for e in entries if e is not best and e.tested and e.penalised_gain is not None
+            and ((e.score_z > zcrit and e.penalised_gain > 0) or e.name in look_alikes)
+            and LIBRARY[e.name].implausible(e.parameters, a0.seg, a0.ctx) is None]
 
 
 def _separation_z(analyses: list[_WindowAnalysis], best: str, rival: str, config: DiagnosisConfig) -> float:

@@ -30,6 +30,12 @@ H22_MIN = 0.05  # [s]
 #: has 2-3 times the aggregate's (ANDES second motors of 1.8-3 × rr1 have b2 = 37-69 1/s, all above the
 #: paper's 30 for the aggregate motor).
 B2_MAX = 90.0
+#: Largest plausible H22/Tm2 [s]: the ratio is 2H/τ_load of the group on its own base, whatever its size —
+#: at most ~10 s of 2H (motor and driven load) over a load torque of at least ~0.25 pu.  Fits above it are a
+#: "motor" with the inertia of a flywheel and almost no load, i.e. a slow torque-speed or frequency term
+#: (ANDES development data: real second motors fitted at 1.0-5.3 s, the self-test's at 0.4-26 s; the
+#: candidate mimicking speed-dependent torque or frequency dependence at 51-3e9 s).
+MAX_H_PER_TORQUE_S = 40.0
 
 
 class SecondMotor(Candidate):
@@ -66,6 +72,13 @@ class SecondMotor(Candidate):
         lo[0], lo[2] = A2_MIN, H22_MIN
         hi[1] = B2_MAX
         return lo, np.maximum(hi, lo + 1e-6)
+
+    def implausible(self, params: dict[str, float], seg: Segment, ctx: Context) -> str | None:
+        ratio = params.get("H22", 0.0) / max(params.get("Tm2", 0.0), 1e-12)
+        if ratio > MAX_H_PER_TORQUE_S:
+            return (f"H22/Tm2 = {ratio:.3g} s > {MAX_H_PER_TORQUE_S:g} s: an inertia with almost no load torque, "
+                    "not a motor group")
+        return None
 
     def motor_power(self, seg: Segment, d: np.ndarray, z: np.ndarray):
         m1 = simulate_motor(seg, d)
