@@ -101,10 +101,6 @@ class DiagnosisConfig:
         rival the top candidate beats is still not separated from it when the rival, in turn, explains
         held-out data the top candidate leaves (its own paired statistic against the top one rejected):
         then each holds something the other lacks and neither is named.  None: no reverse comparison.
-    encompassing_needs_significance : bool
-        Make the reverse comparison only with rivals that are significant themselves (score test, penalty,
-        magnitude guard, plausibility): a rival whose own magnitude is not distinguishable from zero is no
-        explanation of its own.  False: with every separated rival (the rule of issue 12's third round).
     """
 
     train_fraction: float = 0.65
@@ -117,7 +113,6 @@ class DiagnosisConfig:
     prediction_variance: bool = True
     separation_alpha: float = 0.05
     encompassing_alpha: float | None = 0.05
-    encompassing_needs_significance: bool = True
 
 
 @dataclass
@@ -471,10 +466,7 @@ def _unseparated(analyses: list[_WindowAnalysis], best: CandidateEntry, rivals: 
         # reverse comparisons are a family too (Holm over the separated rivals): when the top candidate is
         # right every reverse statistic is N(0, 1), and at 5 % each the self-test's true causes lost a rival
         # by chance in one window of eight.
-        # Only rivals that are significant themselves (round 4): where the truth is in the library the self-test
-        # lost right names to rivals fitted from another form whose magnitude was not distinguishable from zero.
-        back = {e.name: _separation_z(analyses, e.name, best.name, config) for e in rivals
-                if e.separated and (e.significant or not config.encompassing_needs_significance)}
+        back = {e.name: _separation_z(analyses, e.name, best.name, config) for e in rivals if e.separated}
         pback = {n: float(stats.norm.sf(z)) if math.isfinite(z) else 1.0 for n, z in back.items()}
         for j, name in enumerate(sorted(pback, key=pback.get)):
             if pback[name] > config.encompassing_alpha / (len(pback) - j):
