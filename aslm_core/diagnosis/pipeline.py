@@ -25,8 +25,9 @@ Method (DESIGN §3)
 5. Verdict: the top significant candidate explains the mismatch when it removes at least
    ``explained_fraction`` of the held-out ambient-band residual above the noise expectation.  It is named
    (``explained``) only when a paired held-out test separates it from every rival — every other candidate
-   passing the score test and the penalty — with Holm's procedure over the rivals, and the rival does not
-   in turn beat it on the reverse paired test (non-nested models are compared both ways); otherwise the verdict
+   passing the score test and the penalty, unless its fit is implausible — with Holm's procedure over the
+   rivals, and the rival does not in turn beat it on the reverse paired test (non-nested models are compared
+   both ways); otherwise the verdict
    is ``ambiguous`` and ``causes`` lists the unseparated ones, no pick.  ``unexplained`` when the residual
    exceeds the expected noise (or a candidate is significant but explains too little) — then only the
    location is reported; otherwise ``consistent``.
