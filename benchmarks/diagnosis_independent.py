@@ -4,6 +4,7 @@
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm    # once, after tuning: the result
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm2   # the second confirmation (below)
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm3   # the third, once (docs/diagnosis.md)
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once
 
 Each scenario of :mod:`aslm_sim.andes.effects` (a kind and a seed: the motor data, the effect's magnitude,
 the ambient noise) is simulated by ANDES for 22 s (10 ms step) and cut into two 10 s windows (2–12 s,
@@ -55,6 +56,9 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     # 10 clean) added to tune on; confirm3 was fixed here, committed, and simulated before any diagnosis of it.
     "dev3": {"clean": tuple(range(301, 311)), "effect": tuple(range(301, 307))},
     "confirm3": {"clean": tuple(range(9201, 9211)), "effect": tuple(range(9201, 9205))},
+    # Fourth round (issue 12): confirm3 has been seen too; confirm4 was fixed here and committed before it was
+    # simulated or diagnosed, its seeds disjoint from every seed above.
+    "confirm4": {"clean": tuple(range(9301, 9311)), "effect": tuple(range(9301, 9305))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
@@ -243,6 +247,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--set", choices=list(SETS), required=True)
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     p.add_argument("--kinds", default="", help="comma-separated kinds (default: all)")
+    p.add_argument("--seeds", default="", help="comma-separated seeds of the set to run (default: all)")
     p.add_argument("--noise", choices=("pq", "input", "both"), default="both",
                    help="noise on P and Q only, on V and θ too, or both runs (default)")
     p.add_argument("--no-write", action="store_true")
@@ -253,13 +258,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--simulate-only", action="store_true",
                    help="only fill the recording cache (ANDES), diagnose and score nothing")
     args = p.parse_args(argv)
+    only = {int(x) for x in args.seeds.split(",") if x}
+    todo_jobs = [(k, s) for k, s in jobs(args.set, [k for k in args.kinds.split(",") if k] or None)
+                 if not only or s in only]
     if args.simulate_only:
-        return simulate_only(jobs(args.set, [k for k in args.kinds.split(",") if k] or None), args.workers)
+        return simulate_only(todo_jobs, args.workers)
     from aslm_core.diagnosis.candidates import MODULES
 
     modes = {"pq": (False,), "input": (True,), "both": (False, True)}[args.noise]
-    todo = [(k, s, modes) for k, s in jobs(args.set, [k for k in args.kinds.split(",") if k] or None)
-            if not args.cached_only or any(cache_dir().glob(f"v*-{k}-{s}-*.npz"))]
+    todo = [(k, s, modes) for k, s in todo_jobs if not args.cached_only or any(cache_dir().glob(f"v*-{k}-{s}-*.npz"))]
     partial = cache_dir() / f"diagnosis_independent_{args.set}{'_' + args.tag if args.tag else ''}.partial.jsonl"
     partial.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal, stats
 
+from aslm_core.diagnosis.segment import butter_sos
 from aslm_core.noise import FLOOR_FROM_HZ, noise_floor, periodogram
 
 __all__ = ["FLOOR_FROM_HZ", "band_excess", "coherence", "locate", "noise_floor", "periodogram", "time_segments"]
@@ -142,8 +143,7 @@ def time_segments(r: np.ndarray, t: np.ndarray, fs: float, floor: dict, *, band:
     list of [t_start, t_end] [s]
     """
     hi = min(band[1], 0.45 * fs)
-    sos = signal.butter(4, hi, fs=fs, output="sos")
-    x = signal.sosfiltfilt(sos, signal.detrend(r))
+    x = signal.sosfiltfilt(butter_sos(float(hi), float(fs)), signal.detrend(r))
     w = max(3, int(round(win_s * fs)))
     ms = np.convolve(x * x, np.ones(w) / w, mode="same")
     fb, _ = periodogram(r, fs)

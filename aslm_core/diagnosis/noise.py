@@ -44,9 +44,9 @@ from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
-from scipy import fft, signal
+from scipy import fft
 
-from aslm_core.diagnosis.segment import Segment
+from aslm_core.diagnosis.segment import Segment, _lowpass
 from aslm_core.noise import FLOOR_FROM_HZ, noise_floor, periodogram
 
 #: Upper edge of the ambient band the fits and held-out tests use [Hz].
@@ -207,13 +207,6 @@ class NoiseModel:
         pr = self.probes_p if ch == "P" else self.probes_q
         extra = 0.0 if pr is None or not pr.shape[0] else float(np.mean(pr[:, sl] ** 2))
         return math.sqrt(s * s + extra)
-
-
-def _lowpass(x: np.ndarray, fs: float, fc: float) -> np.ndarray:
-    if fc >= 0.45 * fs:
-        return x
-    sos = signal.butter(4, fc, fs=fs, output="sos")
-    return signal.sosfiltfilt(sos, x)
 
 
 def perturbed(seg: Segment, V: np.ndarray, theta: np.ndarray) -> Segment:

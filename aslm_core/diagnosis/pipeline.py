@@ -25,8 +25,9 @@ Method (DESIGN §3)
 5. Verdict: the top significant candidate explains the mismatch when it removes at least
    ``explained_fraction`` of the held-out ambient-band residual above the noise expectation.  It is named
    (``explained``) only when a paired held-out test separates it from every rival — every other candidate
-   passing the score test and the penalty — with Holm's procedure over the rivals, and the rival does not
-   in turn beat it on the reverse paired test (non-nested models are compared both ways); otherwise the verdict
+   passing the score test and the penalty, unless its fit is implausible — with Holm's procedure over the
+   rivals, and the rival does not in turn beat it on the reverse paired test (non-nested models are compared
+   both ways); otherwise the verdict
    is ``ambiguous`` and ``causes`` lists the unseparated ones, no pick.  ``unexplained`` when the residual
    exceeds the expected noise (or a candidate is significant but explains too little) — then only the
    location is reported; otherwise ``consistent``.
@@ -44,6 +45,7 @@ from scipy import stats
 
 from aslm_core.diagnosis import engine
 from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
+from aslm_core.diagnosis.identify_options import pinned_config
 from aslm_core.diagnosis.locate import locate, periodogram
 from aslm_core.diagnosis.noise import BAND_HZ, NoiseModel, dct_band
 from aslm_core.diagnosis.noise import estimate as estimate_noise
@@ -63,7 +65,6 @@ from aslm_core.diagnosis.report import (
 from aslm_core.diagnosis.segment import Segment, make_segment
 from aslm_core.identify import identify
 from aslm_core.params import DYNAMIC_NAMES
-from aslm_core.result import IdentifyConfig
 from aslm_core.window import Window
 
 _PLAIN = Candidate()
@@ -139,9 +140,10 @@ def _plain_d(seg: Segment, previous, config: DiagnosisConfig) -> np.ndarray:
     warm = None
     if previous is not None:
         warm = previous.d if hasattr(previous, "d") else np.array([previous["dynamic"][k] for k in DYNAMIC_NAMES])
-    # The diagnosis's own fits use its fixed skip; the plain D is their start, on the same samples.
-    cfg = IdentifyConfig(skip_s=config.skip_s, transient_tau=0.0, min_duration_s=2.0,
-                         n_starts=1 if warm is not None else 3)
+    # The diagnosis's own fits use its fixed skip; the plain D is their start, on the same samples.  The
+    # identifier's other options are pinned (identify_options), not taken from its defaults.
+    cfg = pinned_config(skip_s=config.skip_s, transient_tau=0.0, min_duration_s=2.0,
+                        n_starts=1 if warm is not None else 3)
     return identify(w, warm_start=warm, config=cfg).d
 
 
@@ -351,13 +353,7 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         left = _remaining(analyses, best.name)
         best.remaining_excess_channels = left
         if frac >= config.explained_fraction or not left:
-            # Rivals: every other candidate that explains the held-out data (score test and penalty), the
-            # magnitude guard aside — a rival whose magnitude is loosely determined still fits as well.
-            # A candidate's declared look-alikes (``Candidate.confusable``) are rivals whenever they were
-            # fitted: the best one must beat them on the paired test even when they miss the score test.
-            look_alikes = LIBRARY[best.name].confusable
-            rivals = [e for e in entries if e is not best and e.tested and e.penalised_gain is not None
-                      and ((e.score_z > zcrit and e.penalised_gain > 0) or e.name in look_alikes)]
+            rivals = _rivals(analyses, entries, best, zcrit)
             tied = sorted([best, *_unseparated(analyses, best, rivals, config)], key=lambda e: -e.penalised_gain)
             causes = [e.name for e in tied]
             if len(tied) == 1:
@@ -403,6 +399,24 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         message=message, elapsed_s=time.perf_counter() - t0, mode=a0.ctx.mode,
         parameter_mismatch=mismatch_info, series=series,
     )
+
+
+def _rivals(analyses: list[_WindowAnalysis], entries: list[CandidateEntry], best: CandidateEntry,
+            zcrit: float) -> list[CandidateEntry]:
+    """The candidates the best one must be separated from before it is named.
+
+    Every other tested candidate that explains the held-out data (score test and penalty), the magnitude
+    guard aside — a rival whose magnitude is loosely determined still fits as well — and the best one's
+    declared look-alikes (``Candidate.confusable``) whenever they were fitted, even when they miss the score
+    test.  Not a rival: a fit whose parameters are outside what its physics can be (``Candidate.implausible``,
+    round 4 of issue 12): it fits something else, e.g. a "second motor" with a flywheel's inertia and no load
+    torque standing in for a torque-speed law, and is no competing explanation.
+    """
+    a0 = analyses[0]
+    look_alikes = LIBRARY[best.name].confusable
+    return [e for e in entries if e is not best and e.tested and e.penalised_gain is not None
+            and ((e.score_z > zcrit and e.penalised_gain > 0) or e.name in look_alikes)
+            and LIBRARY[e.name].implausible(e.parameters, a0.seg, a0.ctx) is None]
 
 
 def _separation_z(analyses: list[_WindowAnalysis], best: str, rival: str, config: DiagnosisConfig) -> float:

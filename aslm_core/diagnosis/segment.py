@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy import signal
@@ -83,11 +84,19 @@ class Segment:
         return 1.0 / self.dt
 
 
+@lru_cache(maxsize=16)
+def butter_sos(fc: float, fs: float) -> np.ndarray:
+    """4th-order Butterworth low-pass at ``fc`` [Hz] for rate ``fs`` [Hz], as second-order sections.
+
+    Cached: the design costs as much as the filtering, and the fits low-pass the same V hundreds of times.
+    """
+    return signal.butter(4, fc, fs=fs, output="sos")
+
+
 def _lowpass(x: np.ndarray, fs: float, fc: float) -> np.ndarray:
     if fc >= 0.45 * fs:
         return x
-    sos = signal.butter(4, fc, fs=fs, output="sos")
-    return signal.sosfiltfilt(sos, x)
+    return signal.sosfiltfilt(butter_sos(float(fc), float(fs)), x)
 
 
 def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float = 0.65,

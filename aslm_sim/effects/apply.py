@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from aslm_core.diagnosis.identify_options import pinned_config
 from aslm_core.identify import identify
 from aslm_core.window import Window
 from aslm_sim.cases import SyntheticCase, make_cases
@@ -11,6 +12,10 @@ from aslm_sim.effects import EFFECTS
 from aslm_sim.effects.base import EffectCase
 
 __all__ = ["apply_effect", "make_effect_cases"]
+
+#: The identifier that decides whether an effect is concealed: pinned, so the self-test's cases do not move
+#: with the identifier's defaults.
+_CONCEAL = pinned_config()
 
 
 def apply_effect(case: SyntheticCase, name: str, magnitude: float | None = None, *, seed: int = 0,
@@ -45,7 +50,7 @@ def apply_effect(case: SyntheticCase, name: str, magnitude: float | None = None,
     rng_m = np.random.default_rng([seed, 7])
     w = case.window
     if name == "none":
-        r = identify(w)
+        r = identify(w, config=_CONCEAL)
         return EffectCase(w, "none", {}, case, fd_plain=dict(r.fit))
     if name not in EFFECTS:
         raise ValueError(f"unknown effect {name!r}")
@@ -70,7 +75,7 @@ def apply_effect(case: SyntheticCase, name: str, magnitude: float | None = None,
                      meta={**w.meta, "effect": name})
         if not conceal:
             return EffectCase(win, name, truth, case, model, {}, scale)
-        r = identify(win)
+        r = identify(win, config=_CONCEAL)
         if min(r.fit["fd_p"], r.fit["fd_q"]) >= 0.9 or not effect.concealable:
             return EffectCase(win, name, truth, case, model, dict(r.fit), scale)
         scale *= 0.7

@@ -7,7 +7,7 @@ Two transformed third-order motors (eq. 4–5) driven by the same voltage, each 
     P = P_ZIP(V) + P_im(D) + P_im(D2),    Q = Q_ZIP(V) + Q_im(D) + Q_im(D2)
 
 (the second motor's V²/X'2 joins the static Qz like the first one's).  D2 has the units of D: a2 [1/s],
-b2 [1/s], H22 [s], Tm2 [pu], with a2·V² > 2·b2·Tm2; its box is the paper's with a2 ≥ 1 and H22 ≥ 0.05
+b2 [1/s], H22 [s], Tm2 [pu], with a2·V² > 2·b2·Tm2; its box is the paper's with a2 ≥ 1, H22 ≥ 0.05 and b2 ≤ 90
 (a smaller group has proportionally smaller a and H2 on the system base).  Four nonlinear parameters, fitted in the
 upper stage together with D from a few starts that split the load torque between a faster and a slower
 group.
@@ -26,6 +26,16 @@ from aslm_core.params import dynamic_bounds
 
 A2_MIN = 1.0  # [1/s]
 H22_MIN = 0.05  # [s]
+#: Upper bound of b2 [1/s]: b = X/(Td0·X') grows with the rotor resistance, and a group of smaller motors
+#: has 2-3 times the aggregate's (ANDES second motors of 1.8-3 × rr1 have b2 = 37-69 1/s, all above the
+#: paper's 30 for the aggregate motor).
+B2_MAX = 90.0
+#: Largest plausible H22/Tm2 [s]: the ratio is 2H/τ_load of the group on its own base, whatever its size —
+#: at most ~10 s of 2H (motor and driven load) over a load torque of at least ~0.25 pu.  Fits above it are a
+#: "motor" with the inertia of a flywheel and almost no load, i.e. a slow torque-speed or frequency term
+#: (ANDES development data: real second motors fitted at 1.0-5.3 s, the self-test's at 0.4-26 s; the
+#: candidate mimicking speed-dependent torque or frequency dependence at 51-3e9 s).
+MAX_H_PER_TORQUE_S = 40.0
 
 
 class SecondMotor(Candidate):
@@ -55,11 +65,20 @@ class SecondMotor(Candidate):
 
     def bounds(self, seg: Segment, ctx: Context):
         # D2 is a *part* of the load: a and H2 on the system base scale with its rating, so the paper's
-        # box (for the aggregate motor) is opened downwards for a2 and H22.
+        # box (for the aggregate motor) is opened downwards for a2 and H22, and upwards for b2 (smaller
+        # motors have a larger rotor resistance).
         lo, hi = dynamic_bounds(float(np.mean(seg.P)))
-        lo = lo.copy()
+        lo, hi = lo.copy(), hi.copy()
         lo[0], lo[2] = A2_MIN, H22_MIN
+        hi[1] = B2_MAX
         return lo, np.maximum(hi, lo + 1e-6)
+
+    def implausible(self, params: dict[str, float], seg: Segment, ctx: Context) -> str | None:
+        ratio = params.get("H22", 0.0) / max(params.get("Tm2", 0.0), 1e-12)
+        if ratio > MAX_H_PER_TORQUE_S:
+            return (f"H22/Tm2 = {ratio:.3g} s > {MAX_H_PER_TORQUE_S:g} s: an inertia with almost no load torque, "
+                    "not a motor group")
+        return None
 
     def motor_power(self, seg: Segment, d: np.ndarray, z: np.ndarray):
         m1 = simulate_motor(seg, d)

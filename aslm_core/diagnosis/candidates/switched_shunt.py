@@ -96,10 +96,16 @@ class SwitchedShunt(Candidate):
     signature = "steps of Q ∝ V² (not of P) after V stays beyond a threshold for a delay: a relay-switched bank"
     max_nfev = 10  # only D moves in the upper stage (the relay's data are scanned)
 
-    @staticmethod
-    def _relay_v(seg: Segment) -> np.ndarray:
-        # Recomputed per call (a fraction of a motor simulation): the noise model perturbs segments' V.
-        return _lowpass(seg.V, seg.fs, FREQ_LOWPASS_HZ)
+    _last_v: tuple = (None, None)  # (V, its low-passed copy): the fits ask for the same V hundreds of times
+
+    def _relay_v(self, seg: Segment) -> np.ndarray:
+        # Keyed on the V array itself, not the segment: the noise model perturbs segments' V (new arrays),
+        # and a segment copied with replace() shares its V.  Arrays here are never modified in place.
+        v, lp = self._last_v
+        if v is not seg.V:
+            lp = _lowpass(seg.V, seg.fs, FREQ_LOWPASS_HZ)
+            self._last_v = (seg.V, lp)
+        return lp
 
     def bounds(self, seg: Segment, ctx: Context):
         v = self._relay_v(seg)

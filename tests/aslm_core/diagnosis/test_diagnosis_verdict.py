@@ -122,3 +122,30 @@ def test_the_reverse_comparisons_are_a_family(monkeypatch):
     rivals = [SimpleNamespace(name=n) for n in back]
     left = pipeline._unseparated([], SimpleNamespace(name="top"), rivals, pipeline.DiagnosisConfig())
     assert [e.name for e in left] == ["r2"]
+
+
+def test_an_implausible_fit_is_no_rival():
+    """A "second motor" with a flywheel's inertia and hardly any load torque (H22/Tm2 = 500 s; real motor groups
+    fit at 0.4-26 s) is the candidate standing in for a torque-speed law: it is not significant and not a rival
+    the true cause must be separated from (round 4 of issue 12: ANDES dev3's speed-dependent torques became
+    `ambiguous` against such fits once b2's box was opened)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from aslm_core.diagnosis import pipeline
+    from aslm_core.diagnosis.candidates import LIBRARY
+
+    a = SimpleNamespace(seg=SimpleNamespace(f0=60.0, P=np.array([1.0])), ctx=None)
+
+    def entry(name, **params):
+        return SimpleNamespace(name=name, tested=True, penalised_gain=20.0, score_z=8.0, parameters=params)
+
+    best = entry("speed_dependent_torque", k=3.0)
+    flywheel = entry("second_motor", a2=1.2, b2=29.9, H22=3.0, Tm2=0.006)
+    motor = entry("second_motor", a2=21.0, b2=46.0, H22=0.08, Tm2=0.058)
+    freq = entry("frequency_dependence", Kpf=0.008, Kqf=0.002)
+    assert LIBRARY["second_motor"].implausible(flywheel.parameters, a.seg, None) is not None
+    assert LIBRARY["second_motor"].implausible(motor.parameters, a.seg, None) is None
+    assert pipeline._rivals([a], [best, flywheel, freq], best, 3.0) == [freq]
+    assert pipeline._rivals([a], [best, motor, freq], best, 3.0) == [motor, freq]
