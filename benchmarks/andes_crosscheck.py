@@ -193,10 +193,10 @@ def run_scenario(scenario: str, *, tf: float, tstep: float, amp: float, seed: in
 PMU_CLASSES = dict(zip(("exact", "pmu003", "pmu01"), INPUT_NOISE, strict=True))
 #: The identifier's default and the one before issue 11 (no input smoother, no low-pass; spectral SEs both).
 #: "none": the identifier before issue 11 (no input smoother, no S-weighting).
-VARIANTS = {"default": IdentifyConfig(), "none": IdentifyConfig(input_smoother="none", input_weighting="none")}
+VARIANTS = {"default": IdentifyConfig(), "none": IdentifyConfig(input_smoother="none", **common.OUTPUT_ERROR)}
 #: ``--weighting``: the default (the S-weighted refinement, :mod:`aslm_core.input_weighting`) against
 #: ``input_weighting="none"`` (the default until issue 11's follow-up).
-WEIGHTING_VARIANTS = {"default": IdentifyConfig(), "weighting none": IdentifyConfig(input_weighting="none")}
+WEIGHTING_VARIANTS = {"default": IdentifyConfig(), "weighting none": IdentifyConfig(**common.OUTPUT_ERROR)}
 #: Flags that say a window's answer is not to be trusted as it stands.
 WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "input_noise_too_large")
 

@@ -20,6 +20,9 @@ ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "reproduction.md"
 RESULTS = ROOT / "docs" / "results"
 PARAMS = ("a", "b", "H2", "Tm")
+#: ``IdentifyConfig`` options of output error without the noisy-input weighting: the identifier before the one
+#: default of issues 11 and 20 (``input_weighting="spectral"``, ``disturbance="gated"``), named by baselines.
+OUTPUT_ERROR = {"input_weighting": "none", "disturbance": "none"}
 PAPER_TABLE1 = {  # DL: (mean SNR, σ(a), μ(a), σ(b), μ(b), σ(H2), μ(H2), σ(Tm), μ(Tm))
     1: (14.24, 0.030, 1.001, 0.029, 1.005, 0.034, 0.993, 0.021, 1.000),
     2: (21.77, 0.022, 0.999, 0.024, 1.002, 0.028, 0.999, 0.016, 1.000),

@@ -49,19 +49,21 @@ INPUT_NOISE = (("none", 0.0, 0.0), ("0.03 % / 3e-4 rad", 3e-4, 3e-4), ("0.1 % / 
 #: The smoothers as output error's input conditioning (``input_weighting="none"``, the default until issue 11's
 #: follow-up made the S-weighted refinement the default; its row is the last).
 CANDIDATES = {
-    "none": IdentifyConfig(input_smoother="none", input_weighting="none"),
-    "causal low-pass 2 Hz": IdentifyConfig(input_smoother="none", lowpass_hz=2.0, input_weighting="none"),
-    "zero-phase V/θ 3 Hz": IdentifyConfig(input_smoother="zero_phase", input_cutoff_hz=3.0, input_weighting="none"),
-    "Wiener V/θ": IdentifyConfig(input_smoother="wiener", input_weighting="none"),
-    "Wiener V/θ + causal low-pass 2 Hz": IdentifyConfig(input_smoother="wiener", lowpass_hz=2.0, input_weighting="none"),
-    "Wiener V/θ + adaptive low-pass (default)": IdentifyConfig(input_weighting="none"),
-    "default, lag-1 SE rule": IdentifyConfig(stderr_method="ar1", input_weighting="none"),
+    "none": IdentifyConfig(input_smoother="none", **common.OUTPUT_ERROR),
+    "causal low-pass 2 Hz": IdentifyConfig(input_smoother="none", lowpass_hz=2.0, **common.OUTPUT_ERROR),
+    "zero-phase V/θ 3 Hz": IdentifyConfig(input_smoother="zero_phase", input_cutoff_hz=3.0,
+                                          **common.OUTPUT_ERROR),
+    "Wiener V/θ": IdentifyConfig(input_smoother="wiener", **common.OUTPUT_ERROR),
+    "Wiener V/θ + causal low-pass 2 Hz": IdentifyConfig(input_smoother="wiener", lowpass_hz=2.0,
+                                                        **common.OUTPUT_ERROR),
+    "Wiener V/θ + adaptive low-pass (default)": IdentifyConfig(**common.OUTPUT_ERROR),
+    "default, lag-1 SE rule": IdentifyConfig(stderr_method="ar1", **common.OUTPUT_ERROR),
     "default with the S-weighted refinement": IdentifyConfig(),
 }
 DEFAULT_ONLY = {"default": IdentifyConfig()}
 #: ``--rates --weighting``: the output-error fit alone and the S-weighted refinement (the default; docs/numerics.md).
-WITH_WEIGHTING = {"none": IdentifyConfig(input_weighting="none"), "spectral": IdentifyConfig()}
-COST = {"before issue 11": IdentifyConfig(input_smoother="none", stderr_method="ar1", input_weighting="none"),
+WITH_WEIGHTING = {"none": IdentifyConfig(**common.OUTPUT_ERROR), "spectral": IdentifyConfig()}
+COST = {"before issue 11": IdentifyConfig(input_smoother="none", stderr_method="ar1", **common.OUTPUT_ERROR),
         "default": IdentifyConfig()}
 #: Issue 11's targets per PMU class: |μ − 1| bound, and σ bound (absolute, or as a multiple of exact-input σ).
 TARGETS = {"0.03 % / 3e-4 rad": (0.01, "1.3x"), "0.1 % / 1e-3 rad": (0.02, 0.05)}

@@ -293,7 +293,7 @@ def record(bounds: list[dict], ests: list[dict], args, t_all: float) -> dict:
 
 #: ``--weighting``: the output-error fit alone against the S-weighted refinement (the default since issue 11's
 #: follow-up).
-WEIGHTING = {"none": IdentifyConfig(input_weighting="none"), "spectral": IdentifyConfig()}
+WEIGHTING = {"none": IdentifyConfig(**common.OUTPUT_ERROR), "spectral": IdentifyConfig()}
 #: ``--weighting``'s seed for the re-measurement with the S-weighted default, fixed before its run (2026-11-24).
 FLIP_SEED = 45
 

@@ -47,9 +47,9 @@ LEVEL = 2
 RATIOS = (0.0, 0.5, 0.9)
 #: Each with the options it was measured with, not the defaults (which became the S-weighted, gated estimator).
 CANDIDATES = {
-    "output error": IdentifyConfig(disturbance="none", input_weighting="none"),
-    "low-pass 2 Hz": IdentifyConfig(lowpass_hz=2.0, input_weighting="none"),
-    "Wiener V/θ + adaptive low-pass": IdentifyConfig(input_smoother="wiener_lowpass", input_weighting="none"),
+    "output error": IdentifyConfig(**common.OUTPUT_ERROR),
+    "low-pass 2 Hz": IdentifyConfig(lowpass_hz=2.0, **common.OUTPUT_ERROR),
+    "Wiener V/θ + adaptive low-pass": IdentifyConfig(input_smoother="wiener_lowpass", **common.OUTPUT_ERROR),
     "AR disturbance (PEM)": IdentifyConfig(disturbance="ar", input_weighting="none"),
     "Wiener V/θ + AR disturbance": IdentifyConfig(input_smoother="wiener", disturbance="ar",
                                                   input_weighting="none"),

@@ -55,7 +55,7 @@ SHAPES = ("lowpass", "switching", "pink", "ramp")
 #: gated estimator's flag ``iv_error_may_exceed_20pct``, 2026-11-24, ``--candidates "output error" gated``).
 CONFIRM_OWN_SEEDS = (11, 21)
 #: Each with the options it was measured with, not the defaults (which became the S-weighted, gated estimator).
-CANDIDATES = {"output error": IdentifyConfig(disturbance="none", input_weighting="none"),
+CANDIDATES = {"output error": IdentifyConfig(**common.OUTPUT_ERROR),
               "AR disturbance (PEM)": IdentifyConfig(disturbance="ar", input_weighting="none"),
               "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv", input_weighting="none"),
               "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1",

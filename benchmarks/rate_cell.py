@@ -26,7 +26,8 @@ from aslm_core import IdentifyConfig, identify  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise import INPUT_NOISE, with_input_noise  # noqa: E402
 
-ESTIMATORS = {"none": IdentifyConfig(input_weighting="none"), "spectral": IdentifyConfig(input_weighting="spectral")}
+ESTIMATORS = {"none": IdentifyConfig(**common.OUTPUT_ERROR),
+              "spectral": IdentifyConfig(input_weighting="spectral", disturbance="none")}
 SWAMPED = "input_noise_too_large"
 
 

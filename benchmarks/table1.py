@@ -112,9 +112,10 @@ def main(argv=None) -> dict:
             main_tab[k][level] = run_config(cs, cfg)
         cs_in = common.cases(n, level=level, seed=SEED, input_noise=True)
         # The identifier before issue 11's default (no input smoother), as these rows have always meant.
-        supp["rk4_no_filter"][level] = run_config(cs_in, IdentifyConfig(input_smoother="none", input_weighting="none"))
+        supp["rk4_no_filter"][level] = run_config(cs_in,
+                                                  IdentifyConfig(input_smoother="none", **common.OUTPUT_ERROR))
         supp["rk4_lowpass_2hz"][level] = run_config(cs_in, IdentifyConfig(input_smoother="none", lowpass_hz=2.0,
-                                                                                 input_weighting="none"))
+                                                                                 **common.OUTPUT_ERROR))
         print(f"level {level} done ({time.perf_counter() - t_all:.0f} s)", flush=True)
     clean = common.cases(n, level=None, seed=SEED)
     noise_free = {k: run_config(clean, cfg) for k, cfg in cfgs.items()}
