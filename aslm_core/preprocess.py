@@ -97,14 +97,22 @@ def white_floor(floors: dict[str, float], channel: str) -> bool:
     Returns
     -------
     bool
-        False (an exact input) where the band falls (``floor_tilt_*`` above :data:`FLOOR_TILT_MAX`) or has a
-        step-driven input's shape (``floor_slope_*`` at most :data:`STEP_SLOPE_MAX` and :data:`STEP_SLOPE_Z`
-        standard errors below 0).
+        False (an exact input) where the band falls (``floor_tilt_*`` above :data:`FLOOR_TILT_MAX`), or where V's
+        and θ's bands both have a step-driven input's shape (``floor_slope_*`` at most :data:`STEP_SLOPE_MAX` and
+        :data:`STEP_SLOPE_Z` standard errors below 0).  Both: a PMU's noise is on its magnitude and its angle
+        alike, so one channel with a white floor says the other's step shape is its own content on top of the
+        noise, not an exact input (ANDES at 0.03 % / 3e-4 rad: θ's band is step-shaped, slope −0.85 to −0.55, in
+        every window while V's is white; taking θ as exact there biased a by −2.6 %, docs/numerics.md).
     """
     if floors[f"floor_tilt_{channel}"] > FLOOR_TILT_MAX:
         return False
+    return not all(_step_shaped(floors, c) for c in ("v", "theta"))
+
+
+def _step_shaped(floors: dict[str, float], channel: str) -> bool:
+    """Whether an input's floor band has the shape of a step-driven input's (see :func:`white_floor`)."""
     slope = floors[f"floor_slope_{channel}"]
-    return not (slope <= STEP_SLOPE_MAX and slope <= -STEP_SLOPE_Z * floors["floor_slope_se"])
+    return slope <= STEP_SLOPE_MAX and slope <= -STEP_SLOPE_Z * floors["floor_slope_se"]
 
 
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,

@@ -202,6 +202,22 @@ def test_the_floor_test_tells_white_noise_from_a_step_driven_input():
     assert f["floor_slope_v"] == pytest.approx(-1.0, abs=0.25)
 
 
+def test_a_step_shaped_angle_beside_a_white_magnitude_is_taken_as_noisy():
+    """A PMU's noise is on both channels: θ's step-shaped band next to V's white one is θ's own content on top of
+    the noise (ANDES at 0.03 % / 3e-4 rad), so θ is smoothed too; only both step-shaped mark exact inputs."""
+    from aslm_core.preprocess import white_floor
+
+    rng = np.random.default_rng(8)
+    fs, n = 100.0, 1000
+    white = 1e-3 * rng.standard_normal(n)
+    walk = 1e-4 * np.cumsum(rng.standard_normal(n))
+    f = noise.channel_floors(1.0 + white, walk, 1.0 + white, 0.3 + white, fs)
+    assert f["floor_slope_theta"] < -0.8 and abs(f["floor_slope_v"]) < 0.3  # θ alone has the step shape
+    assert white_floor(f, "v") and white_floor(f, "theta")
+    f = noise.channel_floors(1.0 + walk, walk, 1.0 + white, 0.3 + white, fs)
+    assert not white_floor(f, "v") and not white_floor(f, "theta")
+
+
 def test_exact_inputs_moved_by_the_loads_own_switching_are_not_smoothed():
     """The synthetic own-switching bench (own/clean P std 0.9, exact V and θ): the default smoother took 94 % of
     such inputs for noisy (development seeds 41/43, ``benchmarks.floor_test``); now none, so they are identified
