@@ -80,6 +80,11 @@ def _human(path: str, result) -> str:
     if "input_noise_too_large" in result.flags:
         warn = (f"\n  warning: input noise too large: V moves by {q['input_ratio_v']:.2g}× its PMU noise std "
                 f"({q['noise_v']:.2g} pu), below 2×: D is not trustworthy from this window")
+    if q.get("gated_ar_iv") == 1.0:
+        warn += (f"\n  estimator: instrumental variables with an AR model of the load's own fluctuation, which is "
+                 f"{q['own_ratio_p']:.2g} of P's ambient std (output error is not consistent above 0.3)")
+    if "iv_error_may_exceed_20pct" in result.flags:
+        warn += "\n  warning: a standard error is above 6 % of its parameter: an error above 20 % is not a rare draw"
     return (
         f"{path}\n  dynamic: {dyn}\n  static:  {sta}\n  static at V0={loc.get('V0', float('nan')):.4g}: {at_v0}\n"
         f"  objective={result.objective:.4g}  FD(P)={result.fit['fd_p']:.4f}  FD(Q)={result.fit['fd_q']:.4f}"

@@ -41,6 +41,8 @@ def test_identify_json_one_line_per_file_with_contract_fields(recordings):
         assert 0 < out["elapsed_s"] < 5
         d_out = np.array([out["dynamic"][k] for k in ("a", "b", "H2", "Tm")])
         np.testing.assert_allclose(d_out, case.truth.d, rtol=0.05)
+        # One default with the Python API and the service (issues 11 and 20).
+        assert out["config"]["disturbance"] == "gated" and out["config"]["input_weighting"] == "spectral"
     # .npz and .csv hold the same samples: the same answer.
     assert lines[0]["dynamic"] == pytest.approx(lines[1]["dynamic"], rel=1e-9)
 
@@ -90,3 +92,17 @@ def test_identify_warns_in_words_when_the_input_noise_swamps_v(tmp_path, capsys)
     assert main(["identify", str(tmp_path / "noisy.npz")]) == 0
     out = capsys.readouterr().out
     assert "input_noise_too_large" in out and "warning: input noise too large" in out and "not trustworthy" in out
+
+
+def test_identify_says_in_words_when_the_loads_own_fluctuation_chose_the_estimator(tmp_path, capsys):
+    from aslm_sim.cases import make_cases
+    from service.cli import main
+
+    # Grid-excited windows whose own fluctuation is about 0.6 of P's ambient std: the default's gate opens.
+    cases = make_cases(3, level=2, seed=21, input_noise=False, own_sigma=0.0015)
+    for i, c in enumerate(cases):
+        write_window(tmp_path / f"own{i}.npz", c.window)
+    assert main(["identify", *(str(tmp_path / f"own{i}.npz") for i in range(3))]) == 0
+    out = capsys.readouterr().out
+    assert "estimator: instrumental variables" in out and "of P's ambient std" in out
+    assert ("iv_error_may_exceed_20pct" in out) == ("an error above 20 % is not a rare draw" in out)
