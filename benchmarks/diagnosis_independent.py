@@ -59,6 +59,9 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     # Fourth round (issue 12): confirm3 has been seen too; confirm4 was fixed here and committed before it was
     # simulated or diagnosed, its seeds disjoint from every seed above.
     "confirm4": {"clean": tuple(range(9301, 9311)), "effect": tuple(range(9301, 9305))},
+    # Fifth round (issue 12): confirm4 has been seen too; confirm5 was fixed here and committed before it was
+    # simulated or diagnosed, its seeds disjoint from every seed above.
+    "confirm5": {"clean": tuple(range(9401, 9411)), "effect": tuple(range(9401, 9405))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
