@@ -7,7 +7,7 @@ output error), coverage per parameter and whether it is inside the 90–97 % tar
 windows and how the standard errors changed.  Also the chance that a cell of n windows whose intervals cover
 exactly 95 % lands inside the target (binomial), which says how many cells miss by chance alone; with
 ``--unscaled``, the coverage the IV's standard errors had before the reduced-χ² scaling (undone from the
-recorded ``iv_overid``: D is the same).
+recorded ``iv_overid``: D is the same); with ``--scaled``, the scaling applied to records made before it.
 
 ``--check-d SEED`` identifies instead: the bench's own-fluctuation windows of that seed, one thread, the default
 with and without the scaling (``instrumental.OVERID_EXPECTED`` = ∞) on each window in turn, and checks that D is
@@ -58,26 +58,27 @@ def z_stats(z: np.ndarray) -> dict:
             "median": np.median(z, axis=0).tolist(), "kurtosis": kurtosis(z, axis=0).tolist()}
 
 
-def windows(run: dict, name: str, unscaled: bool = False) -> list[tuple]:
-    """(z, path, iv_overid, flags, |error|) per identified window of a run; ``unscaled``: z with the IV's standard
-    errors before the reduced-χ² scaling."""
+def windows(run: dict, name: str, iv_se: str = "recorded") -> list[tuple]:
+    """(z, path, iv_overid, flags, |error|) per identified window of a run; ``iv_se``: the IV's standard errors as
+    recorded, ``unscaled`` (the reduced-χ² scaling undone) or ``scaled`` (applied to records made before it)."""
     out = []
     for e, s, q, f in zip(run["errors"][name], run["stderr"][name], run["quality"][name], run["flags"][name],
                           strict=True):
         if e is not None:
             se = np.array(s)
-            if unscaled and path_of(q) == "iv":
-                se = se / math.sqrt(max(1.0, q["iv_overid"] / instrumental.OVERID_EXPECTED))
+            if iv_se != "recorded" and path_of(q) == "iv":
+                k = math.sqrt(max(1.0, q["iv_overid"] / instrumental.OVERID_EXPECTED))
+                se = se / k if iv_se == "unscaled" else se * k
             out.append((np.array(e) / se, path_of(q), q.get("iv_overid", math.nan), f, np.abs(e)))
     return out
 
 
-def report(recorded: dict, name: str = DEFAULT, before: dict | None = None, unscaled: bool = False) -> dict:
+def report(recorded: dict, name: str = DEFAULT, before: dict | None = None, iv_se: str = "recorded") -> dict:
     """The diagnosis of the module docstring as a dict (and printed)."""
     rows, table, iv_all = [], [], []
     met = cells = 0
     for k, run in enumerate(recorded["runs"]):
-        ws = windows(run, name, unscaled)
+        ws = windows(run, name, iv_se)
         z = np.array([w[0] for w in ws])
         paths = [w[1] for w in ws]
         st = z_stats(z)
@@ -89,13 +90,13 @@ def report(recorded: dict, name: str = DEFAULT, before: dict | None = None, unsc
         per_path = {p: z_stats(np.array([w[0] for w in ws if w[1] == p])) for p in ("iv", "weighted", "oe")
                     if paths.count(p)}
         iv_all += [w for w in ws if w[1] == "iv"]
-        row = {"ratio": run["ratio"], "shape": run["shape"], "input_noise": run["input_noise"], **st,
+        row = {"ratio": run["ratio"], "shape": run["shape"], "input_noise": run.get("input_noise", "none"), **st,
                "inside_target": inside, "paths": {p: paths.count(p) for p in per_path}, "per_path": per_path,
                "off_20pct_unflagged": unflagged}
         if before is not None:
             row["se_change"] = _se_change(before["runs"][k], run, name)
         rows.append(row)
-        table.append([f"{run['ratio']:g}", f"{run['shape']}, {run['input_noise']}",
+        table.append([f"{run['ratio']:g}", f"{run['shape']}, {run.get('input_noise', 'none')}",
                       " / ".join(str(paths.count(p)) for p in ("iv", "weighted", "oe")),
                       " / ".join(f"{100 * c:.0f}" + ("" if ok else "✗") for c, ok in zip(st["coverage"], inside,
                                                                                           strict=True)),
@@ -117,7 +118,7 @@ def report(recorded: dict, name: str = DEFAULT, before: dict | None = None, unsc
             print(f"IV windows with iv_overid in [{lo:g}, {hi:.3g}): n = {len(sel)}, cover "
                   + " / ".join(f"{100 * c:.0f}" for c in by_overid[-1]["coverage"]) + ", robust std of z "
                   + " / ".join(f"{v:.2f}" for v in by_overid[-1]["robust_std"]))
-    own = [w for r in recorded["runs"] if r["ratio"] > 0 for w in windows(r, name, unscaled)]
+    own = [w for r in recorded["runs"] if r["ratio"] > 0 for w in windows(r, name, iv_se)]
     pooled = {p: z_stats(np.vstack([w[0] for w in own if w[1] == p])) for p in ("iv", "weighted", "oe")
               if any(w[1] == p for w in own)}
     for p, st in pooled.items():
@@ -187,6 +188,7 @@ def main(argv=None) -> dict:
     ap.add_argument("records", nargs="?", help="JSON of benchmarks.own_fluctuation with per-window records")
     ap.add_argument("--before", default=None, help="the same windows' records before a change of the SEs")
     ap.add_argument("--unscaled", action="store_true", help="the IV's SEs before the reduced-χ² scaling")
+    ap.add_argument("--scaled", action="store_true", help="the scaling applied to records made before it")
     ap.add_argument("--candidate", default=DEFAULT)
     ap.add_argument("--check-d", type=int, default=None, metavar="SEED", help="identify: D with and without scaling")
     ap.add_argument("--n", type=int, default=50, help="windows per row with --check-d")
@@ -201,7 +203,8 @@ def main(argv=None) -> dict:
         if args.before:
             with open(args.before) as fh:
                 before = json.load(fh)
-        out = report(recorded, args.candidate, before, args.unscaled)
+        iv_se = "unscaled" if args.unscaled else ("scaled" if args.scaled else "recorded")
+        out = report(recorded, args.candidate, before, iv_se)
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=1)
