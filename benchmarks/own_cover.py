@@ -29,6 +29,7 @@ import numpy as np
 from scipy.stats import binom, kurtosis
 
 from aslm_core import IdentifyConfig, WindowError, identify, instrumental
+from aslm_core.identify import IV_SE_MAX
 from benchmarks import common
 from benchmarks.own_gate import WARNING_FLAGS
 
@@ -124,8 +125,28 @@ def report(recorded: dict, name: str = DEFAULT, before: dict | None = None, iv_s
     for p, st in pooled.items():
         print(f"pooled over own-fluctuation rows, path {p}: n = {st['n']}, cover "
               + " / ".join(f"{100 * c:.1f}" for c in st["coverage"]))
+    wide = _iv_flag_counts(recorded, name, iv_se)
+    print(f"IV answers within 20 % whose SE exceeds {IV_SE_MAX:g} of D (iv_error_may_exceed_20pct): "
+          f"{wide['within_flagged']} of {wide['within']}; off by more than 20 %: {wide['off_flagged']} of {wide['off']}")
     return {"rows": rows, "cells_inside": met, "cells": cells, "chance_in_target": chance_in_target(n),
-            "by_overid": by_overid, "pooled": pooled}
+            "by_overid": by_overid, "pooled": pooled, "iv_flag": wide}
+
+
+def _iv_flag_counts(recorded: dict, name: str, iv_se: str) -> dict:
+    """IV answers within / off by more than 20 %, and of them those whose standard errors (as ``iv_se`` says)
+    raise ``iv_error_may_exceed_20pct`` (some SE above ``IV_SE_MAX`` of the estimate)."""
+    out = {"within": 0, "within_flagged": 0, "off": 0, "off_flagged": 0}
+    for run in recorded["runs"]:
+        for e, s, q in zip(run["errors"][name], run["stderr"][name], run["quality"][name], strict=True):
+            if e is None or path_of(q) != "iv":
+                continue
+            k = math.sqrt(max(1.0, q["iv_overid"] / instrumental.OVERID_EXPECTED))
+            se = np.array(s) * {"recorded": 1.0, "unscaled": 1.0 / k, "scaled": k}[iv_se]
+            flagged = bool(np.any(se > IV_SE_MAX * np.abs(1.0 + np.array(e))))
+            key = "off" if np.max(np.abs(e)) > 0.2 else "within"
+            out[key] += 1
+            out[key + "_flagged"] += flagged
+    return out
 
 
 def _se_change(old: dict, new: dict, name: str) -> dict:
