@@ -87,12 +87,12 @@ def report(recorded: dict, name: str = DEFAULT, before: dict | None = None, iv_s
         if run["ratio"] > 0:
             met += sum(inside)
             cells += 4
-        unflagged = sum(w[4].max() > 0.2 and not any(f.startswith(WARNING_FLAGS) for f in w[3]) for w in ws)
+        unflagged = sum(bool(w[4].max() > 0.2) and not any(f.startswith(WARNING_FLAGS) for f in w[3]) for w in ws)
         per_path = {p: z_stats(np.array([w[0] for w in ws if w[1] == p])) for p in ("iv", "weighted", "oe")
                     if paths.count(p)}
         iv_all += [w for w in ws if w[1] == "iv"]
         row = {"ratio": run["ratio"], "shape": run["shape"], "input_noise": run.get("input_noise", "none"), **st,
-               "inside_target": inside, "paths": {p: paths.count(p) for p in per_path}, "per_path": per_path,
+               "inside_target": [bool(v) for v in inside], "paths": {p: paths.count(p) for p in per_path}, "per_path": per_path,
                "off_20pct_unflagged": unflagged}
         if before is not None:
             row["se_change"] = _se_change(before["runs"][k], run, name)
@@ -145,7 +145,7 @@ def _iv_flag_counts(recorded: dict, name: str, iv_se: str) -> dict:
             flagged = bool(np.any(se > IV_SE_MAX * np.abs(1.0 + np.array(e))))
             key = "off" if np.max(np.abs(e)) > 0.2 else "within"
             out[key] += 1
-            out[key + "_flagged"] += flagged
+            out[key + "_flagged"] += int(flagged)
     return out
 
 
@@ -228,7 +228,7 @@ def main(argv=None) -> dict:
         out = report(recorded, args.candidate, before, iv_se)
     if args.json:
         with open(args.json, "w") as fh:
-            json.dump(out, fh, indent=1)
+            json.dump(out, fh, indent=1, default=lambda v: v.item() if hasattr(v, "item") else str(v))
     return out
 
 
