@@ -303,18 +303,17 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
             return None
 
     def finish(wp: Instrumented, state: dict) -> None:
-        _overid_and_covariance(wp, state, se_smooth_hz, overid_scale=True)
+        _overid_and_covariance(wp, state, se_smooth_hz)
 
     return disturbance.passes(problem, d0, make, max_iter=max_iter, xtol=xtol, margin=margin,
                               reestimate=reestimate, max_order=max_order, finish=finish)
 
 
-def _overid_and_covariance(wp: Instrumented | Stacked, state: dict, se_smooth_hz: float | None,
-                           overid_scale: bool = False) -> None:
+def _overid_and_covariance(wp: Instrumented | Stacked, state: dict, se_smooth_hz: float | None) -> None:
     """Add ``strength``, ``overid``, ``overid_p``, ``overid_white`` to a fit's result; with ``se_smooth_hz`` its
     ``cov`` and ``overid`` from the spectral moment conditions.
 
-    ``overid_scale``: the spectral ``cov`` scaled by max(1, ``overid`` / :data:`OVERID_EXPECTED`).  The sandwich
+    The spectral ``cov`` is scaled by max(1, ``overid`` / :data:`OVERID_EXPECTED`) (one window or a pool).  The sandwich
     holds the innovations' own scatter only; instruments slightly correlated with the innovations (J above its
     expectation but under the rejection bound) add an error of D it does not hold.  J/dof is the reduced χ² of
     those moments, and scaling the covariance by it (as a reduced χ² scales a fit's errors) is the estimate of
@@ -329,8 +328,7 @@ def _overid_and_covariance(wp: Instrumented | Stacked, state: dict, se_smooth_hz
     robust = wp.spectral_parts(state["d"], se_smooth_hz) if se_smooth_hz and math.isfinite(stat) else None
     if robust is not None:
         state["cov"], stat = sandwich(robust[0], robust[1]), robust[2]
-        if overid_scale:
-            state["cov"] = state["cov"] * max(1.0, stat / dof / OVERID_EXPECTED)
+        state["cov"] = state["cov"] * max(1.0, stat / dof / OVERID_EXPECTED)
     state.update(overid=stat / dof, overid_p=float(chi2.sf(stat, dof)))
 
 
