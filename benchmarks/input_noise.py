@@ -44,6 +44,9 @@ from benchmarks import common  # noqa: E402
 SEED = 41
 #: Confirmation seed of the supplement and the rates, fixed before their runs.
 CONFIRM_SEED = 43
+#: Confirmation seed of the rates' coverage of ±1.96 SE after the IV's reduced-χ² standard errors (stop 27,
+#: 2026-11-25: ``--rates 25 30 50 60 100 120 --n 100 --seed 46``), fixed before any run on it.
+COVER_CONFIRM_SEED = 46
 #: PMU classes: (name, std of the V noise as a fraction of mean V [-], std of the θ noise [rad]).
 INPUT_NOISE = (("none", 0.0, 0.0), ("0.03 % / 3e-4 rad", 3e-4, 3e-4), ("0.1 % / 1e-3 rad", 1e-3, 1e-3))
 #: The smoothers as output error's input conditioning (``input_weighting="none"``, the default until issue 11's

@@ -23,7 +23,8 @@ WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "unexplained_f
                  "iv_error_may_exceed", "input_noise_too_large")
 #: Per-window quality entries kept in the JSON (to develop flags and gates on).
 QUALITY_KEYS = ("own_ratio_p", "own_ratio_q", "excitation_share_p", "iv_strength_p", "iv_strength_q", "iv_overid",
-                "iv_overid_white", "ar_order_p", "static_cond", "lowpass_hz", "gated_ar_iv")
+                "iv_overid_white", "ar_order_p", "static_cond", "lowpass_hz", "gated_ar_iv",
+                "weighted_chi2", "input_ratio_v")
 CONFIRM_HEAD = ["own/total", "shape, V/θ noise", "windows to the IV", "median |err| a / b / H2 / Tm [%]: output error",
                 "gated", "gated / output error", "off > 20 % (unflagged)", "within 20 % with `iv_error_may_exceed_20pct`"]
 GATE_HEAD = ["own/total", "shape", "windows switched", "median |err| a / b / H2 / Tm [%]", "worst [%]",
