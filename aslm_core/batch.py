@@ -14,7 +14,7 @@ import multiprocessing as mp
 import os
 import threading
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Literal
 
 import numpy as np
@@ -75,8 +75,12 @@ def _forked(windows: Sequence[Window], warm: list, config: IdentifyConfig, n_wor
     thawed = gc.get_freeze_count() == 0
     gc.freeze()
     try:
-        with ctx.Pool(min(n_workers, len(bounds)), initializer=_set_job, initargs=(windows, warm, config)) as pool:
-            parts = pool.map(_chunk, bounds, chunksize=1)
+        # concurrent.futures rather than multiprocessing.Pool: a worker that dies (a crash in compiled code) fails
+        # the call with BrokenProcessPool, where Pool waits for its lost chunk for ever.  With fork it starts every
+        # worker before its manager thread, so no fork happens from a threaded parent.
+        with ProcessPoolExecutor(min(n_workers, len(bounds)), mp_context=ctx, initializer=_set_job,
+                                 initargs=(windows, warm, config)) as pool:
+            parts = list(pool.map(_chunk, bounds))
     finally:
         if thawed:
             gc.unfreeze()

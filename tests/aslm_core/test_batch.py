@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import pickle
 import threading
 
@@ -77,3 +78,22 @@ def test_auto_pool_on_a_batch_matches_serial(batch):
     forked = identify_many(many, warm_starts=warm * (len(many) // len(warm)), workers=2)
     assert [_fields(r) for r in forked] == [_fields(r) for r in serial]
     assert np.all([isinstance(r, WindowError) for r in forked[2::5]])
+
+
+def test_a_worker_that_dies_fails_the_call_instead_of_hanging(batch, monkeypatch):
+    from concurrent.futures.process import BrokenProcessPool
+
+    from aslm_core import batch as batch_module
+
+    parent = os.getpid()
+    real = batch_module._one
+
+    def crash_in_child(window, warm, config):
+        if os.getpid() != parent:
+            os._exit(3)  # what a segfault in a kernel looks like to the parent
+        return real(window, warm, config)
+
+    monkeypatch.setattr(batch_module, "_one", crash_in_child)  # inherited by the forked workers
+    windows, warm = batch
+    with pytest.raises(BrokenProcessPool):
+        identify_many(windows, warm_starts=warm, workers=2, pool="process")
