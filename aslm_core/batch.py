@@ -28,8 +28,9 @@ Pool = Literal["auto", "process", "thread"]
 #: Pool kinds of :func:`identify_many`.
 POOLS: tuple[str, ...] = ("auto", "process", "thread")
 #: ``auto`` forks processes from this many windows per worker on; below, threads.  Starting and ending two
-#: forked workers costs ~20–40 ms (docs/numerics.md, "Batch"), a handful of identifications.
-PROCESS_MIN_WINDOWS_PER_WORKER = 8
+#: forked workers cost 27–79 ms at load 7–9 (docs/numerics.md, "Batch"): two workers save half of 4–5 ms per
+#: window, so they pay from ~11 windows each on.
+PROCESS_MIN_WINDOWS_PER_WORKER = 16
 #: Chunks per worker a forked batch is cut into: few enough that each carries many windows per message, enough
 #: that a worker slowed by the shared machine's other jobs does not hold up the end.
 CHUNKS_PER_WORKER = 8
