@@ -51,7 +51,12 @@ def test_window_error_survives_pickling():
     assert (err.reason, err.message, str(err)) == ("gaps", "V has a gap of 9 samples", "gaps: V has a gap of 9 samples")
 
 
-def test_auto_forks_large_batches_of_a_single_threaded_caller_only():
+def test_auto_forks_large_batches_of_a_single_threaded_caller_only(monkeypatch):
+    from aslm_core import batch as batch_module
+
+    # Other tests of the session may leave threads behind: count only the one started here.
+    n_threads = threading.active_count()
+    monkeypatch.setattr(batch_module.threading, "active_count", lambda: len(threading.enumerate()) - n_threads + 1)
     big = PROCESS_MIN_WINDOWS_PER_WORKER * 2
     assert pool_kind("auto", 2, big) == "process"
     assert pool_kind("auto", 2, big - 1) == "thread"
@@ -70,7 +75,10 @@ def test_auto_forks_large_batches_of_a_single_threaded_caller_only():
         pool_kind("fork", 2, big)
 
 
-def test_auto_pool_on_a_batch_matches_serial(batch):
+def test_auto_pool_on_a_batch_matches_serial(batch, monkeypatch):
+    from aslm_core import batch as batch_module
+
+    monkeypatch.setattr(batch_module.threading, "active_count", lambda: 1)  # as in a single-threaded caller
     windows, warm = batch
     many = windows * (PROCESS_MIN_WINDOWS_PER_WORKER // 2 + 1)  # enough for auto to fork on 2 workers
     assert pool_kind("auto", 2, len(many)) == "process"
