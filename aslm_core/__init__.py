@@ -22,7 +22,7 @@ _EXPORTS: dict[str, str] = {
     "Window": "aslm_core.window",
     "WindowError": "aslm_core.errors",
     "identify": "aslm_core.identify",
-    "identify_many": "aslm_core.identify",
+    "identify_many": "aslm_core.batch",
     "warmup": "aslm_core.identify",
 }
 

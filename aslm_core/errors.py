@@ -16,6 +16,12 @@ class WindowError(ValueError):
     def __init__(self, reason: str, message: str) -> None:
         super().__init__(f"{reason}: {message}")
         self.reason = reason
+        self.message = message
+
+    def __reduce__(self) -> tuple:
+        # Pickled with both arguments (the default passes ``args``, the joined text, alone): forked batch
+        # workers (:func:`aslm_core.identify_many`) send rejected windows' errors back to the parent.
+        return type(self), (self.reason, self.message)
 
 
 class NoEquilibriumError(ValueError):

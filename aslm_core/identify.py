@@ -11,10 +11,8 @@ objective (eq. 7 by default).
 from __future__ import annotations
 
 import math
-import os
 import time
 from collections.abc import Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
 import numpy as np
@@ -441,49 +439,6 @@ def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, r
         share, own_std, own_ratio = excitation.split(ss[c] / pb.l, rr[c] / pb.l, white)
         extra.update({f"excitation_share_{name}": share, f"own_std_{name}": own_std, f"own_ratio_{name}": own_ratio})
     return local, coef_se, extra
-
-
-def identify_many(windows: Sequence[Window], *, warm_starts: Sequence[np.ndarray | None] | None = None,
-                  config: IdentifyConfig | None = None,
-                  workers: int | None = None) -> list[IdentificationResult | WindowError]:
-    """Identify many bus windows in one call, on all cores.
-
-    The compiled optimiser releases the GIL, so a thread pool runs identifications in parallel
-    without pickling windows or spawning processes.
-
-    Parameters
-    ----------
-    windows : sequence of Window
-    warm_starts : sequence of (array or None), optional
-        One previous D per window.
-    config : IdentifyConfig, optional
-    workers : int, optional
-        Threads (default: the number of CPUs).
-
-    Returns
-    -------
-    list
-        Per window, in order: its IdentificationResult, or the WindowError that rejected it (a bad
-        window never stops the others).
-    """
-    config = config or IdentifyConfig()
-    warm = list(warm_starts) if warm_starts is not None else [None] * len(windows)
-    if len(warm) != len(windows):
-        raise ValueError(f"{len(warm)} warm starts for {len(windows)} windows")
-    if config.n_starts == 0 and any(w is None for w in warm):
-        raise ValueError("no start to descend from: n_starts is 0 and some windows have no warm start")
-
-    def one(i: int) -> IdentificationResult | WindowError:
-        try:
-            return identify(windows[i], warm_start=warm[i], config=config)
-        except WindowError as exc:
-            return exc
-
-    n_workers = workers or os.cpu_count() or 1
-    if n_workers == 1 or len(windows) < 2:
-        return [one(i) for i in range(len(windows))]
-    with ThreadPoolExecutor(max_workers=n_workers) as pool:
-        return list(pool.map(one, range(len(windows))))
 
 
 def warmup() -> None:
