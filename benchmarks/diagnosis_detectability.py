@@ -55,8 +55,11 @@ def window_oracle(kind: str, seed: int) -> list[dict]:
     return recording_oracle(recording(kind, seed, tf=TF, tstep=TSTEP), kind, seed)
 
 
-def recording_oracle(rec: dict, kind: str, seed: int) -> list[dict]:
-    """:func:`window_oracle` on a given noise-free recording (``t``, ``V``, ``theta``, ``P``, ``Q``)."""
+def recording_oracle(rec: dict, kind: str, seed: int, windows: tuple = WINDOWS) -> list[dict]:
+    """:func:`window_oracle` on a given noise-free recording (``t``, ``V``, ``theta``, ``P``, ``Q``).
+
+    ``windows`` are (start, end) pairs [s] inside the recording (default: the benchmark's two).
+    """
     from aslm_core import Window
     from aslm_core.diagnosis import engine
     from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
@@ -67,7 +70,7 @@ def recording_oracle(rec: dict, kind: str, seed: int) -> list[dict]:
     config = DiagnosisConfig()
     expected = KINDS[kind].expected
     out = []
-    for t0, t1 in WINDOWS:
+    for t0, t1 in windows:
         sl = (rec["t"] >= t0 - 1e-9) & (rec["t"] <= t1 + 1e-9)
         ch = {k: rec[k][sl] for k in ("t", "V", "theta", "P", "Q")}
         w = Window(ch["t"], ch["V"], ch["theta"], ch["P"], ch["Q"], f0=60.0, bus="andes-bus9")
