@@ -163,8 +163,10 @@ def main(argv: list[str] | None = None) -> int:
         for st, rows in out["census"].items():
             bad = [(r["kind"], r["seed"]) for r in rows if not r["in_box"]]
             print(f"{st}: {len(bad)} of {len(rows)} first draws outside the box {bad}")
-    out.update(wall_s=time.perf_counter() - t0, load_avg=os.getloadavg(),
-               command="benchmarks/clean_box.py " + " ".join(argv if argv is not None else sys.argv[1:]))
+    # one entry per run: parts run separately keep their own wall time, load and command
+    run = {"parts": args.parts, "wall_s": time.perf_counter() - t0, "load_avg": os.getloadavg(),
+           "command": "benchmarks/clean_box.py " + " ".join(argv if argv is not None else sys.argv[1:])}
+    out["runs"] = [r for r in out.get("runs", []) if r["parts"] != args.parts] + [run]
     RESULTS.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1, default=float))
     return 0
