@@ -124,6 +124,11 @@ def in_paper_box(d: np.ndarray) -> bool:
 
     Tm's upper bound is the window's mean P, far above the drawn c1 (0.15–0.22 against P ≈ 0.3 pu), so
     it is not checked here.
+
+    Parameters
+    ----------
+    d : numpy.ndarray
+        D = [a, b, H2, Tm] [1/s, 1/s, s, pu] (:func:`base_d`).
     """
     return all(p.lower <= x <= p.upper for p, x in zip(DYNAMIC_PARAMS[:3], d[:3], strict=True))
 
