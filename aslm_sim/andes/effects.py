@@ -42,7 +42,8 @@ from aslm_sim.andes.scenario import FS, BusLoad, resample, simulate_load, transf
 
 __all__ = ["KINDS", "MOTOR_RANGES", "AndesKind", "base_d", "build", "cache_dir", "in_paper_box", "recording"]
 
-#: Ranges of the base motor's data (device base; c1 on the system base), drawn uniformly per scenario.
+#: Ranges of the base motor's data (device base; c1 on the system base), drawn uniformly per scenario and
+#: redrawn while the transformed D falls outside the identifier's box (:func:`_box_motor`).
 MOTOR_RANGES: dict[str, tuple[float, float]] = {
     "Sn": (22.0, 30.0), "xs": (0.08, 0.12), "xr1": (0.08, 0.12), "xm": (2.5, 3.5), "rr1": (0.007, 0.015),
     "Hm": (1.0, 3.0), "c1": (0.15, 0.22),
