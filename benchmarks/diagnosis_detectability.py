@@ -47,22 +47,30 @@ KINDS_MEASURED = ("clean", "double_cage", "stator_resistance", "second_motor", "
 
 def window_oracle(kind: str, seed: int) -> list[dict]:
     """The unit-SNR oracle z and the true candidate's form share of each window of one cached scenario."""
+    from aslm_sim.andes.effects import recording
+    from benchmarks.diagnosis_independent import TF, TSTEP
+
+    if not any(cache_dir().glob(f"v*-{kind}-{seed}-*.npz")):
+        return []
+    return recording_oracle(recording(kind, seed, tf=TF, tstep=TSTEP), kind, seed)
+
+
+def recording_oracle(rec: dict, kind: str, seed: int, windows: tuple = WINDOWS) -> list[dict]:
+    """:func:`window_oracle` on a given noise-free recording (``t``, ``V``, ``theta``, ``P``, ``Q``).
+
+    ``windows`` are (start, end) pairs [s] inside the recording (default: the benchmark's two).
+    """
     from aslm_core import Window
     from aslm_core.diagnosis import engine
     from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
     from aslm_core.diagnosis.noise import NoiseModel, dct_band
     from aslm_core.diagnosis.pipeline import DiagnosisConfig, _plain_d
     from aslm_core.diagnosis.segment import make_segment
-    from aslm_sim.andes.effects import recording
-    from benchmarks.diagnosis_independent import TF, TSTEP
 
-    if not any(cache_dir().glob(f"v*-{kind}-{seed}-*.npz")):
-        return []
-    rec = recording(kind, seed, tf=TF, tstep=TSTEP)
     config = DiagnosisConfig()
     expected = KINDS[kind].expected
     out = []
-    for t0, t1 in WINDOWS:
+    for t0, t1 in windows:
         sl = (rec["t"] >= t0 - 1e-9) & (rec["t"] <= t1 + 1e-9)
         ch = {k: rec[k][sl] for k in ("t", "V", "theta", "P", "Q")}
         w = Window(ch["t"], ch["V"], ch["theta"], ch["P"], ch["Q"], f0=60.0, bus="andes-bus9")
@@ -78,7 +86,8 @@ def window_oracle(kind: str, seed: int) -> list[dict]:
         z_unit = float(np.sqrt(np.sum(c * c)))
         row = {"kind": kind, "seed": seed, "window": [t0, t1], "expected": expected, "z_unit": z_unit,
                "z_unit_p": float(np.sqrt(np.sum(c[:, 0] ** 2))), "z_unit_q": float(np.sqrt(np.sum(c[:, 1] ** 2))),
-               "fd_p": engine.fd(seg.P[te], plain.model_p[te]), "fd_q": engine.fd(seg.Q[te], plain.model_q[te])}
+               "fd_p": engine.fd(seg.P[te], plain.model_p[te]), "fd_q": engine.fd(seg.Q[te], plain.model_q[te]),
+               "plain_d": [float(x) for x in plain.d]}
         if expected in LIBRARY:
             f = engine.fit_candidate(LIBRARY[expected], seg, ctx, noise, d_start=plain.d)
             if f.ok:

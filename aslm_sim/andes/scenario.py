@@ -22,7 +22,7 @@ from scipy import signal
 
 __all__ = ["BUS", "CASE", "F0", "FS", "MAIN_SCENARIOS", "MOTOR", "NAMES", "PQ_AT_BUS", "SCENARIOS", "STATIC_PQ",
            "ZIP_SHARES", "BusLoad", "lowpass_noise", "motor_equilibrium", "resample", "rotor_modes", "simulate",
-           "simulate_load", "solve_power_flow"]
+           "simulate_load", "solve_power_flow", "transformed_d"]
 
 CASE = "ieee14/ieee14_full.xlsx"
 BUS = 9
@@ -386,6 +386,28 @@ def simulate_load(load: BusLoad, *, tf: float, tstep: float, amp: float, seed: i
     return out
 
 
+def transformed_d(x0: float, x1: float, t10: float, h2: float, tm: float) -> np.ndarray:
+    """D = [a, b, H2, Tm] of a third-order motor with rs = 0 (docs/andes_crosscheck.md).
+
+    Parameters
+    ----------
+    x0, x1 : float
+        Open-circuit and transient reactance X = xs + xm, X' = xs + xr1·xm/(xr1 + xm) [pu, system base].
+    t10 : float
+        Open-circuit transient time constant T'0 = (xr1 + xm)/(ωb·rr1) [s].
+    h2 : float
+        2H on the system base [s].
+    tm : float
+        Load torque [pu, system base].
+
+    Returns
+    -------
+    numpy.ndarray
+        a = (X/X' − 1)/(T'0·X') [1/s], b = X/(T'0·X') [1/s], H2 [s], Tm [pu].
+    """
+    return np.array([(x0 / x1 - 1) / (t10 * x1), x0 / (t10 * x1), h2, tm])
+
+
 def _motor_slots(motors: tuple) -> list[tuple[str, int]]:
     """(ANDES model, index within that model) of each motor, in the order they were added."""
     seen: dict[str, int] = {}
@@ -403,7 +425,7 @@ def _motor_facts(m, model: str, i: int) -> dict:
     if not m.u.v[i]:  # off at the power flow (ANDES's τm is 0 there): its torque law at its start slip
         sl = float(m.slip.v[i])
         tm = float(m.aa.v[i] + m.bb.v[i] * sl + m.c2.v[i] * sl * sl)
-    d = [(x0 / x1 - 1) / (t10 * x1), x0 / (t10 * x1), float(m.M.v[i]), tm]
+    d = transformed_d(x0, x1, t10, float(m.M.v[i]), tm).tolist()
     return {"model": model, "d": d, "x0": x0, "x1": x1, "slip0": float(m.slip.v[i]), "rs_sys": float(m.rs.v[i]),
             "tm_slope": float(m.bb.v[i]), "modes": rotor_modes(m, i).tolist() if model == "Motor5" else None}
 
