@@ -58,6 +58,11 @@ class FrequencyDependence(Candidate):
     lin_q = ("Kqf",)
     lin_units = {"Kpf": "pu/Hz", "Kqf": "pu/Hz"}
     signature = "residual coherent with the bus frequency deviation Δf (0.1–2 Hz), possibly lagging it"
+    # A torque that varies with speed also answers Δf through the slip, with a lag of its own: on the noise-free
+    # ANDES windows the lagged law and the torque law are not separable in 30 of 42 torque windows at 14 dB
+    # (benchmarks/diagnosis_separability.py), and with V/θ noise the lag's penalty left the torque law out of
+    # the rivals while it fitted as well.
+    confusable = ("speed_dependent_torque",)
 
     def bounds(self, seg: Segment, ctx: Context):
         return np.array([0.0]), np.array([TF_MAX_S])
