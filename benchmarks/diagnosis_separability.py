@@ -49,7 +49,7 @@ def window_pair(kind: str, seed: int) -> list[dict]:
     from aslm_core import Window
     from aslm_core.diagnosis import engine
     from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
-    from aslm_core.diagnosis.noise import NoiseModel, dct_band
+    from aslm_core.diagnosis.noise import NoiseModel
     from aslm_core.diagnosis.pipeline import DiagnosisConfig, _plain_d
     from aslm_core.diagnosis.segment import make_segment
     from aslm_sim.andes.effects import cache_dir, recording
@@ -69,15 +69,11 @@ def window_pair(kind: str, seed: int) -> list[dict]:
         noise = NoiseModel.white(sp, sq, seg.fs, config.band_hz)
         ctx = Context("identified", _plain_d(seg, None, config))
         plain = engine.fit_candidate(Candidate(), seg, ctx, noise)
-        te = seg.test
 
-        def coef(fit) -> np.ndarray:
-            r = np.column_stack([(seg.P - fit.model_p)[te], (seg.Q - fit.model_q)[te]])
-            return dct_band(r, seg.fs, config.band_hz) / np.array([sp, sq])
-
-        r0 = coef(plain)
+        scale = np.array([sp, sq])
+        r0 = _held_out_coefficients(seg, plain, config.band_hz) / scale
         fits = {m: engine.fit_candidate(LIBRARY[m], seg, ctx, noise, d_start=plain.d) for m in PAIR}
-        res = {m: coef(f) for m, f in fits.items()}
+        res = {m: _held_out_coefficients(seg, f, config.band_hz) / scale for m, f in fits.items()}
         row = {"kind": kind, "seed": seed, "window": [t0, t1], "truth": TRUTH[kind],
                "z_plain_unit": float(np.linalg.norm(r0)),
                "left_unit": {m: float(np.linalg.norm(res[m])) for m in PAIR},
@@ -90,6 +86,14 @@ def window_pair(kind: str, seed: int) -> list[dict]:
             row["paired_unit"][f"{a}>{b}"] = float(np.sum(d * res[b]) / nd) if nd > 0 else 0.0
         out.append(row)
     return out
+
+
+def _held_out_coefficients(seg, fit, band_hz: float) -> np.ndarray:
+    """Ambient-band DCT coefficients of a fit's held-out residual, columns P and Q [pu]."""
+    from aslm_core.diagnosis.noise import dct_band
+
+    te = seg.test
+    return dct_band(np.column_stack([(seg.P - fit.model_p)[te], (seg.Q - fit.model_q)[te]]), seg.fs, band_hz)
 
 
 def per_level(rows: list[dict]) -> dict:
@@ -130,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     todo = sorted({j for st in sets for j in jobs(st, list(PAIR))})
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        rows = [w for ws in pool.map(window_pair, *zip(*todo)) for w in ws]
+        rows = [w for ws in pool.map(window_pair, *zip(*todo, strict=True)) for w in ws]
     summary = per_level(rows)
     print(f"{'kind':24s} level  windows  separable  both-ways  true-loses  neither")
     for kind, lv in summary.items():
