@@ -19,9 +19,9 @@ instantaneous law.
 Why the lag: a frequency-dependent load responds to a frequency *estimate*, not to dθ/dt itself — simulators
 model it so (ANDES's ``FLoad`` reads its ``BusFreq`` device: a 0.02 s lag on the bus angle, then a washout
 s/(1 + 0.1 s), i.e. the angle's derivative through two first-order lags, 39° behind Δf at 1 Hz), and a
-load's own controls and mechanics add their delay.  Without it, on the noise-free ANDES FLoad windows the
-instantaneous law left 15–40 % of the effect's held-out residual where the lag leaves 3–7 %
-(docs/diagnosis.md, fifth round).
+load's own controls and mechanics add their delay.  Without it, on the 42 noise-free ANDES FLoad windows the
+instantaneous law left a median 23 % (9–48 %) of the plain model's held-out residual, the lagged one 4 %
+(2–25 %), with Tf = 0.11–0.13 s on all but one scenario (docs/diagnosis.md, fifth round).
 
 Signature: the plain-model residual is coherent with Δf in the ambient band (0.1–2 Hz), more than with
 V or dV/dt.  The induction motor of eq. 4 already responds to Δf (it is driven in the synchronous frame),
