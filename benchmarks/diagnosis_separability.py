@@ -46,13 +46,11 @@ Z_ONE = 1.6448536269514722  # one-sided 5 %, one comparison
 
 def window_pair(kind: str, seed: int) -> list[dict]:
     """Unit-SNR held-out residuals and paired statistics of the pair on each window of one cached scenario."""
-    from aslm_core import Window
     from aslm_core.diagnosis import engine
-    from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
-    from aslm_core.diagnosis.noise import NoiseModel
-    from aslm_core.diagnosis.pipeline import DiagnosisConfig, _plain_d
-    from aslm_core.diagnosis.segment import make_segment
+    from aslm_core.diagnosis.candidates import LIBRARY
+    from aslm_core.diagnosis.pipeline import DiagnosisConfig
     from aslm_sim.andes.effects import cache_dir, recording
+    from benchmarks.diagnosis_detectability import noise_free_plain
     from benchmarks.diagnosis_independent import TF, TSTEP, WINDOWS
 
     if not any(cache_dir().glob(f"v*-{kind}-{seed}-*.npz")):
@@ -61,15 +59,7 @@ def window_pair(kind: str, seed: int) -> list[dict]:
     config = DiagnosisConfig()
     out = []
     for t0, t1 in WINDOWS:
-        sl = (rec["t"] >= t0 - 1e-9) & (rec["t"] <= t1 + 1e-9)
-        ch = {k: rec[k][sl] for k in ("t", "V", "theta", "P", "Q")}
-        w = Window(ch["t"], ch["V"], ch["theta"], ch["P"], ch["Q"], f0=60.0, bus="andes-bus9")
-        seg = make_segment(w, skip_s=config.skip_s, train_fraction=config.train_fraction)
-        sp, sq = float(np.std(ch["P"])), float(np.std(ch["Q"]))
-        noise = NoiseModel.white(sp, sq, seg.fs, config.band_hz)
-        ctx = Context("identified", _plain_d(seg, None, config))
-        plain = engine.fit_candidate(Candidate(), seg, ctx, noise)
-
+        seg, ctx, noise, plain, (sp, sq) = noise_free_plain(rec, t0, t1, config)
         scale = np.array([sp, sq])
         r0 = _held_out_coefficients(seg, plain, config.band_hz) / scale
         fits = {m: engine.fit_candidate(LIBRARY[m], seg, ctx, noise, d_start=plain.d) for m in PAIR}
