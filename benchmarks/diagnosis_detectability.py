@@ -60,26 +60,16 @@ def recording_oracle(rec: dict, kind: str, seed: int, windows: tuple = WINDOWS) 
 
     ``windows`` are (start, end) pairs [s] inside the recording (default: the benchmark's two).
     """
-    from aslm_core import Window
     from aslm_core.diagnosis import engine
-    from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
-    from aslm_core.diagnosis.noise import NoiseModel, dct_band
-    from aslm_core.diagnosis.pipeline import DiagnosisConfig, _plain_d
-    from aslm_core.diagnosis.segment import make_segment
+    from aslm_core.diagnosis.candidates import LIBRARY
+    from aslm_core.diagnosis.noise import dct_band
+    from aslm_core.diagnosis.pipeline import DiagnosisConfig
 
     config = DiagnosisConfig()
     expected = KINDS[kind].expected
     out = []
     for t0, t1 in windows:
-        sl = (rec["t"] >= t0 - 1e-9) & (rec["t"] <= t1 + 1e-9)
-        ch = {k: rec[k][sl] for k in ("t", "V", "theta", "P", "Q")}
-        w = Window(ch["t"], ch["V"], ch["theta"], ch["P"], ch["Q"], f0=60.0, bus="andes-bus9")
-        seg = make_segment(w, skip_s=config.skip_s, train_fraction=config.train_fraction)
-        # unit SNR: σ_ch = std(ch) (the benchmark's noise is std(ch)·10^(−SNR/20)); scaled per case below
-        sp, sq = float(np.std(ch["P"])), float(np.std(ch["Q"]))
-        noise = NoiseModel.white(sp, sq, seg.fs, config.band_hz)
-        ctx = Context("identified", _plain_d(seg, None, config))
-        plain = engine.fit_candidate(Candidate(), seg, ctx, noise)
+        seg, ctx, noise, plain, (sp, sq) = noise_free_plain(rec, t0, t1, config)
         te = seg.test
         r = np.column_stack([(seg.P - plain.model_p)[te], (seg.Q - plain.model_q)[te]])
         c = dct_band(r, seg.fs, config.band_hz) / np.array([sp, sq])
@@ -98,6 +88,28 @@ def recording_oracle(rec: dict, kind: str, seed: int, windows: tuple = WINDOWS) 
                 row["form_params"] = {k: float(v) for k, v in f.params.items() if not k.startswith("D.")}
         out.append(row)
     return out
+
+
+def noise_free_plain(rec: dict, t0: float, t1: float, config):
+    """One window [t0, t1] [s] of a noise-free recording fitted by the plain model as the diagnosis fits it, at
+    unit SNR: σ_ch = std(ch) (the benchmark's noise is std(ch)·10^(−SNR/20), so statistics scale by
+    10^(SNR/20)).  Returns the segment, the context, the white noise model, the plain fit and (σ_P, σ_Q) [pu].
+    """
+    from aslm_core import Window
+    from aslm_core.diagnosis import engine
+    from aslm_core.diagnosis.candidates import Candidate, Context
+    from aslm_core.diagnosis.noise import NoiseModel
+    from aslm_core.diagnosis.pipeline import _plain_d
+    from aslm_core.diagnosis.segment import make_segment
+
+    sl = (rec["t"] >= t0 - 1e-9) & (rec["t"] <= t1 + 1e-9)
+    ch = {k: rec[k][sl] for k in ("t", "V", "theta", "P", "Q")}
+    w = Window(ch["t"], ch["V"], ch["theta"], ch["P"], ch["Q"], f0=60.0, bus="andes-bus9")
+    seg = make_segment(w, skip_s=config.skip_s, train_fraction=config.train_fraction)
+    sp, sq = float(np.std(ch["P"])), float(np.std(ch["Q"]))
+    noise = NoiseModel.white(sp, sq, seg.fs, config.band_hz)
+    ctx = Context("identified", _plain_d(seg, None, config))
+    return seg, ctx, noise, engine.fit_candidate(Candidate(), seg, ctx, noise), (sp, sq)
 
 
 def _records(name: str) -> list[dict]:

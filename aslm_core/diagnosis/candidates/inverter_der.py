@@ -19,20 +19,12 @@ is indistinguishable from ZIP's linear term, so only lags of ~0.1 s and more are
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 
-from aslm_core.diagnosis.candidates.base import Candidate, Context, simulate_motor, static_part
+from aslm_core.diagnosis.candidates.base import Candidate, Context
+from aslm_core.diagnosis.lag import lag_start, lagged
 from aslm_core.diagnosis.segment import Segment
 
 T_GRID_S = (0.1, 0.2, 0.4, 0.8, 1.6, 3.2)
-
-
-def lagged(V: np.ndarray, T: float, dt: float) -> np.ndarray:
-    """First-order lag of V with time constant T [s] (trapezoidal rule), starting at rest at V[0]."""
-    a = (2.0 * T - dt) / (2.0 * T + dt)
-    b = (1.0 - a) / 2.0
-    zi = signal.lfiltic([b, b], [1.0, -a], y=[V[0]], x=[V[0]])
-    return signal.lfilter([b, b], [1.0, -a], V, zi=zi)[0]
 
 
 class InverterDER(Candidate):
@@ -56,23 +48,7 @@ class InverterDER(Candidate):
         return col, col
 
     def starts(self, seg: Segment, ctx: Context) -> list[np.ndarray]:
-        m = simulate_motor(seg, ctx.d0)
-        if m is None:
-            return [np.array([0.5])]
-        fp, fq, sx = static_part(seg, ctx)
-        tr = seg.train
-        yp, yq = (seg.P - m[0] - fp)[tr], (seg.Q - m[1] - fq)[tr]
-        best, best_t = np.inf, 0.5
-        for T in T_GRID_S:
-            x = np.hstack([sx, lagged(seg.V, T, seg.dt)[:, None]])[tr]
-            ssr = 0.0
-            for y in (yp, yq):
-                beta, *_ = np.linalg.lstsq(x / np.linalg.norm(x, axis=0), y, rcond=None)
-                r = y - (x / np.linalg.norm(x, axis=0)) @ beta
-                ssr += float(r @ r) / max(float(np.var(y)) * y.size, 1e-300)
-            if ssr < best:
-                best, best_t = ssr, T
-        return [np.array([best_t])]
+        return [np.array([lag_start(seg, ctx, seg.V, T_GRID_S, 0.5)])]
 
 
 #: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).

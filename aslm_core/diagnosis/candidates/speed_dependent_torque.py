@@ -69,6 +69,10 @@ class SpeedDependentTorque(Candidate):
     nl_names = ("k",)
     nl_units = ("-",)
     signature = "single-motor residual around the slip mode (extra mechanical damping), P and Q alike"
+    # The frequency term with its lag is a look-alike (see frequency_dependence.confusable): on ANDES FLoad data
+    # with V/θ noise the lagged term fitted as well (score z 6.6 against 6.6) but its three parameters' penalty
+    # left it out of the rivals, and the torque law was named.
+    confusable = ("frequency_dependence",)
 
     def starts(self, seg: Segment, ctx: Context) -> list[np.ndarray]:
         return [np.array([1.0])]

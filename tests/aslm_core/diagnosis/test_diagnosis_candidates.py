@@ -27,6 +27,21 @@ def test_frequency_dependence_recovers_kpf_kqf():
     # full band, whose white noise above 5 Hz no model removes.
     assert e.improvement_band.p >= 0.5
     assert e.improvement_band.p > e.improvement.p
+    # The self-test's law is instantaneous (k·Δf on the same Δf): the lag stays short.
+    assert e.parameters["Tf"] < 0.05, e.parameters
+
+
+def test_the_lag_is_the_signal_itself_at_zero_and_a_first_order_lag_otherwise():
+    from aslm_core.diagnosis.lag import lagged
+
+    dt, T = 0.01, 0.12
+    t = np.arange(0.0, 2.0, dt)
+    step = np.where(t > 0.0, 1.0, 0.0)
+    x = np.sin(2 * np.pi * 0.7 * t)
+    assert np.array_equal(lagged(x, 0.0, dt), x)
+    # A unit step after the first sample, which the trapezoid reads as a ramp over that step (centred at
+    # dt/2): 1 − exp(−(t − dt/2)/T), to its O((dt/T)²) error.
+    assert np.max(np.abs(lagged(step, T, dt)[1:] - (1.0 - np.exp(-(t[1:] - dt / 2) / T)))) < 2e-3
 
 
 def test_measurement_skew_recovers_tau():

@@ -124,6 +124,41 @@ def test_the_reverse_comparisons_are_a_family(monkeypatch):
     assert [e.name for e in left] == ["r2"]
 
 
+@pytest.mark.parametrize(("fd_over_sdt", "sdt_over_fd", "significant", "named"),
+                         [(6.3, 0.5, True, "fd"), (1.0, 0.5, True, None), (6.3, 3.0, True, None), (6.3, 0.5, False, None)])
+def test_an_unseparated_rival_that_the_paired_tests_separate_is_named_in_the_tops_place(
+        monkeypatch, fd_over_sdt, sdt_over_fd, significant, named):
+    """The gain only orders the tries (round 5 of issue 12): on ANDES's FLoad 9302 at L3 the torque law ranked
+    first by 0.8 nat of 100 and was not separated from the frequency term (z 0.5), which beats it (z 6.3) and is
+    not beaten back.  The challenger must be significant, explain the mismatch and pass both ways; a failed try
+    leaves the separation fields as the top candidate's test set them."""
+    from types import SimpleNamespace
+
+    from aslm_core.diagnosis import pipeline
+
+    z = {("sdt", "fd"): sdt_over_fd, ("fd", "sdt"): fd_over_sdt}
+    monkeypatch.setattr(pipeline, "_separation_z", lambda analyses, a, b, config: z[(a, b)])
+    monkeypatch.setattr(pipeline, "_explained_fraction", lambda analyses, name: 0.99)
+    monkeypatch.setattr(pipeline, "_remaining", lambda analyses, name: [])
+
+    def entry(name):
+        return SimpleNamespace(name=name, significant=significant or name == "sdt", separation_z=None, separated=None,
+                               explained_fraction=None, remaining_excess_channels=None)
+
+    top, fd = entry("sdt"), entry("fd")
+    monkeypatch.setattr(pipeline, "_rivals", lambda analyses, entries, best, zcrit: [e for e in entries if e is not best])
+    tied = [top, *pipeline._unseparated([], top, [fd], pipeline.DiagnosisConfig())]
+    assert [e.name for e in tied] == ["sdt", "fd"]
+    before = (fd.separation_z, fd.separated, top.separation_z, top.separated)
+    winner = pipeline._challenger([], [top, fd], tied, 3.0, pipeline.DiagnosisConfig())
+    assert (winner.name if winner else None) == named
+    if named:
+        assert (fd.separation_z, fd.separated) == (None, None) and top.separated is True
+        assert fd.explained_fraction == 0.99 and top.explained_fraction is None
+    else:
+        assert (fd.separation_z, fd.separated, top.separation_z, top.separated) == before
+
+
 def test_an_implausible_fit_is_no_rival():
     """A "second motor" with a flywheel's inertia and hardly any load torque (H22/Tm2 = 500 s; real motor groups
     fit at 0.4-26 s) is the candidate standing in for a torque-speed law: it is not significant and not a rival
