@@ -4,6 +4,13 @@ from __future__ import annotations
 
 import os
 
+# Benchmark modules the tests import set NUMBA_NUM_THREADS=1 by setdefault as they load (their timings are one
+# core's).  Once a parallel kernel (aslm_sim's network) has launched numba's threads, the next compile that reads a
+# different value raises "Cannot set NUMBA_NUM_THREADS ... once the threads have been launched": the order-dependent
+# failure seen on cold numba caches.  Pinned here to numba's own default before numba loads, those setdefaults
+# change nothing.
+os.environ.setdefault("NUMBA_NUM_THREADS", str(len(os.sched_getaffinity(0))))
+
 import numpy as np
 import pytest
 from scipy import signal
