@@ -34,3 +34,29 @@ def test_the_pytest_command_imports_the_real_packages_not_the_mirroring_test_fol
     r = subprocess.run([str(exe), "-q", "--co", "-p", "no:cacheprovider", "tests/aslm_core/test_public_api.py"],
                        cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+
+
+def test_a_benchmark_imported_after_a_parallel_kernel_does_not_break_the_next_compile():
+    # Benchmark modules set NUMBA_NUM_THREADS=1 by setdefault as they load; once a parallel kernel has launched
+    # numba's threads at its default, the next compile would raise "Cannot set NUMBA_NUM_THREADS ... once the
+    # threads have been launched" unless conftest pinned the variable first.  A fresh interpreter without it.
+    code = (
+        "import sys; sys.path.insert(0, 'tests'); import conftest\n"
+        "import numba as nb, numpy as np\n"
+        "@nb.njit(parallel=True)\n"
+        "def total(x):\n"
+        "    s = 0.0\n"
+        "    for i in nb.prange(x.size):\n"
+        "        s += x[i]\n"
+        "    return s\n"
+        "total(np.ones(8))\n"
+        "import benchmarks.rate_cell\n"
+        "@nb.njit\n"
+        "def one(x):\n"
+        "    return x + 1\n"
+        "print(one(1))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"}
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.strip().endswith("2")
