@@ -309,6 +309,15 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
                               reestimate=reestimate, max_order=max_order, finish=finish)
 
 
+def covariance_scale(overid: float) -> float:
+    """The factor on the IV's spectral covariance of D for Hansen's statistic over its degrees of freedom.
+
+    max(1, ``overid`` / :data:`OVERID_EXPECTED`): the reduced χ² of the over-identifying moments above what valid
+    instruments give (docs/numerics.md, "Standard errors that cover under own fluctuation").
+    """
+    return max(1.0, overid / OVERID_EXPECTED)
+
+
 def _overid_and_covariance(wp: Instrumented | Stacked, state: dict, se_smooth_hz: float | None) -> None:
     """Add ``strength``, ``overid``, ``overid_p``, ``overid_white`` to a fit's result; with ``se_smooth_hz`` its
     ``cov`` and ``overid`` from the spectral moment conditions.
@@ -328,7 +337,7 @@ def _overid_and_covariance(wp: Instrumented | Stacked, state: dict, se_smooth_hz
     robust = wp.spectral_parts(state["d"], se_smooth_hz) if se_smooth_hz and math.isfinite(stat) else None
     if robust is not None:
         state["cov"], stat = sandwich(robust[0], robust[1]), robust[2]
-        state["cov"] = state["cov"] * max(1.0, stat / dof / OVERID_EXPECTED)
+        state["cov"] = state["cov"] * covariance_scale(stat / dof)
     state.update(overid=stat / dof, overid_p=float(chi2.sf(stat, dof)))
 
 

@@ -68,7 +68,7 @@ def windows(run: dict, name: str, iv_se: str = "recorded") -> list[tuple]:
         if e is not None:
             se = np.array(s)
             if iv_se != "recorded" and path_of(q) == "iv":
-                k = math.sqrt(max(1.0, q["iv_overid"] / instrumental.OVERID_EXPECTED))
+                k = math.sqrt(instrumental.covariance_scale(q["iv_overid"]))
                 se = se / k if iv_se == "unscaled" else se * k
             out.append((np.array(e) / se, path_of(q), q.get("iv_overid", math.nan), f, np.abs(e)))
     return out
@@ -140,7 +140,7 @@ def _iv_flag_counts(recorded: dict, name: str, iv_se: str) -> dict:
         for e, s, q in zip(run["errors"][name], run["stderr"][name], run["quality"][name], strict=True):
             if e is None or path_of(q) != "iv":
                 continue
-            k = math.sqrt(max(1.0, q["iv_overid"] / instrumental.OVERID_EXPECTED))
+            k = math.sqrt(instrumental.covariance_scale(q["iv_overid"]))
             se = np.array(s) * {"recorded": 1.0, "unscaled": 1.0 / k, "scaled": k}[iv_se]
             flagged = bool(np.any(se > IV_SE_MAX * np.abs(1.0 + np.array(e))))
             key = "off" if np.max(np.abs(e)) > 0.2 else "within"
