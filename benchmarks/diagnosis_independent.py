@@ -62,6 +62,9 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     # Fifth round (issue 12): confirm4 has been seen too; confirm5 was fixed here and committed before it was
     # simulated or diagnosed, its seeds disjoint from every seed above.
     "confirm5": {"clean": tuple(range(9401, 9411)), "effect": tuple(range(9401, 9405))},
+    # Sixth round (issue 12): confirm5 has been seen too; confirm6 was fixed here and committed before it was
+    # simulated or diagnosed, its seeds disjoint from every seed above.
+    "confirm6": {"clean": tuple(range(9501, 9511)), "effect": tuple(range(9501, 9505))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
