@@ -239,10 +239,13 @@ def crosscheck(kind: str, seed: int, t0: float, level: int, window: dict) -> dic
 
 
 def _records(name: str, input_noise: bool = False) -> list[dict]:
-    p = RESULTS / f"{name}.json"
-    if not p.exists():
-        return []
-    return [r for r in json.loads(p.read_text())["records"] if bool(r.get("input_noise")) == input_noise]
+    """The records of one noise mode in a results file, or in several joined by ``+`` (a set run in parts)."""
+    out = []
+    for part in name.split("+"):
+        p = RESULTS / f"{part}.json"
+        if p.exists():
+            out += [r for r in json.loads(p.read_text())["records"] if bool(r.get("input_noise")) == input_noise]
+    return out
 
 
 def critical_z() -> float:
@@ -314,17 +317,23 @@ def main(argv: list[str] | None = None) -> int:
     sets = [s for s in args.sets.split(",") if s]
     stems = {s: f"diagnosis_independent_{s}" for s in sets}
     stems.update(dict(kv.split(":", 1) for kv in args.verdicts.split(",") if kv))
-    todo = sorted({(k, s) for st in sets for k, s in jobs(st, list(KINDS_MEASURED))})
+    # In the sets' order (a partial run covers the first sets whole), each scenario once.
+    todo = list(dict.fromkeys((k, s) for st in sets for k, s in jobs(st, list(KINDS_MEASURED))))
     t0 = time.perf_counter()
     windows = []
     if args.windows_from:
-        windows = json.loads((RESULTS / f"{args.windows_from}.json").read_text())["windows"]
+        windows = _load_windows(args.windows_from)
         if args.noise == "input":  # earlier outputs may lack the V/θ ingredients
             windows = [w for w in windows if "vtheta" in w]
         have = {(w["kind"], w["seed"]) for w in windows}
         todo = [j for j in todo if j not in have]
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        windows += [w for ws in pool.map(_safe_oracle, todo) for w in ws]
+    partial = cache_dir() / f"{args.out}.partial.jsonl"  # every scenario's windows as they come
+    with ProcessPoolExecutor(max_workers=args.workers) as pool, partial.open("a") as fh:
+        for job, ws in zip(todo, pool.map(_safe_oracle, todo), strict=True):
+            windows += ws
+            fh.writelines(json.dumps(w, default=float) + "\n" for w in ws)
+            fh.flush()
+            print(f"{job[0]}/{job[1]}: {len(ws)} windows, {time.perf_counter() - t0:.0f} s", flush=True)
     zcrit = critical_z()
     by_key = {(w["kind"], w["seed"], w["window"][0]): w for w in windows}
     rows = []
@@ -363,10 +372,17 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def _load_windows(src: str) -> list[dict]:
+    """Oracle windows of an earlier output: a results stem, or a ``.partial.jsonl`` path of a run."""
+    if src.endswith(".jsonl"):
+        return [json.loads(line) for line in Path(src).read_text().splitlines() if line.strip()]
+    return json.loads((RESULTS / f"{src}.json").read_text())["windows"]
+
+
 def crosscheck_main(args, argv) -> int:
     """``--crosscheck``: :func:`crosscheck` on the listed cases, printed and written to ``--out``."""
     t0 = time.perf_counter()
-    windows = json.loads((RESULTS / f"{args.windows_from}.json").read_text())["windows"]
+    windows = _load_windows(args.windows_from)
     by_key = {(w["kind"], w["seed"], w["window"][0]): w for w in windows}
     rows = []
     for spec in args.crosscheck.split(","):
