@@ -363,13 +363,48 @@ def main(argv: list[str] | None = None) -> int:
                 rows.append(row)
     tab = table(rows, zcrit)
     print(markdown(tab, zcrit))
+    by_set = detectable_by_set(by_key, sets, zcrit, args.noise == "input")
+    print("\n" + by_set_markdown(by_set, sets))
     print(f"\n{len(windows)} windows, {len(rows)} cases, {time.perf_counter() - t0:.0f} s, load {os.getloadavg()}")
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / f"{args.out}.json").write_text(json.dumps(
-        {"critical_z": zcrit, "noise": args.noise, "sets": sets, "verdicts_from": stems, "table": tab, "windows": windows, "cases": rows,
+        {"critical_z": zcrit, "noise": args.noise, "sets": sets, "detectable_by_set": by_set, "verdicts_from": stems, "table": tab, "windows": windows, "cases": rows,
          "command": "benchmarks/diagnosis_detectability.py " + " ".join(argv if argv is not None else sys.argv[1:])},
         indent=1, default=float))
     return 0
+
+
+def detectable_by_set(by_key: dict, sets: list[str], zcrit: float, input_noise: bool) -> dict:
+    """Oracle-detectable cases per set, kind and level, every window at its drawn SNR (records not needed, so
+    sets without a run of this noise mode count too): {set: {kind: [[detectable, cases] per level]}}."""
+    from benchmarks.diagnosis_independent import noise_draw
+
+    out: dict = {}
+    for st in sets:
+        seeds = set(jobs(st, list(KINDS_MEASURED)))
+        per: dict = defaultdict(lambda: [[0, 0] for _ in LEVELS])
+        for (k, s, t0w), w in by_key.items():
+            if (k, s) not in seeds:
+                continue
+            for i, lvl in enumerate(LEVELS):
+                snr = noise_draw(f"{k}/{s}", lvl, t0w)[1]
+                z = vtheta_z(w["vtheta"], snr) if input_noise else w["z_unit"] * 10 ** (snr / 20)
+                per[k][i][0] += z >= zcrit
+                per[k][i][1] += 1
+        out[st] = {k: per[k] for k in KINDS_MEASURED if k in per}
+    return out
+
+
+def by_set_markdown(by_set: dict, sets: list[str]) -> str:
+    """Detectable / cases per kind (rows) and set (columns), L1 / L2 / L3 in each cell."""
+    lines = ["| kind | " + " | ".join(sets) + " |", "|---" * (len(sets) + 1) + "|"]
+    for k in KINDS_MEASURED:
+        cells = []
+        for st in sets:
+            c = by_set.get(st, {}).get(k)
+            cells.append("-" if c is None else " / ".join(str(d) for d, _ in c) + f" of {c[0][1]}")
+        lines.append(f"| {k} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def _load_windows(src: str) -> list[dict]:
