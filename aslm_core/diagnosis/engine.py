@@ -407,7 +407,7 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1
     plain model's prediction error — the score statistic is Dᵀ·C⁻¹·R0 / √(Dᵀ·C⁻¹·D): N(0, 1) when the
     candidate is not needed (D depends on the training samples only), and the most powerful such linear
     statistic.  The log-likelihood gain is Σ_ch (m/2)·ln(S0/S1) with S the sums of squares of the m
-    coefficients weighted by 1/v, P and Q decorrelated per coefficient first (:func:`_gain`).
+    coefficients weighted by 1/v.
 
     Errors in variables: with noisy V and θ both R0 and D carry the *held-out* input noise, R0 ⊃ −G0·e and
     D ⊃ (G1 − G0)·e, so the numerator has the expectation b = −E[((G1 − G0)e)ᵀ·C⁻¹·G0e] ≠ 0 even when the
@@ -459,45 +459,11 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1
     S0p, S0q = float(np.sum(R0p**2 / vp)), float(np.sum(R0q**2 / vq))
     S1p = float(np.sum((R0p - Dp) ** 2 / vp)) + 2.0 * bp
     S1q = float(np.sum((R0q - Dq) ** 2 / vq)) + 2.0 * bq
-    gain = _gain(m, R0p, R0q, Dp, Dq, vp, vq, cpq, probes_dct=(G0p, G0q, dGp, dGq) if probes is not None else None)
+    gain = 0.5 * m * (math.log(S0p / max(S1p, 1e-300)) + math.log(S0q / max(S1q, 1e-300)))
     ex = [(s0 - s1) / (s0 - m) if s0 - m > 0.05 * m else None for s0, s1 in ((S0p, S1p), (S0q, S1q))]
     s0p, s0q, s1p, s1q = (float(r @ r) for r in (r0p, r0q, r1p, r1q))
     return Comparison(score, z, gain, gain - 0.5 * k * math.log(m), 1.0 - s1p / s0p, 1.0 - s1q / s0q, n,
                       ex[0], ex[1], 1.0 - S1p / S0p, 1.0 - S1q / S0q)
-
-
-def _gain(m: int, R0p, R0q, Dp, Dq, vp, vq, cpq, probes_dct=None) -> float:
-    """Held-out Gaussian log-likelihood gain Σ_ch (m/2)·ln(S0/S1) [nats], P and Q decorrelated first.
-
-    Each coefficient's pair is taken as P and Q-given-P, u_P = x_P/√v_P, u_Q = (x_Q − (c_PQ/v_P)·x_P)/√(v_Q −
-    c_PQ²/v_P), which have independent unit noise: the per-channel profile likelihood is then that of the
-    noise model's 2×2 covariance.  With c_PQ = 0 (noise on P and Q only) it is the per-channel sum on x/√v.
-    Why: V/θ noise propagates into P and Q with a correlation of ~0.6 (ANDES windows), and a diagonal gain
-    then under-counts what the score test (which uses the same covariance) counts, so candidates the test
-    finds significant failed the penalty.  ``probes_dct`` = (G0p, G0q, dGp, dGq), the input-noise draws'
-    coefficients (m, draws): S1 is raised by twice the errors-in-variables bias −E[(G0e)ᵀ(G1 − G0)e] per
-    channel in the same coordinates.
-    """
-    a = cpq / vp
-    sc = np.sqrt(vp)
-    sq_c = np.sqrt(np.maximum(vq - cpq * a, 1e-9 * vq))
-
-    def white(xp, xq):
-        if xp.ndim == 2:
-            return xp / sc[:, None], (xq - a[:, None] * xp) / sq_c[:, None]
-        return xp / sc, (xq - a * xp) / sq_c
-
-    u0p, u0q = white(R0p, R0q)
-    u1p, u1q = white(R0p - Dp, R0q - Dq)
-    bp = bq = 0.0
-    if probes_dct is not None:
-        g0p, g0q = white(*probes_dct[:2])
-        dgp, dgq = white(*probes_dct[2:])
-        bp = float(np.mean(-np.sum(g0p * dgp, axis=0)))
-        bq = float(np.mean(-np.sum(g0q * dgq, axis=0)))
-    s0p, s0q = float(u0p @ u0p), float(u0q @ u0q)
-    s1p, s1q = float(u1p @ u1p) + 2.0 * bp, float(u1q @ u1q) + 2.0 * bq
-    return 0.5 * m * (math.log(s0p / max(s1p, 1e-300)) + math.log(s0q / max(s1q, 1e-300)))
 
 
 def _gls_metric(vp: np.ndarray, vq: np.ndarray, cpq: np.ndarray, plain_cov):
