@@ -16,8 +16,10 @@ statistic then has expectation
 Bonferroni over the candidates) not even the oracle would detect the effect in more than half the draws: such
 a case is beyond the data.  The library's candidate of the true kind, fitted on the same noise-free training
 samples, gives the share of r its form captures (z_form = rᵀD/‖D‖, D its held-out correction): a form miss
-when z_form ≪ z_oracle.  Noise on P and Q only (the V/θ mode is bounded by the propagated input noise, see
-docs/diagnosis.md).  Raw output: ``docs/results/diagnosis_detectability.json``.
+when z_form ≪ z_oracle.  ``--noise input``: the V/θ mode's oracle, r normed in the P/Q noise plus the bench's
+true V/θ noise propagated through the noise-free plain fit, P and Q correlated (:func:`vtheta_z`); ``--crosscheck``
+puts that noise beside the diagnosis's own on noisy windows (docs/diagnosis.md, sixth round).  Raw output:
+``docs/results/diagnosis_detectability*.json``.
 """
 
 from __future__ import annotations
