@@ -88,13 +88,18 @@ def jobs(set_name: str, kinds: list[str] | None = None) -> list[tuple[str, int]]
     return out
 
 
+def noise_draw(key: str, level: int, t0: float) -> tuple[np.random.Generator, float]:
+    """The noise stream of one case (``kind/seed``, level, window start [s]) and its drawn SNR [dB], its first draw."""
+    rng = np.random.default_rng([zlib.crc32(key.encode()), level, int(t0)])
+    return rng, float(NOISE_LEVELS[level] + rng.uniform(-SNR_SPREAD_DB, SNR_SPREAD_DB))
+
+
 def _window(rec: dict, t0: float, t1: float, level: int, input_noise: bool, key: str):
     """One noisy window of a recording: P/Q noise at the level's SNR, V/θ noise when asked."""
     from aslm_core import Window
 
-    rng = np.random.default_rng([zlib.crc32(key.encode()), level, int(t0)])
+    rng, snr = noise_draw(key, level, t0)
     sl = (rec["t"] >= t0 - 1e-9) & (rec["t"] <= t1 + 1e-9)
-    snr = NOISE_LEVELS[level] + rng.uniform(-SNR_SPREAD_DB, SNR_SPREAD_DB)
     ch = {k: rec[k][sl].copy() for k in ("V", "theta", "P", "Q")}
     for k in ("P", "Q"):
         ch[k] += rng.standard_normal(ch[k].size) * np.std(ch[k]) * 10 ** (-snr / 20)
