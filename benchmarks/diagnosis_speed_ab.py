@@ -9,8 +9,9 @@ the switched-shunt candidate's low-passed V recomputed at every call); the repor
 
 ``projection`` (round 6): the slowest windows of the seen sets' records (``docs/results/
 diagnosis_independent_*.json``, CPU field; :data:`SLOW`) diagnosed with the compiled lower stage
-(:mod:`aslm_core.diagnosis.projection`, after) and with the NumPy one it replaced (before:
-:func:`aslm_core.diagnosis.engine._train_residuals` per residual evaluation).  The two agree to rounding, not to
+(:mod:`aslm_core.diagnosis.projection`) and the static regressors kept between evaluations (after), and with
+the NumPy lower stage it replaced (before: :func:`aslm_core.diagnosis.engine._train_residuals` per residual
+evaluation, the static part recomputed at every call).  The two agree to rounding, not to
 the last bit, so the upper stage's path can differ where it stops at its evaluation cap: the verdicts and
 causes must be the same, every other number is compared and the largest difference reported.
 
@@ -65,8 +66,16 @@ def _caches():
 
 def _projection():
     from aslm_core.diagnosis import engine
+    from aslm_core.diagnosis.candidates import base, motor_stator_dynamics, switched_shunt
 
     compiled = engine.Projector
+    kept = base.static_part
+    users = (base, motor_stator_dynamics, switched_shunt)  # the modules that hold static_part by name
+
+    def recomputed(seg, ctx, V=None):
+        """static_part as before round 6: computed afresh at every call."""
+        base._LAST_STATIC = None
+        return kept(seg, ctx, V)
 
     class NumpyProjector:
         """The lower stage as before round 6: the NumPy path of :func:`engine._train_residuals` per call."""
@@ -80,6 +89,8 @@ def _projection():
 
     def toggle(on: bool) -> None:
         engine.Projector = compiled if on else NumpyProjector
+        for mod in users:
+            mod.static_part = kept if on else recomputed
 
     return toggle
 

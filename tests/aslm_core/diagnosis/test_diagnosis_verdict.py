@@ -184,3 +184,26 @@ def test_an_implausible_fit_is_no_rival():
     assert LIBRARY["second_motor"].implausible(motor.parameters, a.seg, None) is None
     assert pipeline._rivals([a], [best, flywheel, freq], best, 3.0) == [freq]
     assert pipeline._rivals([a], [best, motor, freq], best, 3.0) == [motor, freq]
+
+
+@pytest.mark.parametrize(("plain", "fits", "causes", "pinned"), [
+    ({"H2": 0.5}, {"double_cage_rotor": {"H2": 0.5}}, ["double_cage_rotor"], {"H2": 0.5}),
+    ({"H2": 0.5}, {"double_cage_rotor": {}}, ["double_cage_rotor"], {}),
+    ({"H2": 0.5}, {"double_cage_rotor": {"b": 30.0}}, ["double_cage_rotor"], {}),
+    ({"b": 30.0}, {"second_motor": {"b": 30.0}, "measurement_skew": {"b": 30.0}}, ["second_motor", "measurement_skew"],
+     {"b": 30.0}),
+    ({"b": 30.0}, {"second_motor": {"b": 30.0}, "measurement_skew": {}}, ["second_motor", "measurement_skew"], {}),
+    ({}, {"double_cage_rotor": {"H2": 0.5}}, ["double_cage_rotor"], {}),
+])
+def test_a_cause_whose_fit_stays_on_the_plain_fits_bound_is_not_named(plain, fits, causes, pinned):
+    """Sixth round of issue 12: a motor outside the identifier's box leaves the plain fit on a bound and a residual
+    that a candidate with more freedom absorbs (ANDES clean 9303 with H2 = 0.475 s was named `double_cage_rotor`).
+    A cause (every listed cause, when ambiguous) whose own fit stays on the plain fit's bound is not named; one that
+    moves the motor off it, or a plain fit inside the box, leaves the verdict alone."""
+    from types import SimpleNamespace
+
+    from aslm_core.diagnosis import pipeline
+
+    a = SimpleNamespace(plain=SimpleNamespace(at_bound=plain),
+                        fits={k: SimpleNamespace(at_bound=v) for k, v in fits.items()})
+    assert pipeline._pinned([a], causes) == pinned
