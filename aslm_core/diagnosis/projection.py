@@ -11,7 +11,7 @@ DCT of the model's columns, their column scaling, classical Gram–Schmidt with 
 accurate as Householder QR for the few columns here) and the residual of the projection.
 
 A column set that is (nearly) rank deficient — a zero or duplicated extra column — is left to the SVD with
-the engine's cut-off (:func:`aslm_core.diagnosis.engine._lstsq`), so degenerate fits take the old path.
+the engine's cut-off (:func:`aslm_core.diagnosis.engine._lstsq`), as every evaluation was before.
 """
 
 from __future__ import annotations
@@ -93,6 +93,34 @@ def project_kernel(basis: np.ndarray, y: np.ndarray, cols: np.ndarray, w: np.nda
     return True
 
 
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def project_pair(basis: np.ndarray, k0: int, yp: np.ndarray, mp: np.ndarray, xp: np.ndarray, wp: np.ndarray,
+                 yq: np.ndarray, mq: np.ndarray, xq: np.ndarray, wq: np.ndarray, out: np.ndarray) -> int:
+    """:func:`project_kernel` for P into ``out[:m]`` and Q into ``out[m:]``, the training samples k0 … k0 + n
+    of the whole-window model parts (mp, mq) and columns (xp, xq) copied here, in one call.
+
+    Returns
+    -------
+    int
+        Bit 0 set when P's columns are rank deficient, bit 1 for Q's (that half of ``out`` then undefined).
+    """
+    m, n = basis.shape
+    flags = 0
+    for ch in range(2):
+        mm, xx = (mp, xp) if ch == 0 else (mq, xq)
+        cols = np.empty((n, 1 + xx.shape[1]))
+        for i in range(n):
+            cols[i, 0] = mm[k0 + i]
+            for j in range(xx.shape[1]):
+                cols[i, 1 + j] = xx[k0 + i, j]
+        if ch == 0:
+            if not project_kernel(basis, yp, cols, wp, out[:m]):
+                flags |= 1
+        elif not project_kernel(basis, yq, cols, wq, out[m:]):
+            flags |= 2
+    return flags
+
+
 class Projector:
     """The upper stage's residual for one fit: the constant parts computed once (segment and noise fixed).
 
@@ -115,14 +143,9 @@ class Projector:
         self.yp, self.yq = self.basis @ seg.P[tr], self.basis @ seg.Q[tr]
         self.fallback = fallback
 
-    def _one(self, y: np.ndarray, m: np.ndarray, x: np.ndarray, w: np.ndarray) -> np.ndarray:
-        cols = np.empty((self.tr.stop - self.tr.start, 1 + x.shape[1]))
-        cols[:, 0] = m[self.tr]
-        cols[:, 1:] = x[self.tr]
-        out = np.empty(y.size)
-        if project_kernel(self.basis, y, cols, w, out):
-            return out
-        c = self.basis @ cols
+    def _svd(self, y: np.ndarray, m: np.ndarray, x: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """One channel's residual by the SVD (rank-deficient columns)."""
+        c = self.basis @ np.column_stack([m[self.tr], x[self.tr]])
         yw, xw = (y - c[:, 0]) * w, c[:, 1:] * w[:, None]
         return yw - xw @ self.fallback(xw, yw)
 
@@ -134,4 +157,12 @@ class Projector:
         pr : Prediction
             The candidate's output for one (D, z).
         """
-        return np.concatenate([self._one(self.yp, pr.mp, pr.xp, self.wp), self._one(self.yq, pr.mq, pr.xq, self.wq)])
+        m = self.yp.size
+        out = np.empty(2 * m)
+        flags = project_pair(self.basis, self.tr.start, self.yp, pr.mp, np.ascontiguousarray(pr.xp), self.wp,
+                             self.yq, pr.mq, np.ascontiguousarray(pr.xq), self.wq, out)
+        if flags & 1:
+            out[:m] = self._svd(self.yp, pr.mp, pr.xp, self.wp)
+        if flags & 2:
+            out[m:] = self._svd(self.yq, pr.mq, pr.xq, self.wq)
+        return out
