@@ -19,6 +19,10 @@ docs/diagnosis.md ("Why clean 9303 and 9305 were not clean"):
     bound one way or the other: the cause shown in the simulator, not only in the fit.
 ``fixed``
     The scenarios as the bench draws them now (base motor redrawn inside the box).
+``verdicts``
+    The diagnosis of the old (out-of-box) clean recordings at the three noise levels, noise on P and Q and on
+    V and θ too (sixth round): the plain fit's bounds (``model.at_bound``) and the verdict with and without the
+    rule that names no cause whose fit stays on the plain fit's bound (``pipeline._pinned``).
 
 The oracle z here is the unit-SNR one (:func:`benchmarks.diagnosis_detectability.recording_oracle`); a
 case's is z_unit·10^(SNR/20), against the critical value 3.06: at L3's highest SNR (30 dB) z_unit < 0.097 is
@@ -146,12 +150,51 @@ def fixed_part() -> list[dict]:
     return rows
 
 
+def verdicts_part() -> list[dict]:
+    """The old out-of-box clean recordings diagnosed: the verdict the rule on the plain fit's bound withholds."""
+    from aslm_core.diagnosis import pipeline
+    from aslm_sim.andes.effects import recording
+    from benchmarks.diagnosis_independent import LEVELS, WINDOWS, _window
+
+    rule = pipeline._pinned
+    seen: list = []
+
+    def recorded(analyses, causes):  # the verdict's causes before the rule, and what the rule returns
+        out = rule(analyses, causes)
+        seen.append((list(causes), out))
+        return out
+
+    pipeline._pinned = recorded
+    rows = []
+    try:
+        for seed in OUTSIDE:
+            rec = recording("clean", seed, tf=TF, tstep=TSTEP, paper_box=False)
+            for inp in (False, True):
+                for t0, t1 in WINDOWS:
+                    for lvl in LEVELS:
+                        w, snr = _window(rec, t0, t1, lvl, inp, f"clean/{seed}")
+                        seen.clear()
+                        rep = pipeline.diagnose(w)
+                        causes, pinned = seen[0] if seen else ([], {})
+                        row = {"seed": seed, "window": [t0, t1], "level": lvl, "input_noise": inp, "snr_db": snr,
+                               "verdict": rep.verdict, "cause": rep.cause, "causes_before_rule": causes,
+                               "pinned": pinned, "plain_at_bound": rep.model.at_bound,
+                               "plain_d": rep.model.dynamic, "message": rep.message}
+                        rows.append(row)
+                        print(f"clean {seed} {t0:4.0f} L{lvl} {'V/θ' if inp else 'P/Q'}: at_bound "
+                              f"{rep.model.at_bound}  before the rule {causes or '-'}  now {rep.verdict}"
+                              f"{'/' + rep.cause if rep.cause else ''}", flush=True)
+    finally:
+        pipeline._pinned = rule
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--parts", default="census,box,andes,fixed")
     p.add_argument("--out", default="clean_box")
     args = p.parse_args(argv)
-    parts = {"census": census, "box": box_part, "andes": andes_part, "fixed": fixed_part}
+    parts = {"census": census, "box": box_part, "andes": andes_part, "fixed": fixed_part, "verdicts": verdicts_part}
     t0 = time.perf_counter()
     out: dict = {"critical_z": critical_z(), "top_snr_db": TOP_SNR_DB, "wide_box": WIDE}
     path = RESULTS / f"{args.out}.json"

@@ -152,6 +152,7 @@ def run_job(job: tuple) -> list[dict]:
                     "candidates": [_candidate(e) for e in rep.missing_physics],
                     "fit_before": rep.fit_before.to_dict(), "fit_after": rep.fit_after.to_dict(),
                     "located": rep.located.channels, "cpu_s": cpu, "wall_s": wall,
+                    "plain_at_bound": d["model"].get("at_bound"), "message": rep.message,
                     "sim_s": t_sim, "sim_cpu_s": c_sim, "tds_s": meta["tds_s"], "drawn": meta["drawn"],
                     "motors": [m["d"] for m in meta["motors"]], "switchings": meta["switchings"],
                 })

@@ -21,10 +21,15 @@ from scipy import optimize, stats
 
 from aslm_core.diagnosis.candidates.base import Candidate, Context, Prediction
 from aslm_core.diagnosis.noise import NoiseModel, dct_band, n_band
+from aslm_core.diagnosis.projection import Projector
 from aslm_core.diagnosis.segment import Segment
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 
 _FAIL = 1e8  # residual value of a failed simulation (much larger than any weighted residual)
+#: A fitted D this close to a bound of its box, as a share of the box's width, sits on the bound: a converged
+#: fit reaches a binding bound to rounding (1e-12 on the out-of-box ANDES windows), one stopped at its
+#: evaluation cap only nearly.
+BOUND_TOL = 1e-3
 
 
 @dataclass
@@ -49,6 +54,11 @@ class Fit:
         Their standard errors (Jacobian, autocorrelation-inflated).
     ok : bool
         False when no start gave a finite model.
+    nfev : int
+        Upper-stage function evaluations (Jacobian evaluations not counted).
+    at_bound : dict
+        The parameters of D on a bound of the identifier's box {name: the bound}, identified mode only
+        [1/s, 1/s, s, pu].
     """
 
     d: np.ndarray
@@ -62,6 +72,7 @@ class Fit:
     stderr: dict = field(default_factory=dict)
     ok: bool = True
     nfev: int = 0
+    at_bound: dict = field(default_factory=dict)
 
     def residuals(self, seg: Segment) -> tuple[np.ndarray, np.ndarray]:
         """Measured minus model over the whole window [pu]."""
@@ -142,6 +153,7 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, noise, *,
     else:
         lo, hi = np.asarray(zlo, float), np.asarray(zhi, float)
     n_tr = n_band(seg.ks - seg.k0, noise.fs, noise.band_hz)
+    proj = Projector(seg, noise, _lstsq)
 
     def unpack(x):
         return (x[:4], x[4:]) if free else (d0, x)
@@ -151,8 +163,7 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, noise, *,
         pr = cand.predict(seg, ctx, d, z)
         if pr is None:
             return np.full(2 * n_tr, _FAIL)
-        rp, rq, *_ = _train_residuals(pr, seg, noise)
-        r = np.concatenate([rp, rq])
+        r = proj.residuals(pr)
         return r if np.all(np.isfinite(r)) else np.full(2 * n_tr, _FAIL)
 
     best = None
@@ -172,7 +183,24 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, noise, *,
         if best is None or res.cost < best.cost:
             best = res
     d, z = unpack(best.x)
-    return evaluate(cand, seg, ctx, d, z, noise, res=best, nfev=nfev)
+    fit = evaluate(cand, seg, ctx, d, z, noise, res=best, nfev=nfev)
+    if free:
+        fit.at_bound = at_bound(fit.d, lo[:4], hi[:4])
+    return fit
+
+
+def at_bound(d: np.ndarray, lo: np.ndarray, hi: np.ndarray, tol: float = BOUND_TOL) -> dict[str, float]:
+    """The parameters of D within ``tol`` of the box's width of a bound {name: the bound} [1/s, 1/s, s, pu]."""
+    out = {}
+    for i, name in enumerate(DYNAMIC_NAMES):
+        span = hi[i] - lo[i]
+        if not span > 0:
+            continue
+        if d[i] - lo[i] <= tol * span:
+            out[name] = float(lo[i])
+        elif hi[i] - d[i] <= tol * span:
+            out[name] = float(hi[i])
+    return out
 
 
 def evaluate(cand: Candidate, seg: Segment, ctx: Context, d: np.ndarray, z: np.ndarray,

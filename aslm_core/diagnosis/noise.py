@@ -68,11 +68,15 @@ def _dct_basis(n: int, m: int) -> np.ndarray:
     return np.ascontiguousarray(fft.dct(np.eye(n), type=2, norm="ortho", axis=0)[:m])
 
 
+def band_basis(n: int, fs: float, band_hz: float = BAND_HZ) -> np.ndarray:
+    """The orthonormal DCT-II rows of an n-sample record below ``band_hz`` (fs [Hz]), shape (m, n); cached."""
+    return _dct_basis(n, n_band(n, fs, band_hz))
+
+
 def dct_band(x: np.ndarray, fs: float, band_hz: float = BAND_HZ) -> np.ndarray:
     """Orthonormal DCT-II of x along axis 0, the coefficients below ``band_hz`` only."""
     x = np.asarray(x, dtype=np.float64)
-    n = x.shape[0]
-    return _dct_basis(n, n_band(n, fs, band_hz)) @ x
+    return band_basis(x.shape[0], fs, band_hz) @ x
 
 
 def _smooth(x: np.ndarray, width: int) -> np.ndarray:

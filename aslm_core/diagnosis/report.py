@@ -401,9 +401,13 @@ class Diagnosed(Motor):
         D = {a [1/s], b [1/s], H2 [s], Tm [pu]}.
     mode : str
         identified (fitted on the training samples) or user (the given model, frozen).
+    at_bound : dict
+        The parameters of D on a bound of the identifier's box in any window {name: the bound} (identified mode;
+        empty when none): a cause is then named only if its own fit moves D off that bound.
     """
 
     mode: str
+    at_bound: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass

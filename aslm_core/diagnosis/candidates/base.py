@@ -93,11 +93,25 @@ def static_part(seg: Segment, ctx: Context, V: np.ndarray | None = None):
     sx : ndarray, shape (n, 3) or (n, 1)
         Static regressors (the same for both channels).
     """
+    global _LAST_STATIC
     V = seg.V if V is None else V
+    # The upper stage asks for the same V and model at every residual evaluation: the last answer is kept
+    # (keyed on the objects themselves, read-only so that no caller can change it for the next one).
+    last = _LAST_STATIC
+    if last is not None and last[0] is V and last[1] is ctx and last[2] is ctx.static_user and last[3] == ctx.mode:
+        return last[4]
     if ctx.free:
-        return np.zeros_like(V), np.zeros_like(V), static.regressors(V, "zip")
-    fp, fq = static.static_power(V, ctx.static_user)
-    return fp, fq, np.ones((V.shape[0], 1))
+        out = np.zeros_like(V), np.zeros_like(V), static.regressors(V, "zip")
+    else:
+        fp, fq = static.static_power(V, ctx.static_user)
+        out = fp, fq, np.ones((V.shape[0], 1))
+    for a in out:
+        a.setflags(write=False)
+    _LAST_STATIC = (V, ctx, ctx.static_user, ctx.mode, out)
+    return out
+
+
+_LAST_STATIC: tuple | None = None  # (V, ctx, its static_user, its mode, static_part's answer)
 
 
 class Candidate:

@@ -55,7 +55,8 @@ def test_every_part_has_its_mirror_with_the_same_fields_and_descriptions():
         for name, info in model.model_fields.items():
             assert info.description == docs[name], (dc.__name__, name)
             # Optional in the JSON exactly where the dataclass has a default.
-            has_default = next(f for f in dataclasses.fields(dc) if f.name == name).default is not dataclasses.MISSING
+            f = next(f for f in dataclasses.fields(dc) if f.name == name)
+            has_default = f.default is not dataclasses.MISSING or f.default_factory is not dataclasses.MISSING
             assert info.is_required() is not has_default, (dc.__name__, name)
 
 

@@ -184,3 +184,46 @@ def test_an_implausible_fit_is_no_rival():
     assert LIBRARY["second_motor"].implausible(motor.parameters, a.seg, None) is None
     assert pipeline._rivals([a], [best, flywheel, freq], best, 3.0) == [freq]
     assert pipeline._rivals([a], [best, motor, freq], best, 3.0) == [motor, freq]
+
+
+@pytest.mark.parametrize(("plain", "fits", "causes", "pinned"), [
+    ({"H2": 0.5}, {"double_cage_rotor": {"H2": 0.5}}, ["double_cage_rotor"], {"H2": 0.5}),
+    ({"H2": 0.5}, {"double_cage_rotor": {}}, ["double_cage_rotor"], {}),
+    ({"H2": 0.5}, {"double_cage_rotor": {"b": 30.0}}, ["double_cage_rotor"], {}),
+    ({"b": 30.0}, {"second_motor": {"b": 30.0}, "measurement_skew": {"b": 30.0}}, ["second_motor", "measurement_skew"],
+     {"b": 30.0}),
+    ({"b": 30.0}, {"second_motor": {"b": 30.0}, "measurement_skew": {}}, ["second_motor", "measurement_skew"], {}),
+    ({}, {"double_cage_rotor": {"H2": 0.5}}, ["double_cage_rotor"], {}),
+])
+def test_a_cause_whose_fit_stays_on_the_plain_fits_bound_is_not_named(plain, fits, causes, pinned):
+    """Sixth round of issue 12: a motor outside the identifier's box leaves the plain fit on a bound and a residual
+    that a candidate with more freedom absorbs (ANDES clean 9303 with H2 = 0.475 s was named `double_cage_rotor`).
+    A cause (every listed cause, when ambiguous) whose own fit stays on the plain fit's bound is not named; one that
+    moves the motor off it, or a plain fit inside the box, leaves the verdict alone."""
+    from types import SimpleNamespace
+
+    from aslm_core.diagnosis import pipeline
+
+    a = SimpleNamespace(plain=SimpleNamespace(at_bound=plain),
+                        fits={k: SimpleNamespace(at_bound=v) for k, v in fits.items()})
+    assert pipeline._pinned([a], causes) == pinned
+
+
+def test_a_motor_outside_the_box_is_not_explained_and_the_message_names_the_bound(monkeypatch):
+    """A synthetic load whose motor has H2 = 0.3 s, below the identifier's 0.5 s, at 30 dB: the plain fit sits on
+    H2's bound and a second rotor cage's extra freedom absorbs what it leaves — named `double_cage_rotor` without
+    the rule, `unexplained` with it, the report saying where the plain model sits."""
+    from dataclasses import replace
+
+    from aslm_core.diagnosis import pipeline
+
+    truth = replace(make_case(23, level=2, input_noise=False).truth, H2=0.3)
+    window = make_cases(1, seed=23, snr_db=30.0, input_noise=False, truths=[truth])[0].window
+    rep = diagnose(window)
+    assert rep.model.at_bound.get("H2") == 0.5
+    assert rep.verdict == "unexplained" and rep.cause is None and rep.causes == [], rep.message
+    assert "H2 = 0.5 s (lower bound)" in rep.message and "double_cage_rotor" in rep.message
+    assert rep.to_dict()["model"]["at_bound"]["H2"] == 0.5
+    monkeypatch.setattr(pipeline, "_pinned", lambda analyses, causes: {})
+    without = diagnose(window)
+    assert without.verdict == "explained" and without.cause == "double_cage_rotor", without.message
