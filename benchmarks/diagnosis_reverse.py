@@ -1,7 +1,7 @@
 """The reverse paired comparisons on the self-test's `ambiguous` cases whose truth is listed (issue 12, sixth round).
 
     .venv/bin/python -m benchmarks.diagnosis_reverse                 # the cases of docs/results/diagnosis.json
-    .venv/bin/python -m benchmarks.diagnosis_reverse --from FILE --out diagnosis_reverse_after
+    .venv/bin/python -m benchmarks.diagnosis_reverse --from FILE --out diagnosis_reverse_cases_after
 
 For each such case the truth T is taken as the top candidate and compared with every other cause listed:
 z(T over R) and z(R over T) (the paired held-out statistics of the verdict, Stouffer over windows), the held-out
@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--from", dest="src", default=str(ROOT / "docs" / "results" / "diagnosis.json"),
                    help="self-test records whose `ambiguous` cases with the truth listed are analysed")
-    p.add_argument("--out", default="diagnosis_reverse", help="written as docs/results/<out>.json")
+    p.add_argument("--out", default="diagnosis_reverse_cases", help="written as docs/results/<out>.json")
     args = p.parse_args(argv)
     recs = json.loads(Path(args.src).read_text())["records"]
     todo = [r for r in recs if r["verdict"] == "ambiguous" and r["effect"] in r["causes"]]

@@ -110,7 +110,8 @@ class DiagnosisConfig:
         compared: the reverse statistic z is N(√δ, 1) when the rival holds δ of that sum of squares beyond the
         top one, and the top one's forward score statistic z₀ is N(√Δ, 1) for its own Δ; the null "δ ≤ ρ·Δ"
         is rejected when (z − √ρ·z₀)/√(1 + ρ) exceeds the Holm critical value.  0: any significant sliver
-        counts (the rule of the third to fifth rounds of issue 12).
+        counts (the rule of the third to fifth rounds of issue 12).  Not applied between declared look-alikes
+        (``Candidate.confusable``, either way round): their distinguishing evidence is a sliver by construction.
     challengers : bool
         When the top candidate is not separated from a rival, try the unseparated rivals (in the order of
         their gain) as the cause: one that is significant, explains the mismatch and is separated from every
@@ -441,6 +442,12 @@ def _rivals(analyses: list[_WindowAnalysis], entries: list[CandidateEntry], best
             and LIBRARY[e.name].implausible(e.parameters, a0.seg, a0.ctx) is None]
 
 
+def _look_alikes(a: str, b: str) -> bool:
+    """Whether either candidate declares the other a look-alike (``Candidate.confusable``; a name outside the
+    library declares none)."""
+    return b in getattr(LIBRARY.get(a), "confusable", ()) or a in getattr(LIBRARY.get(b), "confusable", ())
+
+
 def _separation_z(analyses: list[_WindowAnalysis], best: str, rival: str, config: DiagnosisConfig) -> float:
     """Paired held-out statistic that ``best`` explains what ``rival`` leaves, Stouffer-combined over windows.
 
@@ -501,11 +508,14 @@ def _unseparated(analyses: list[_WindowAnalysis], best: CandidateEntry, rivals: 
         # by chance in one window of eight.
         # What a rival holds beyond the top one counts only when it is material (``reverse_margin``): at high
         # SNR a rival of another form still explains a significant sliver of what the exact law leaves.
+        # A declared look-alike is exempt: the two fit the same bulk by construction, so what tells their physics
+        # apart *is* a sliver (on the self-test the margin named two second motors `inverter_der`).
         back = {e.name: _separation_z(analyses, e.name, best.name, config) for e in rivals if e.separated}
-        rho = config.reverse_margin
-        shift = math.sqrt(rho) * max(best.score_z, 0.0) if math.isfinite(best.score_z) else 0.0
-        pback = {n: float(stats.norm.sf((z - shift) / math.sqrt(1.0 + rho))) if math.isfinite(z) else 1.0
-                 for n, z in back.items()}
+        pback = {}
+        for n, z in back.items():
+            rho = 0.0 if _look_alikes(best.name, n) else config.reverse_margin
+            shift = math.sqrt(rho) * max(best.score_z, 0.0) if math.isfinite(best.score_z) else 0.0
+            pback[n] = float(stats.norm.sf((z - shift) / math.sqrt(1.0 + rho))) if math.isfinite(z) else 1.0
         for j, name in enumerate(sorted(pback, key=pback.get)):
             if pback[name] > config.encompassing_alpha / (len(pback) - j):
                 break
