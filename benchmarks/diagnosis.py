@@ -229,6 +229,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--input-noise", action="store_true",
                    help="noise on V, θ and f too (synthetic input_noise=True); default: P and Q only (paper protocol)")
     p.add_argument("--only", default="", help="comma-separated effects to run (e.g. none,measurement_skew)")
+    p.add_argument("--cases", default="", help="comma-separated cases effect/level/i to run (e.g. a rerun of the ones "
+                                               "a rule change can touch)")
     p.add_argument("--timing", type=int, default=0, metavar="N",
                    help="only time N diagnoses one after another in this process (CPU time of one core)")
     p.add_argument("--no-write", action="store_true")
@@ -242,6 +244,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.only:
         keep = set(args.only.split(","))
         jobs = [j for j in jobs if j[0] in keep]
+    if args.cases:
+        keep = set(args.cases.split(","))
+        jobs = [j for j in jobs if f"{j[0]}/{j[1]}/{j[2]}" in keep]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers, initializer=_init) as pool:
         recs = list(pool.map(run_one, jobs, chunksize=1))
@@ -249,7 +254,8 @@ def main(argv: list[str] | None = None) -> int:
     s = summarise(recs)
     s["wall_s"] = wall
     s["command"] = "benchmarks/diagnosis.py" + (" --quick" if args.quick else "") + (
-        " --input-noise" if args.input_noise else "") + (f" --only {args.only}" if args.only else "")
+        " --input-noise" if args.input_noise else "") + (f" --only {args.only}" if args.only else "") + (
+        f" --cases {args.cases}" if args.cases else "")
     s["input_noise"] = args.input_noise
     s["machine"] = {"cpus": os.cpu_count(), "python": platform.python_version(), "workers": args.workers}
     print(markdown(s))
@@ -257,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_write:
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         stem = "diagnosis" + ("_input_noise" if args.input_noise else "") + ("_quick" if args.quick else "")
-        if args.only:
+        if args.only or args.cases:
             stem += "_only"
         if args.tag:
             stem += f"_{args.tag}"
