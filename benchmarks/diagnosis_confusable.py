@@ -6,26 +6,20 @@
 
 Measures the declaration before it is made (issue 12, sixth round): with noise on V and θ the lagged frequency term's
 penalty leaves it out of the rivals of a stator dynamics that fits the same Δf response, which is then named.  The
-declaration is patched into the library before the worker processes fork; everything else is the benchmark's own.
+declaration is patched into the library before the worker processes fork (``diagnosis_variant --declare-msd-fd``
+does the same); everything else is the benchmark's own.
 """
 
 from __future__ import annotations
 
 import sys
 
-
-def declare() -> None:
-    """Each of the two candidates lists the other in ``confusable`` (in this process and the workers it forks)."""
-    from aslm_core.diagnosis.candidates import LIBRARY
-
-    for a, b in (("motor_stator_dynamics", "frequency_dependence"), ("frequency_dependence", "motor_stator_dynamics")):
-        if b not in LIBRARY[a].confusable:
-            LIBRARY[a].confusable = (*LIBRARY[a].confusable, b)
+from benchmarks.diagnosis_variant import declare_msd_fd
 
 
 def main(argv: list[str]) -> int:
     which, rest = argv[0], argv[1:]
-    declare()
+    declare_msd_fd()
     if which == "independent":
         from benchmarks.diagnosis_independent import main as run
     else:
