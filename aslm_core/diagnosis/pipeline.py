@@ -27,8 +27,8 @@ Method (DESIGN §3)
    (``explained``) only when a paired held-out test separates it from every rival — every other candidate
    passing the score test and the penalty, unless its fit is implausible — with Holm's procedure over the
    rivals, and the rival does not in turn beat it on the reverse paired test (non-nested models are compared
-   both ways) by a material share of the named one's improvement (``reverse_margin``).  When the top one is not separated, its unseparated rivals are tried in its place (the
-   gain only orders the tries): one separated from all of its own rivals both ways is named.  Otherwise
+   both ways) by a material share of the named one's improvement (``reverse_margin``).  When the top one is
+   not separated, its unseparated rivals are tried in its place (the gain only orders the tries): one separated from all of its own rivals both ways is named.  Otherwise
    the verdict is ``ambiguous`` and ``causes`` lists the unseparated ones, no pick.  ``unexplained`` when the residual
    exceeds the expected noise (or a candidate is significant but explains too little) — then only the
    location is reported; otherwise ``consistent``.
@@ -509,7 +509,7 @@ def _unseparated(analyses: list[_WindowAnalysis], best: CandidateEntry, rivals: 
         # What a rival holds beyond the top one counts only when it is material (``reverse_margin``): at high
         # SNR a rival of another form still explains a significant sliver of what the exact law leaves.
         # A declared look-alike is exempt: the two fit the same bulk by construction, so what tells their physics
-        # apart *is* a sliver (on the self-test the margin named two second motors `inverter_der`).
+        # apart *is* a sliver (on the self-test the margin named second motor /2/7 `inverter_der` without it).
         back = {e.name: _separation_z(analyses, e.name, best.name, config) for e in rivals if e.separated}
         pback = {}
         for n, z in back.items():
