@@ -28,8 +28,9 @@ Method (DESIGN §3)
    passing the score test and the penalty, unless its fit is implausible — with Holm's procedure over the
    rivals, and the rival does not in turn beat it on the reverse paired test (non-nested models are compared
    both ways) by a material share of the named one's improvement (``reverse_margin``).  When the top one is
-   not separated, its unseparated rivals are tried in its place (the gain only orders the tries): one separated from all of its own rivals both ways is named.  Otherwise
-   the verdict is ``ambiguous`` and ``causes`` lists the unseparated ones, no pick.  ``unexplained`` when the residual
+   not separated, its unseparated rivals are tried in its place (the gain only orders the tries): one
+   separated from all of its own rivals both ways is named.  Otherwise the verdict is ``ambiguous`` and
+   ``causes`` lists the unseparated ones, no pick.  ``unexplained`` when the residual
    exceeds the expected noise (or a candidate is significant but explains too little) — then only the
    location is reported; otherwise ``consistent``.
 """
