@@ -48,9 +48,9 @@ def _base(level: int, i: int, input_noise: bool = False):
     return make_case(10_000 * level + i, level=level, input_noise=input_noise)
 
 
-def run_one(job: tuple) -> dict:
-    """One diagnosis: (effect, level, case index[, input_noise]) → record."""
-    from aslm_core.diagnosis import diagnose
+def case(job: tuple):
+    """One case's input: (effect, level, case index[, input_noise]) → (base case, concealed effect case, the user
+    model or None, whether the diagnosis is against a user model)."""
     from aslm_sim.effects import apply_effect
 
     effect, level, i, *rest = job
@@ -65,6 +65,16 @@ def run_one(job: tuple) -> dict:
     model = ec.model
     if effect == "none_user":
         model = {"dynamic": base.truth.dynamic, "static": base.truth.static_identifiable}
+    return base, ec, model, user
+
+
+def run_one(job: tuple) -> dict:
+    """One diagnosis: (effect, level, case index[, input_noise]) → record."""
+    from aslm_core.diagnosis import diagnose
+
+    effect, level, i, *rest = job
+    input_noise = bool(rest[0]) if rest else False
+    base, ec, model, user = case(job)
     t0, c0 = time.perf_counter(), time.process_time()
     rep = diagnose(ec.window, model)
     elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
@@ -219,9 +229,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--input-noise", action="store_true",
                    help="noise on V, θ and f too (synthetic input_noise=True); default: P and Q only (paper protocol)")
     p.add_argument("--only", default="", help="comma-separated effects to run (e.g. none,measurement_skew)")
+    p.add_argument("--cases", default="", help="comma-separated cases effect/level/i to run (e.g. a rerun of the ones "
+                                               "a rule change can touch)")
     p.add_argument("--timing", type=int, default=0, metavar="N",
                    help="only time N diagnoses one after another in this process (CPU time of one core)")
     p.add_argument("--no-write", action="store_true")
+    p.add_argument("--tag", default="", help="written as diagnosis[_input_noise]_<tag>.json (a rerun that must not "
+                                             "overwrite the run of record)")
     args = p.parse_args(argv)
     if args.timing:
         return _timing(args.timing, args.input_noise)
@@ -230,6 +244,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.only:
         keep = set(args.only.split(","))
         jobs = [j for j in jobs if j[0] in keep]
+    if args.cases:
+        keep = set(args.cases.split(","))
+        jobs = [j for j in jobs if f"{j[0]}/{j[1]}/{j[2]}" in keep]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers, initializer=_init) as pool:
         recs = list(pool.map(run_one, jobs, chunksize=1))
@@ -237,7 +254,8 @@ def main(argv: list[str] | None = None) -> int:
     s = summarise(recs)
     s["wall_s"] = wall
     s["command"] = "benchmarks/diagnosis.py" + (" --quick" if args.quick else "") + (
-        " --input-noise" if args.input_noise else "") + (f" --only {args.only}" if args.only else "")
+        " --input-noise" if args.input_noise else "") + (f" --only {args.only}" if args.only else "") + (
+        f" --cases {args.cases}" if args.cases else "")
     s["input_noise"] = args.input_noise
     s["machine"] = {"cpus": os.cpu_count(), "python": platform.python_version(), "workers": args.workers}
     print(markdown(s))
@@ -245,8 +263,10 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_write:
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         stem = "diagnosis" + ("_input_noise" if args.input_noise else "") + ("_quick" if args.quick else "")
-        if args.only:
+        if args.only or args.cases:
             stem += "_only"
+        if args.tag:
+            stem += f"_{args.tag}"
         RESULTS.with_name(stem + ".json").write_text(
             json.dumps({"summary": s, "records": recs}, indent=1, default=float))
     return 0
