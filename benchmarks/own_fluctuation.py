@@ -41,8 +41,9 @@ from benchmarks.own_gate import GATE_HEAD, WARNING_FLAGS, gated_row, print_confi
 SEED = 43
 #: Seeds of the confirmation runs, fixed before any run on them (243: the gated estimator's flag
 #: ``iv_error_may_exceed_20pct``, 2026-11-24, with ``--candidates "output error" gated``; 245: the IV's standard
-#: errors scaled by its reduced χ², 2026-11-25, ``--n 100 --candidates "gated, spectral weighting" --tag cover``).
-CONFIRM_SEEDS = (143, 243, 245)
+#: errors scaled by its reduced χ², 2026-11-25, ``--n 100 --candidates "gated, spectral weighting" --tag cover``;
+#: 246: stop 28's tail flags, 2026-11-25, the same command with ``--tag flags``).
+CONFIRM_SEEDS = (143, 243, 245, 246)
 LEVEL = 2
 #: Target std(own ΔP) / std(clean P) of the windows.
 RATIOS = (0.0, 0.5, 0.9)
