@@ -175,8 +175,8 @@ class IdentificationResult:
         variation and D is not trustworthy), and since stop 28 (docs/numerics.md, "Flags that catch the tail"):
         ``input_noise_correction_large`` (the S-weighted answer's ``weighted_shift_z`` above 2.5: the
         input-noise correction moved D far in its own standard errors, so D rests on the estimated input-noise
-        spectrum), ``error_may_exceed_20pct`` (the S-weighted answer's rule of ``iv_error_may_exceed_20pct``: a
-        standard error above 6 % of its parameter), ``halves_disagree`` (the gated IV answer's ``halves_z``
+        spectrum), ``error_may_exceed_20pct`` (the rule of ``iv_error_may_exceed_20pct`` on every other answer,
+        output error's and the S-weighted refinement's: a standard error above 6 % of its parameter), ``halves_disagree`` (the gated IV answer's ``halves_z``
         above 3.5: the window's two halves disagree beyond their standard errors).
     static_stderr : dict
         Standard errors of the ``static`` coefficients [pu or -] (D taken as known).

@@ -64,6 +64,17 @@ def test_iv_answer_whose_halves_disagree_is_flagged():
     assert r.quality["halves_z"] > HALVES_Z_MAX and "halves_disagree" in r.flags
 
 
+def test_output_error_answer_with_a_wide_standard_error_is_flagged():
+    """The rates bench (development seed 46) at 30 frames/s with exact inputs, window 98: output error's Tm +23 %
+    at 1.6 SE, the SE 12 % of the estimate, no warning flag at stop 27; the SE rule now covers every path."""
+    c = make_cases(99, level=LEVEL, seed=46 * 1000, input_noise=False, fs=30.0)[98]  # common.cases' first chunk
+    r = identify(c.window, config=DEFAULT)
+    assert r.quality["gated_ar_iv"] == 0.0 and "weighted_shift_z" not in r.quality
+    assert r.d[3] / c.truth.d[3] - 1 == pytest.approx(0.227, abs=0.002)
+    assert r.stderr["Tm"] > IV_SE_MAX * abs(r.dynamic["Tm"])
+    assert "error_may_exceed_20pct" in r.flags
+
+
 @pytest.mark.parametrize("i, ratio, shape, noise, path", [
     (0, 0.0, "lowpass", 2, "weighted"),  # input noise 0.1 % / 1e-3 rad, V 5× its noise
     (4, 0.5, "pink", 0, "iv"),  # the gate's IV answer, exact inputs
