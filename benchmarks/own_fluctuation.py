@@ -75,6 +75,20 @@ def own_cases(n: int, ratio: float, shape: str, base: list, seed: int = SEED) ->
     return make_cases(n, level=LEVEL, seed=seed, input_noise=False, own_sigma=sig, own_shape=shape)
 
 
+def bench_window(i: int, ratio: float, shape: str, noise: int, seed: int = SEED):
+    """Window ``i`` of a row of the bench (own ratio, shape, index into ``INPUT_NOISE``) and its case.
+
+    The bench draws the V/θ noise of a row's windows in order from one generator, so the windows before ``i`` are
+    made too (the cases themselves do not depend on how many are made).
+    """
+    base = make_cases(i + 1, level=LEVEL, seed=seed, input_noise=False)
+    cs = own_cases(i + 1, ratio, shape, base, seed)
+    _, v_rel, th = INPUT_NOISE[noise]
+    rng = np.random.default_rng([seed, int(100 * ratio), noise])
+    windows = [with_input_noise(c.window, c.clean, v_rel, th, rng) for c in cs]
+    return windows[i], cs[i]
+
+
 def _one(w, names: list[str]) -> dict:
     """The candidates ``names`` on one window, in turn, with their wall times [s]."""
     out = {}

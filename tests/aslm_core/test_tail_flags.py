@@ -14,24 +14,17 @@ import pytest
 from aslm_core import identify
 from aslm_core.identify import HALVES_Z_MAX, IV_SE_MAX, WEIGHTED_SHIFT_Z_MAX
 from aslm_sim.cases import make_cases
-from benchmarks.input_noise import INPUT_NOISE, with_input_noise
-from benchmarks.own_fluctuation import CANDIDATES, LEVEL, own_cases
+from benchmarks.own_fluctuation import CANDIDATES, LEVEL
+from benchmarks.own_fluctuation import bench_window as own_bench_window
 
 DEFAULT = CANDIDATES["gated, spectral weighting"]  # the library default
 NEW_FLAGS = ("input_noise_correction_large", "error_may_exceed_20pct", "halves_disagree")
 
 
 def bench_window(i: int, ratio: float, shape: str, noise: int, seed: int = 245):
-    """Window ``i`` of the own bench's row (seed, own ratio, shape, PMU class index) and its true D.
-
-    The bench draws V/θ noise for its windows in order from one generator, so the earlier windows are made too.
-    """
-    base = make_cases(i + 1, level=LEVEL, seed=seed, input_noise=False)
-    cs = own_cases(i + 1, ratio, shape, base, seed)
-    _, v_rel, th = INPUT_NOISE[noise]
-    rng = np.random.default_rng([seed, int(100 * ratio), noise])
-    windows = [with_input_noise(c.window, c.clean, v_rel, th, rng) for c in cs]
-    return windows[i], cs[i].truth.d
+    """Window ``i`` of the own bench's row and its true D."""
+    w, case = own_bench_window(i, ratio, shape, noise, seed)
+    return w, case.truth.d
 
 
 def test_weighted_answer_moved_far_from_output_error_is_flagged():
