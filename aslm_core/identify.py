@@ -50,9 +50,9 @@ IV_OVERID_MAX = 3.0
 # flags every other answer (output error, the S-weighted refinement) as ``error_may_exceed_20pct``: 71 of the 76
 # development windows off by more than 20 % without a warning flag (own bench seeds 43 and 245, rates bench seeds
 # 43 and 46) were such wide answers, most of them 1-3 SE out (docs/numerics.md, "Flags that catch the tail").
-# At own/clean 0.5 the IV's standard errors are calibrated (std of error/SE 1.0-1.1) and its windows off by more than 20 % with no other
-# warning flag are not a separate failure (same instrument strength, over-identification, own share and AR
-# order as the good ones) but the tails of a wide estimate: 0.8-3.6 SE out.  Tuned on the development records
+# At own/clean 0.5 the IV's standard errors are calibrated (std of error/SE 1.0-1.1) and its windows off by
+# more than 20 % with no other warning flag are not a separate failure (same instrument strength,
+# over-identification, own share and AR order as the good ones) but the tails of a wide estimate: 0.8-3.6 SE out.  Tuned on the development records
 # (synthetic seed 43 and ANDES own seed 1): the smallest such SE among the 26 gated IV windows off by more
 # than 20 % without another warning flag was 6.03 %; at 6 % it also flags 160 of the 243 synthetic and 30 of
 # the 199 ANDES gated IV windows within 20 % (docs/numerics.md, "The gated estimator's flag").
