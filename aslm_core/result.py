@@ -157,7 +157,10 @@ class IdentificationResult:
         instruments keep: 1 = all, near 0 = a weak instrument and large standard errors) [-], ``iv_overid``
         (the over-identification statistic over its degrees of freedom, Hansen's with the innovations'
         spectrum: ~1 for valid instruments) [-], ``iv_overid_p`` (its χ² upper-tail probability) [-] and
-        ``iv_overid_white`` (Sargan's, which assumes white innovations) [-].
+        ``iv_overid_white`` (Sargan's, which assumes white innovations) [-]; where the S-weighted refinement
+        answered, ``weighted_shift_z`` (the largest |D − output error's D| / SE over the parameters) [-]; where the
+        gated estimator's IV answered, ``halves_z`` (the largest |D₁ − D₂| / √(SE₁² + SE₂²) of the two
+        half-window IV fits; NaN when a half cannot be identified) [-].
     flags : list of str
         Quality flags, e.g. ``at_bound:H2``, ``low_excitation``, ``restarts_disagree``,
         ``static_split_unidentifiable`` (a static coefficient's standard error above 10 % of the load),
@@ -169,7 +172,12 @@ class IdentificationResult:
         ``iv_error_may_exceed_20pct`` (``ar_iv``, and ``gated`` where the IV answers: a standard error above 6 %
         of its parameter, so an error above 20 % is not a rare draw),
         ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
-        variation and D is not trustworthy).
+        variation and D is not trustworthy), and since stop 28 (docs/numerics.md, "Flags that catch the tail"):
+        ``input_noise_correction_large`` (the S-weighted answer's ``weighted_shift_z`` above 2.5: the
+        input-noise correction moved D far in its own standard errors, so D rests on the estimated input-noise
+        spectrum), ``error_may_exceed_20pct`` (the rule of ``iv_error_may_exceed_20pct`` on every other answer,
+        output error's and the S-weighted refinement's: a standard error above 6 % of its parameter), ``halves_disagree`` (the gated IV answer's ``halves_z``
+        above 3.5: the window's two halves disagree beyond their standard errors).
     static_stderr : dict
         Standard errors of the ``static`` coefficients [pu or -] (D taken as known).
     static_local : dict

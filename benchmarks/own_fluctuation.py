@@ -41,8 +41,9 @@ from benchmarks.own_gate import GATE_HEAD, WARNING_FLAGS, gated_row, print_confi
 SEED = 43
 #: Seeds of the confirmation runs, fixed before any run on them (243: the gated estimator's flag
 #: ``iv_error_may_exceed_20pct``, 2026-11-24, with ``--candidates "output error" gated``; 245: the IV's standard
-#: errors scaled by its reduced χ², 2026-11-25, ``--n 100 --candidates "gated, spectral weighting" --tag cover``).
-CONFIRM_SEEDS = (143, 243, 245)
+#: errors scaled by its reduced χ², 2026-11-25, ``--n 100 --candidates "gated, spectral weighting" --tag cover``;
+#: 246: stop 28's tail flags, 2026-11-25, the same command with ``--tag flags``).
+CONFIRM_SEEDS = (143, 243, 245, 246)
 LEVEL = 2
 #: Target std(own ΔP) / std(clean P) of the windows.
 RATIOS = (0.0, 0.5, 0.9)
@@ -72,6 +73,20 @@ def own_cases(n: int, ratio: float, shape: str, base: list, seed: int = SEED) ->
     k = ratio / math.sqrt(1.0 - ratio * ratio)
     sig = [k * float(np.std(c.clean.P)) / c.truth.power(1.0)[0] for c in base]
     return make_cases(n, level=LEVEL, seed=seed, input_noise=False, own_sigma=sig, own_shape=shape)
+
+
+def bench_window(i: int, ratio: float, shape: str, noise: int, seed: int = SEED):
+    """Window ``i`` of a row of the bench (own ratio, shape, index into ``INPUT_NOISE``) and its case.
+
+    The bench draws the V/θ noise of a row's windows in order from one generator, so the windows before ``i`` are
+    made too (the cases themselves do not depend on how many are made).
+    """
+    base = make_cases(i + 1, level=LEVEL, seed=seed, input_noise=False)
+    cs = own_cases(i + 1, ratio, shape, base, seed)
+    _, v_rel, th = INPUT_NOISE[noise]
+    rng = np.random.default_rng([seed, int(100 * ratio), noise])
+    windows = [with_input_noise(c.window, c.clean, v_rel, th, rng) for c in cs]
+    return windows[i], cs[i]
 
 
 def _one(w, names: list[str]) -> dict:

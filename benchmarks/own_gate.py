@@ -20,11 +20,12 @@ from benchmarks import common
 #: Every flag that tells the user not to trust a window's D.
 WARNING_FLAGS = ("uncertain", "poor_fit", "at_bound", "restarts", "unexplained_fluctuation", "low_excitation",
                  "equilibrium_constraint_active", "own_fluctuation_unmodelled", "iv_instruments_rejected",
-                 "iv_error_may_exceed", "input_noise_too_large")
+                 "iv_error_may_exceed", "input_noise_too_large", "error_may_exceed", "input_noise_correction_large",
+                 "halves_disagree")
 #: Per-window quality entries kept in the JSON (to develop flags and gates on).
 QUALITY_KEYS = ("own_ratio_p", "own_ratio_q", "excitation_share_p", "iv_strength_p", "iv_strength_q", "iv_overid",
                 "iv_overid_white", "ar_order_p", "static_cond", "lowpass_hz", "gated_ar_iv",
-                "weighted_chi2", "input_ratio_v")
+                "weighted_chi2", "input_ratio_v", "weighted_shift_z", "halves_z")
 CONFIRM_HEAD = ["own/total", "shape, V/θ noise", "windows to the IV", "median |err| a / b / H2 / Tm [%]: output error",
                 "gated", "gated / output error", "off > 20 % (unflagged)", "within 20 % with `iv_error_may_exceed_20pct`"]
 GATE_HEAD = ["own/total", "shape", "windows switched", "median |err| a / b / H2 / Tm [%]", "worst [%]",

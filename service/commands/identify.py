@@ -83,8 +83,14 @@ def _human(path: str, result) -> str:
     if q.get("gated_ar_iv") == 1.0:
         warn += (f"\n  estimator: instrumental variables with an AR model of the load's own fluctuation, which is "
                  f"{q['own_ratio_p']:.2g} of P's ambient std (output error is not consistent above 0.3)")
-    if "iv_error_may_exceed_20pct" in result.flags:
+    if "iv_error_may_exceed_20pct" in result.flags or "error_may_exceed_20pct" in result.flags:
         warn += "\n  warning: a standard error is above 6 % of its parameter: an error above 20 % is not a rare draw"
+    if "input_noise_correction_large" in result.flags:
+        warn += (f"\n  warning: the input-noise correction moved D by {q['weighted_shift_z']:.2g} of its standard "
+                 f"errors from the output-error fit: D rests on the estimated PMU noise of V and θ")
+    if "halves_disagree" in result.flags:
+        warn += (f"\n  warning: the window's two halves give D {q['halves_z']:.2g} combined standard errors apart: "
+                 f"the answer depends on which half the window saw")
     return (
         f"{path}\n  dynamic: {dyn}\n  static:  {sta}\n  static at V0={loc.get('V0', float('nan')):.4g}: {at_v0}\n"
         f"  objective={result.objective:.4g}  FD(P)={result.fit['fd_p']:.4f}  FD(Q)={result.fit['fd_q']:.4f}"
