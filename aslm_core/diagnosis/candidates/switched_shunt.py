@@ -29,8 +29,9 @@ source, the steps the bank leaves in V itself — an input, so the held-out pred
     events: |d_k| ≥ dV at a local maximum of |d_k|;  s: 0 → 1 at a rising event, 1 → 0 at a falling one
 
 (an event of the sign the state already has is no switching: a bank cannot go in twice).  dV [pu] is the
-event threshold; dV = 0 (below ``DV_STEP_MIN``) selects the relay law above.  With steps, Vc ∓ dv are reported as the median V the
-relay read before its switchings in and out, τ and t_op as 0.
+event threshold; dV = 0 (below ``DV_STEP_MIN``) selects the relay law above.  With steps, s(t) is shifted by t_op
+too (the recorded Q step may trail V's: ANDES's bench books the bank one 10 ms step late in Q), Vc ∓ dv are
+reported as the median V the relay read before its switchings in and out, and τ as 0.
 
 The law is piecewise constant in (Vc, dv, τ, t_op, s0, dV): finite differences see no slope, so these are
 chosen by a scan (Vc over the window's V range, dv and τ over coarse grids, both s0, then finer passes
@@ -130,8 +131,9 @@ def _state(v: np.ndarray, z, dt: float, d: np.ndarray | None = None) -> np.ndarr
     """The bank's state s(t) for z = (Vc, dv, τ, t_op, s0, dV): from V's steps (``d``) when dV > 0, else
     the relay's decision on ``v``, t_op later."""
     if float(z[5]) >= DV_STEP_MIN and d is not None:
-        return step_state(d, float(z[5]), STEP_SAMPLES)
-    r = relay_state(v, float(z[0]), float(z[1]), float(z[2]), dt, float(z[4]))
+        r = step_state(d, float(z[5]), STEP_SAMPLES)
+    else:
+        r = relay_state(v, float(z[0]), float(z[1]), float(z[2]), dt, float(z[4]))
     k = int(round(float(z[3]) / dt))
     return np.concatenate([np.full(k, r[0]), r[:r.size - k]]) if k else r
 
@@ -237,14 +239,17 @@ class SwitchedShunt(Candidate):
         scale = 1.4826 * float(np.median(np.abs(steps - np.median(steps))))
         for q in STEP_SCALES:
             if scale > 0.0:
-                best, z = _better(ssr, best, z, self._step_point(seg, steps, q * scale))
+                zq = self._step_point(seg, steps, q * scale)
+                for c3 in np.arange(0, int(T_OP_MAX_S / seg.dt + 1e-9) + 1) * seg.dt:
+                    best, z = _better(ssr, best, z, (*zq[:3], float(c3), *zq[4:]))
         if not np.isfinite(best):
             return [mid]
         return [np.clip(np.array(z), lo, hi)]
 
     def _step_point(self, seg: Segment, steps: np.ndarray, dv_step: float) -> tuple:
         """z of the steps' form at threshold ``dv_step``: Vc ∓ dv the median V read before the switchings in
-        and out (the relay's thresholds lie beyond them), τ = t_op = 0, s0 the initial state."""
+        and out (the relay's thresholds lie beyond them), τ = t_op = 0 (t_op is scanned after), s0 the initial
+        state."""
         s = step_state(steps, dv_step, STEP_SAMPLES)
         k = np.flatnonzero(np.diff(s)) + 1
         before = seg.V[np.maximum(k - STEP_SAMPLES - 1, 0)]
