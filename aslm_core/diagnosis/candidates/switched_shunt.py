@@ -107,21 +107,25 @@ def step_statistic(v: np.ndarray, m: int = STEP_SAMPLES) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def _is_event(d: np.ndarray, k: int, dv_step: float, m: int) -> bool:
+    # One event per step: |d| peaks once over the 2m samples its window straddles the step.
+    a = abs(d[k])
+    return a >= dv_step and a > 0.0 and a == np.max(np.abs(d[max(k - m, 0):k + m + 1]))
+
+
+@numba.njit(cache=True)
 def step_state(d: np.ndarray, dv_step: float, m: int) -> np.ndarray:
     """The bank's state s(t) ∈ {0, 1} from V's own steps (:func:`step_statistic`): in at a rising step of at
     least ``dv_step`` [pu], out at a falling one; before the first event, the state that event leaves."""
     n = d.shape[0]
     s = np.empty(n)
-    first = 0.0
+    on = 0.0
     for k in range(n):  # the first event's sign sets the initial state
-        a = abs(d[k])
-        if a >= dv_step and a > 0.0 and a == np.max(np.abs(d[max(k - m, 0):k + m + 1])):
-            first = 0.0 if d[k] > 0 else 1.0
+        if _is_event(d, k, dv_step, m):
+            on = 0.0 if d[k] > 0 else 1.0
             break
-    on = first
     for k in range(n):
-        a = abs(d[k])
-        if a >= dv_step and a > 0.0 and a == np.max(np.abs(d[max(k - m, 0):k + m + 1])):
+        if _is_event(d, k, dv_step, m):
             on = 1.0 if d[k] > 0 else 0.0
         s[k] = on
     return s
