@@ -40,7 +40,7 @@ the form with the smaller training residual kept; the upper stage then refines D
 have no standard error (left out of ``stderr``; ``Candidate.scanned``).  Magnitude: B.
 
 Signature: steps of Q — not of P — proportional to V², following V's excursions beyond a threshold by a
-fixed delay; a continuous droop (``inverter_der``) has no threshold and moves P too.
+fixed delay, or at V's own steps; a continuous droop (``inverter_der``) has no threshold and moves P too.
 """
 
 from __future__ import annotations
