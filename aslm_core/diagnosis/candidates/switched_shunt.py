@@ -17,13 +17,30 @@ state at the window's start (0 or 1; the fit rounds it).  Linear
 (lower stage): B [pu], on Q only (a capacitor exchanges no active power).  The relay reads V low-passed
 at the ambient band's edge (5 Hz, zero phase), so that measurement noise on V does not reset its timer.
 
-The law is piecewise constant in (Vc, dv, τ, t_op, s0): finite differences see no slope, so these are
+The bank's own switching steps V (its Q through the network's impedance: ΔV ≈ B·X_th, a few 0.1 % for
+1–3 Mvar), and a relay whose dead band is narrower than that step chatters against it: each switching
+puts V beyond the other threshold, so the next one follows a delay later, and which excursions reset the
+timer hangs on single samples near a threshold.  Re-enacting such a relay from the measured V misplaces
+many of its switchings even with its true settings (ANDES's relay of the independent benchmark, a few
+10 ms of V read one step late, misses 15 of 58 with its exact thresholds).  So the state has a second
+source, the steps the bank leaves in V itself — an input, so the held-out prediction still uses inputs only::
+
+    d_k = mean(V[k : k+m]) − mean(V[k−m : k])           (m = STEP_SAMPLES: the step over 20 ms)
+    events: |d_k| ≥ dV at a local maximum of |d_k|;  s: 0 → 1 at a rising event, 1 → 0 at a falling one
+
+(an event of the sign the state already has is no switching: a bank cannot go in twice).  dV [pu] is the
+event threshold; dV = 0 (below ``DV_STEP_MIN``) selects the relay law above.  With steps, s(t) is shifted by t_op
+too (the recorded Q step may trail V's: ANDES's bench books the bank one 10 ms step late in Q), Vc ∓ dv are
+reported as the median V the relay read before its switchings in and out, and τ as 0.
+
+The law is piecewise constant in (Vc, dv, τ, t_op, s0, dV): finite differences see no slope, so these are
 chosen by a scan (Vc over the window's V range, dv and τ over coarse grids, both s0, then finer passes
-that also place t_op) with D held at the plain fit; the upper stage then refines D with them fixed, and they have no standard error (left out of
-``stderr``; ``Candidate.scanned``).  Magnitude: B.
+that also place t_op; dV over multiples of the step statistic's noise scale) with D held at the plain fit,
+the form with the smaller training residual kept; the upper stage then refines D with them fixed, and they
+have no standard error (left out of ``stderr``; ``Candidate.scanned``).  Magnitude: B.
 
 Signature: steps of Q — not of P — proportional to V², following V's excursions beyond a threshold by a
-fixed delay; a continuous droop (``inverter_der``) has no threshold and moves P too.
+fixed delay, or at V's own steps; a continuous droop (``inverter_der``) has no threshold and moves P too.
 """
 
 from __future__ import annotations
@@ -40,6 +57,13 @@ DV_STD = (0.1, 0.25, 0.5, 0.8, 1.2)
 TAU_S = (0.02, 0.05, 0.1, 0.2, 0.3, 0.45, 0.7)
 REFINE_PASSES = 2
 T_OP_MAX_S = 0.1  # [s] a breaker closes within a few cycles
+#: Samples each side of the V-step statistic: a switching's V step spreads over two samples when the record
+#: is interpolated between a simulator's (or a PMU's) instants.
+STEP_SAMPLES = 2
+#: Scan of the V-step threshold dV in units of the step statistic's robust (MAD) noise scale.
+STEP_SCALES = (3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 16.0)
+#: dV below this [pu] selects the relay law: the upper stage's box clipping nudges a scanned 0 to ~1e-9.
+DV_STEP_MIN = 1e-6
 
 
 @numba.njit(cache=True)
@@ -73,9 +97,47 @@ def relay_state(v: np.ndarray, vc: float, dv: float, tau: float, dt: float, s0: 
     return s
 
 
-def _state(v: np.ndarray, z, dt: float) -> np.ndarray:
-    """The bank's state s(t) for z = (Vc, dv, τ, t_op, s0): the relay's decision, t_op later."""
-    r = relay_state(v, float(z[0]), float(z[1]), float(z[2]), dt, float(z[4]))
+def step_statistic(v: np.ndarray, m: int = STEP_SAMPLES) -> np.ndarray:
+    """d_k = mean(v[k:k+m]) − mean(v[k−m:k]) [pu]: V's step at sample k (0 where the window is too short)."""
+    c = np.concatenate([[0.0], np.cumsum(v)])
+    d = np.zeros(v.shape[0])
+    k = np.arange(m, v.shape[0] - m + 1)
+    d[k] = (c[k + m] - 2.0 * c[k] + c[k - m]) / m
+    return d
+
+
+@numba.njit(cache=True)
+def _is_event(d: np.ndarray, k: int, dv_step: float, m: int) -> bool:
+    # One event per step: |d| peaks once over the 2m samples its window straddles the step.
+    a = abs(d[k])
+    return a >= dv_step and a > 0.0 and a == np.max(np.abs(d[max(k - m, 0):k + m + 1]))
+
+
+@numba.njit(cache=True)
+def step_state(d: np.ndarray, dv_step: float, m: int) -> np.ndarray:
+    """The bank's state s(t) ∈ {0, 1} from V's own steps (:func:`step_statistic`): in at a rising step of at
+    least ``dv_step`` [pu], out at a falling one; before the first event, the state that event leaves."""
+    n = d.shape[0]
+    s = np.empty(n)
+    on = 0.0
+    for k in range(n):  # the first event's sign sets the initial state
+        if _is_event(d, k, dv_step, m):
+            on = 0.0 if d[k] > 0 else 1.0
+            break
+    for k in range(n):
+        if _is_event(d, k, dv_step, m):
+            on = 1.0 if d[k] > 0 else 0.0
+        s[k] = on
+    return s
+
+
+def _state(v: np.ndarray, z, dt: float, d: np.ndarray | None = None) -> np.ndarray:
+    """The bank's state s(t) for z = (Vc, dv, τ, t_op, s0, dV): from V's steps (``d``) when dV > 0, else
+    the relay's decision on ``v``, t_op later."""
+    if float(z[5]) >= DV_STEP_MIN and d is not None:
+        r = step_state(d, float(z[5]), STEP_SAMPLES)
+    else:
+        r = relay_state(v, float(z[0]), float(z[1]), float(z[2]), dt, float(z[4]))
     k = int(round(float(z[3]) / dt))
     return np.concatenate([np.full(k, r[0]), r[:r.size - k]]) if k else r
 
@@ -88,15 +150,17 @@ def _better(ssr, best: float, z: tuple, trial: tuple) -> tuple[float, tuple]:
 class SwitchedShunt(Candidate):
     name = "switched_shunt"
     magnitude = ("B",)
-    nl_names = ("Vc", "dv", "tau", "t_op", "s0")
-    nl_units = ("pu", "pu", "s", "s", "-")
+    nl_names = ("Vc", "dv", "tau", "t_op", "s0", "dV")
+    nl_units = ("pu", "pu", "s", "s", "-", "pu")
     scanned = nl_names
     lin_q = ("B",)
     lin_units = {"B": "pu"}
-    signature = "steps of Q ∝ V² (not of P) after V stays beyond a threshold for a delay: a relay-switched bank"
+    signature = ("steps of Q ∝ V² (not of P) after V stays beyond a threshold for a delay, or at V's own steps: "
+                 "a relay-switched bank")
     max_nfev = 10  # only D moves in the upper stage (the relay's data are scanned)
 
     _last_v: tuple = (None, None)  # (V, its low-passed copy): the fits ask for the same V hundreds of times
+    _last_d: tuple = (None, None)  # (V, its step statistic), likewise
 
     def _relay_v(self, seg: Segment) -> np.ndarray:
         # Keyed on the V array itself, not the segment: the noise model perturbs segments' V (new arrays),
@@ -107,20 +171,33 @@ class SwitchedShunt(Candidate):
             self._last_v = (seg.V, lp)
         return lp
 
+    def _steps(self, seg: Segment) -> np.ndarray:
+        # The steps are read on V as measured: the 5 Hz low-pass the relay law reads through would spread a
+        # step over ±0.1 s, ahead of the switching too (zero phase).
+        v, d = self._last_d
+        if v is not seg.V:
+            d = step_statistic(seg.V)
+            self._last_d = (seg.V, d)
+        return d
+
     def bounds(self, seg: Segment, ctx: Context):
         v = self._relay_v(seg)
         sd = max(float(np.std(v)), 1e-6)
-        return (np.array([float(v.min()), 0.0, 0.0, 0.0, 0.0]),
-                np.array([float(v.max()), 4.0 * sd, 2.0, T_OP_MAX_S, 1.0]))
+        # Vc ∓ dv of the steps' form are medians of the measured V, which may lie outside the low-passed range.
+        return (np.array([float(seg.V.min()), -4.0 * sd, 0.0, 0.0, 0.0, 0.0]),
+                np.array([float(seg.V.max()), 4.0 * sd, 2.0, T_OP_MAX_S, 1.0,
+                          max(float(np.abs(self._steps(seg)).max()), 1e-9)]))
 
     def extra_columns(self, seg: Segment, d: np.ndarray, z: np.ndarray):
-        s = _state(self._relay_v(seg), z, seg.dt)
+        s = _state(self._relay_v(seg), z, seg.dt, self._steps(seg))
         return np.zeros((seg.n, 0)), (-s * seg.V**2)[:, None]
 
     def starts(self, seg: Segment, ctx: Context) -> list[np.ndarray]:
         v = self._relay_v(seg)
+        steps = self._steps(seg)
         lo, hi = self.bounds(seg, ctx)
         mid = 0.5 * (lo + hi)
+        mid[5] = 0.0
         m = simulate_motor(seg, ctx.d0)
         if m is None:
             return [mid]
@@ -131,7 +208,7 @@ class SwitchedShunt(Candidate):
         v2 = seg.V[tr] ** 2
 
         def ssr(z) -> float:
-            s = _state(v, z, seg.dt)[tr]
+            s = _state(v, z, seg.dt, steps)[tr]
             if s.min() == s.max():  # no switching in training: nothing to fit
                 return np.inf
             x = np.column_stack([x0, -s * v2])
@@ -141,27 +218,57 @@ class SwitchedShunt(Candidate):
             return float(r @ r)
 
         sd = float(np.std(v))
-        grid = [(float(vc), k * sd, tau, 0.0, s0) for vc in np.quantile(v, VC_QUANTILES) for k in DV_STD
+        grid = [(float(vc), k * sd, tau, 0.0, s0, 0.0) for vc in np.quantile(v, VC_QUANTILES) for k in DV_STD
                 for tau in TAU_S for s0 in (0.0, 1.0)]
         costs = [ssr(z) for z in grid]
-        if not np.isfinite(min(costs)):
+        if np.isfinite(min(costs)):
+            z = grid[int(np.argmin(costs))]
+            best = min(costs)
+            # Then coordinate passes on finer grids about the best point: the timing of each switching is what
+            # the fit hinges on, and the coarse grid places it within a step of the delay only.
+            for _ in range(REFINE_PASSES):
+                for c in z[0] + sd * np.linspace(-0.3, 0.3, 13):
+                    best, z = _better(ssr, best, z, (float(c), *z[1:]))
+                # dv and τ jointly: together they decide whether an excursion switches the bank at all; then τ
+                # and t_op jointly: the later the breaker, the longer V is seen before the switching shows.
+                for c1 in z[1] * np.geomspace(0.5, 2.0, 9):
+                    for c2 in np.clip(z[2] + np.arange(-8, 9) * seg.dt, 0.0, hi[2]):
+                        best, z = _better(ssr, best, z, (z[0], float(c1), float(c2), *z[3:]))
+                for c3 in np.arange(0, int(T_OP_MAX_S / seg.dt + 1e-9) + 1) * seg.dt:
+                    for c2 in np.clip(z[2] + np.arange(-6, 7) * seg.dt, 0.0, hi[2]):
+                        best, z = _better(ssr, best, z, (z[0], z[1], float(c2), float(c3), *z[4:]))
+        else:
+            z, best = tuple(mid), np.inf
+        # The other source of the state: V's own steps, the threshold over multiples of the statistic's noise.
+        scale = 1.4826 * float(np.median(np.abs(steps - np.median(steps))))
+        for q in STEP_SCALES:
+            if scale > 0.0:
+                zq = self._step_point(seg, steps, q * scale)
+                for c3 in np.arange(0, int(T_OP_MAX_S / seg.dt + 1e-9) + 1) * seg.dt:
+                    best, z = _better(ssr, best, z, (*zq[:3], float(c3), *zq[4:]))
+        if not np.isfinite(best):
             return [mid]
-        z = grid[int(np.argmin(costs))]
-        best = min(costs)
-        # Then coordinate passes on finer grids about the best point: the timing of each switching is what
-        # the fit hinges on, and the coarse grid places it within a step of the delay only.
-        for _ in range(REFINE_PASSES):
-            for c in z[0] + sd * np.linspace(-0.3, 0.3, 13):
-                best, z = _better(ssr, best, z, (float(c), *z[1:]))
-            # dv and τ jointly: together they decide whether an excursion switches the bank at all; then τ
-            # and t_op jointly: the later the breaker, the longer V is seen before the switching shows.
-            for c1 in z[1] * np.geomspace(0.5, 2.0, 9):
-                for c2 in np.clip(z[2] + np.arange(-8, 9) * seg.dt, 0.0, hi[2]):
-                    best, z = _better(ssr, best, z, (z[0], float(c1), float(c2), *z[3:]))
-            for c3 in np.arange(0, int(T_OP_MAX_S / seg.dt + 1e-9) + 1) * seg.dt:
-                for c2 in np.clip(z[2] + np.arange(-6, 7) * seg.dt, 0.0, hi[2]):
-                    best, z = _better(ssr, best, z, (z[0], z[1], float(c2), float(c3), z[4]))
         return [np.clip(np.array(z), lo, hi)]
+
+    def _step_point(self, seg: Segment, steps: np.ndarray, dv_step: float) -> tuple:
+        """z of the steps' form at threshold ``dv_step``: Vc ∓ dv the median V read before the switchings in
+        and out (the relay's thresholds lie beyond them), τ = t_op = 0 (t_op is scanned after), s0 the initial
+        state."""
+        s = step_state(steps, dv_step, STEP_SAMPLES)
+        k = np.flatnonzero(np.diff(s)) + 1
+        before = seg.V[np.maximum(k - STEP_SAMPLES - 1, 0)]
+        rising = np.diff(s)[k - 1] > 0
+        if rising.all() or not rising.any():
+            vin = vout = float(np.median(seg.V))
+        else:
+            vin, vout = float(np.median(before[rising])), float(np.median(before[~rising]))
+        return (0.5 * (vin + vout), 0.5 * (vout - vin), 0.0, 0.0, float(s[0]), float(dv_step))
+
+    def implausible(self, params: dict[str, float], seg: Segment, ctx: Context) -> str | None:
+        if params.get("dV", 0.0) >= DV_STEP_MIN and params.get("dv", 0.0) <= 0.0:
+            return ("V before the bank's switchings in is not below V before its switchings out: "
+                    "no voltage relay switches it")
+        return None
 
 
 #: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).
