@@ -3,9 +3,11 @@
     .venv/bin/python -m benchmarks.diagnosis_variant --reverse-margin 0 independent --set confirm4 --seeds 9303 \
         --kinds clean --noise both --cached-only --workers 1 --tag margin0
     .venv/bin/python -m benchmarks.diagnosis_variant --declare-msd-fd selftest --only motor_stator_dynamics --workers 1
+    .venv/bin/python -m benchmarks.diagnosis_variant --no-bound-rule selftest --cases second_motor/1/10 --workers 1
 
 ``--reverse-margin X``: every diagnosis with ``DiagnosisConfig(reverse_margin=X)`` (0: the reverse rule of the third
-to fifth rounds of issue 12).  ``--declare-msd-fd``: `motor_stator_dynamics` and `frequency_dependence` declared
+to fifth rounds of issue 12).  ``--no-bound-rule``: ``DiagnosisConfig(bound_rule=False)`` (a name is not withheld
+when the plain fit sits on a bound of the box).  ``--declare-msd-fd``: `motor_stator_dynamics` and `frequency_dependence` declared
 look-alikes of each other (issue 12, sixth round: with noise on V and θ the lagged frequency term's penalty leaves it
 out of the rivals of a stator dynamics that fits the same Δf response, which is then named).  Both are patched in
 before the worker processes fork; everything else is the benchmark's own (``independent`` or ``selftest``).
@@ -27,14 +29,15 @@ def declare_msd_fd() -> None:
             LIBRARY[a].confusable = (*LIBRARY[a].confusable, b)
 
 
-def set_reverse_margin(rho: float) -> None:
-    """Make ``DiagnosisConfig()`` — what the benchmarks' ``diagnose`` calls use — carry ``reverse_margin=rho``."""
+def set_config(**fields) -> None:
+    """Make ``DiagnosisConfig()`` — what the benchmarks' ``diagnose`` calls use — carry ``fields`` (a field given
+    explicitly by the caller still wins)."""
     from aslm_core.diagnosis import pipeline
 
     base = pipeline.DiagnosisConfig
 
     def config(**kw):
-        return replace(base(**kw), reverse_margin=kw.get("reverse_margin", rho))
+        return replace(base(**kw), **{k: kw.get(k, v) for k, v in fields.items()})
 
     pipeline.DiagnosisConfig = config
 
@@ -43,12 +46,14 @@ def main(argv: list[str]) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--reverse-margin", type=float, default=None)
     p.add_argument("--declare-msd-fd", action="store_true")
+    p.add_argument("--no-bound-rule", action="store_true")
     p.add_argument("benchmark", choices=("independent", "selftest"))
     args, rest = p.parse_known_args(argv)
     if args.declare_msd_fd:
         declare_msd_fd()
-    if args.reverse_margin is not None:
-        set_reverse_margin(args.reverse_margin)
+    fields = {"reverse_margin": args.reverse_margin, "bound_rule": False if args.no_bound_rule else None}
+    if any(v is not None for v in fields.values()):
+        set_config(**{k: v for k, v in fields.items() if v is not None})
     if args.benchmark == "independent":
         from benchmarks.diagnosis_independent import main as run
     else:

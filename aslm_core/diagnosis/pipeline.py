@@ -113,6 +113,10 @@ class DiagnosisConfig:
         is rejected when (z − √ρ·z₀)/√(1 + ρ) exceeds the Holm critical value.  0: any significant sliver
         counts (the rule of the third to fifth rounds of issue 12).  Not applied between declared look-alikes
         (``Candidate.confusable``, either way round): their distinguishing evidence is a sliver by construction.
+    bound_rule : bool
+        Withhold a name when the plain fit sits on a bound of the identifier's box and the named cause's own fit
+        stays there (``unexplained``, the message naming the bound): the mismatch may then be a motor outside the
+        box.  It costs right names where a true motor lies just inside the box (docs/diagnosis.md, sixth round).
     challengers : bool
         When the top candidate is not separated from a rival, try the unseparated rivals (in the order of
         their gain) as the cause: one that is significant, explains the mismatch and is separated from every
@@ -132,6 +136,7 @@ class DiagnosisConfig:
     separation_alpha: float = 0.05
     encompassing_alpha: float | None = 0.05
     reverse_margin: float = 0.01
+    bound_rule: bool = True
     challengers: bool = True
 
 
@@ -397,7 +402,7 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         message = "residual above the noise floor in " + ", ".join(
             f"{c} ({', '.join(f'{b[0]:g}–{b[1]:g} Hz' for b in located.bands[c])})" for c in located.channels
         ) + "; no candidate explains it"
-    pinned = _pinned(analyses, causes) if verdict in ("explained", "ambiguous") else {}
+    pinned = _pinned(analyses, causes) if config.bound_rule and verdict in ("explained", "ambiguous") else {}
     if pinned:
         message = (f"the plain model sits on its box's bound ({_bounds_text(pinned)}) and the fit of "
                    f"{' and '.join(causes)} stays there: the mismatch may be a motor outside the identifier's box, "

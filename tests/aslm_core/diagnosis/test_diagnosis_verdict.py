@@ -260,8 +260,7 @@ def test_a_motor_outside_the_box_is_not_explained_and_the_message_names_the_boun
     assert rep.verdict == "unexplained" and rep.cause is None and rep.causes == [], rep.message
     assert "H2 = 0.5 s (lower bound)" in rep.message and "double_cage_rotor" in rep.message
     assert rep.to_dict()["model"]["at_bound"]["H2"] == 0.5
-    monkeypatch.setattr(pipeline, "_pinned", lambda analyses, causes: {})
-    without = diagnose(window)
+    without = diagnose(window, config=pipeline.DiagnosisConfig(bound_rule=False))
     assert without.verdict == "explained" and without.cause == "double_cage_rotor", without.message
 
 
