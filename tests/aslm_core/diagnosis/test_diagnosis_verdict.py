@@ -222,27 +222,33 @@ def test_an_implausible_fit_is_no_rival():
     assert pipeline._rivals([a], [best, motor, freq], best, 3.0) == [motor, freq]
 
 
-@pytest.mark.parametrize(("plain", "fits", "causes", "pinned"), [
-    ({"H2": 0.5}, {"double_cage_rotor": {"H2": 0.5}}, ["double_cage_rotor"], {"H2": 0.5}),
-    ({"H2": 0.5}, {"double_cage_rotor": {}}, ["double_cage_rotor"], {}),
-    ({"H2": 0.5}, {"double_cage_rotor": {"b": 30.0}}, ["double_cage_rotor"], {}),
-    ({"b": 30.0}, {"second_motor": {"b": 30.0}, "measurement_skew": {"b": 30.0}}, ["second_motor", "measurement_skew"],
-     {"b": 30.0}),
-    ({"b": 30.0}, {"second_motor": {"b": 30.0}, "measurement_skew": {}}, ["second_motor", "measurement_skew"], {}),
-    ({}, {"double_cage_rotor": {"H2": 0.5}}, ["double_cage_rotor"], {}),
+@pytest.mark.parametrize(("at_bound", "opened"), [
+    ({"H2": 0.5}, {"H2": (0.1, 3.0)}),
+    ({"b": 30.0}, {"b": (3.0, 100.0)}),
+    ({"a": 80.0, "H2": 0.5}, {"a": (10.0, 200.0), "H2": (0.1, 3.0)}),
+    ({"Tm": 0.0}, None),
+    ({}, None),
 ])
-def test_a_cause_whose_fit_stays_on_the_plain_fits_bound_is_not_named(plain, fits, causes, pinned):
-    """Sixth round of issue 12: a motor outside the identifier's box leaves the plain fit on a bound and a residual
-    that a candidate with more freedom absorbs (ANDES clean 9303 with H2 = 0.475 s was named `double_cage_rotor`).
-    A cause (every listed cause, when ambiguous) whose own fit stays on the plain fit's bound is not named; one that
-    moves the motor off it, or a plain fit inside the box, leaves the verdict alone."""
+def test_the_box_opens_to_the_physical_range_only_where_the_plain_fit_is_pinned(at_bound, opened):
+    """Seventh round of issue 12: the rival "motor outside the box" is the plain model refitted with the box opened
+    on the side it is pinned to, to :func:`aslm_core.params.physical_bounds`; the other sides and parameters keep
+    the identifier's box, and a bound that is the physical limit already (Tm = 0) opens nothing (no rival)."""
     from types import SimpleNamespace
 
-    from aslm_core.diagnosis import pipeline
+    import numpy as np
 
-    a = SimpleNamespace(plain=SimpleNamespace(at_bound=plain),
-                        fits={k: SimpleNamespace(at_bound=v) for k, v in fits.items()})
-    assert pipeline._pinned([a], causes) == pinned
+    from aslm_core.diagnosis import pipeline
+    from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
+
+    seg = SimpleNamespace(P=np.full(10, 0.3))
+    box = pipeline._opened_box(SimpleNamespace(seg=seg, plain=SimpleNamespace(at_bound=at_bound)))
+    if opened is None:
+        assert box is None
+        return
+    lo0, hi0 = dynamic_bounds(float(np.mean(seg.P)))
+    lo, hi = box
+    for i, name in enumerate(DYNAMIC_NAMES):
+        assert (lo[i], hi[i]) == opened.get(name, (lo0[i], hi0[i])), name
 
 
 def test_a_motor_outside_the_box_is_not_explained_and_the_message_names_the_bound(monkeypatch):
