@@ -123,8 +123,8 @@ class DiagnosisConfig:
         and Holm family as the others): a cause is named only when it beats it, and when it does not (or, for an
         ``ambiguous`` list, one member does not) the verdict is ``unexplained``, the message naming the bound.
         Until the seventh round of issue 12 this withheld every name whose cause's fit stayed on the plain fit's
-        bound, whether the bound mattered or not (docs/diagnosis.md, "Seventh round: the bound as a rival").
-        False: the plain fit's bound does not enter the verdict.
+        bound, whether the bound mattered or not (docs/diagnosis.md, "Seventh round (stop 29): the plain fit's
+        bound as a rival, not a veto").  False: the plain fit's bound does not enter the verdict.
     challengers : bool
         When the top candidate is not separated from a rival, try the unseparated rivals (in the order of
         their gain) as the cause: one that is significant, explains the mismatch and is separated from every
