@@ -182,7 +182,8 @@ def test_an_unseparated_rival_that_the_paired_tests_separate_is_named_in_the_top
                                explained_fraction=None, remaining_excess_channels=None, score_z=6.0)
 
     top, fd = entry("sdt"), entry("fd")
-    monkeypatch.setattr(pipeline, "_rivals", lambda analyses, entries, best, zcrit: [e for e in entries if e is not best])
+    monkeypatch.setattr(pipeline, "_rivals",
+                        lambda analyses, entries, best, zcrit, extra=(): [e for e in entries if e is not best])
     tied = [top, *pipeline._unseparated([], top, [fd], pipeline.DiagnosisConfig())]
     assert [e.name for e in tied] == ["sdt", "fd"]
     before = (fd.separation_z, fd.separated, top.separation_z, top.separated)
