@@ -75,10 +75,10 @@ def physical_bounds(p_mean: float) -> tuple[np.ndarray, np.ndarray]:
 
     a and H2 scale with the motor's rating on the system base (X' ∝ Sb/Sn, H2 = 2H·Sn/Sb) and b not (paper
     eq. 4–5), so a small or light motor on a 100 MVA base leaves the paper's §V.A box (a 22 MVA motor with
-    H = 1 s has H2 = 0.44 s) while a ∈ [1, 200] /s, b ∈ [1, 100] /s (rotor resistance up to about 0.05 pu on
-    the motor's base) and H2 ∈ [0.1, 10] s hold any induction motor up to the bus's own size; Tm's box is its
-    physical range already (0 ≤ Tm ≤ mean P).  At the windows' 10 ms step the flux mode's b·dt stays inside
-    RK4's stability interval.
+    H = 1 s has H2 = 0.44 s).  a ∈ [1, 200] /s, b ∈ [1, 100] /s (rotor resistance up to about 0.04 pu on the
+    motor's base with typical reactances) and H2 ∈ [0.1, 10] s are meant to hold any induction motor up to the
+    bus's own size (chosen from the transform, not tuned); Tm's box is its physical range already
+    (0 ≤ Tm ≤ mean P).  At 50 frames/s or more the flux mode's b·dt stays inside RK4's stability interval.
 
     Parameters
     ----------

@@ -272,7 +272,8 @@ def _outside_box(analyses: list[_WindowAnalysis], config: DiagnosisConfig) -> tu
     for a, box in zip(analyses, boxes, strict=True):
         f = a.plain
         if box is not None:
-            opened.update(a.plain.at_bound)
+            opened.update({k: v for k, v in a.plain.at_bound.items()
+                           if v not in (box[0][DYNAMIC_NAMES.index(k)], box[1][DYNAMIC_NAMES.index(k)])})
             wide = engine.fit_candidate(_PLAIN, a.seg, a.ctx, a.weights, d_start=a.plain.d, d_bounds=box)
             f = wide if wide.ok else a.plain  # from the plain fit's point: a failure only where D cannot move
         a.fits[OUTSIDE_BOX] = f
@@ -564,7 +565,8 @@ def paired_comparisons(analyses: list[_WindowAnalysis], best: str, rival: str,
         fb, fr = a.fits[best], a.fits[rival]
         if not (fb.ok and fr.ok):
             return None
-        cov = engine.prediction_cov(_PLAIN if rival == OUTSIDE_BOX else LIBRARY[rival], a.seg, a.ctx, fr, a.weights) if config.prediction_variance else None
+        cand = _PLAIN if rival == OUTSIDE_BOX else LIBRARY[rival]
+        cov = engine.prediction_cov(cand, a.seg, a.ctx, fr, a.weights) if config.prediction_variance else None
         gb, gr = a.probes.get(best), a.probes.get(rival)
         out.append(engine.compare(a.seg, fr, fb, 0, a.noise, config.lag_s,
                                   probes=(gr, gb) if gb is not None and gr is not None else None, plain_cov=cov))
