@@ -22,7 +22,8 @@ docs/diagnosis.md ("Why clean 9303 and 9305 were not clean"):
 ``verdicts``
     The diagnosis of the old (out-of-box) clean recordings at the three noise levels, noise on P and Q and on
     V and θ too (sixth round): the plain fit's bounds (``model.at_bound``) and the verdict with and without the
-    rule that names no cause whose fit stays on the plain fit's bound (``pipeline._pinned``).
+    plain fit's bound in the verdict (``DiagnosisConfig.bound_rule``: a veto in the sixth round, a rival in the
+    seventh).
 
 The oracle z here is the unit-SNR one (:func:`benchmarks.diagnosis_detectability.recording_oracle`); a
 case's is z_unit·10^(SNR/20), against the critical value 3.06: at L3's highest SNR (30 dB) z_unit < 0.097 is
@@ -151,42 +152,69 @@ def fixed_part() -> list[dict]:
 
 
 def verdicts_part() -> list[dict]:
-    """The old out-of-box clean recordings diagnosed: the verdict the rule on the plain fit's bound withholds."""
+    """The old out-of-box clean recordings diagnosed with and without the plain fit's bound in the verdict
+    (``DiagnosisConfig.bound_rule``; since the seventh round the plain motor refitted outside the box as a rival)."""
     from aslm_core.diagnosis import pipeline
     from aslm_sim.andes.effects import recording
-    from benchmarks.diagnosis_independent import LEVELS, WINDOWS, _window
 
-    rule = pipeline._pinned
+    rival = pipeline._outside_box
     seen: list = []
 
-    def recorded(analyses, causes):  # the verdict's causes before the rule, and what the rule returns
-        out = rule(analyses, causes)
-        seen.append((list(causes), out))
+    def timed(analyses, config):  # the rival's cost and, after the verdict, its paired statistic
+        c = time.process_time()
+        out = rival(analyses, config)
+        seen.append((out, time.process_time() - c))
         return out
 
-    pipeline._pinned = recorded
+    pipeline._outside_box = timed
     rows = []
     try:
-        for seed in OUTSIDE:
-            rec = recording("clean", seed, tf=TF, tstep=TSTEP, paper_box=False)
-            for inp in (False, True):
-                for t0, t1 in WINDOWS:
-                    for lvl in LEVELS:
-                        w, snr = _window(rec, t0, t1, lvl, inp, f"clean/{seed}")
-                        seen.clear()
-                        rep = pipeline.diagnose(w)
-                        causes, pinned = seen[0] if seen else ([], {})
-                        row = {"seed": seed, "window": [t0, t1], "level": lvl, "input_noise": inp, "snr_db": snr,
-                               "verdict": rep.verdict, "cause": rep.cause, "causes_before_rule": causes,
-                               "pinned": pinned, "plain_at_bound": rep.model.at_bound,
-                               "plain_d": rep.model.dynamic, "message": rep.message}
-                        rows.append(row)
-                        print(f"clean {seed} {t0:4.0f} L{lvl} {'V/θ' if inp else 'P/Q'}: at_bound "
-                              f"{rep.model.at_bound}  before the rule {causes or '-'}  now {rep.verdict}"
-                              f"{'/' + rep.cause if rep.cause else ''}", flush=True)
+        rows = _verdict_rows(pipeline, recording, seen)
     finally:
-        pipeline._pinned = rule
+        pipeline._outside_box = rival
     return rows
+
+
+def _verdict_rows(pipeline, recording, seen: list) -> list[dict]:
+    from benchmarks.diagnosis_independent import LEVELS, WINDOWS, _window
+
+    rows = []
+    for seed in OUTSIDE:
+        rec = recording("clean", seed, tf=TF, tstep=TSTEP, paper_box=False)
+        for inp in (False, True):
+            for t0, t1 in WINDOWS:
+                for lvl in LEVELS:
+                    w, snr = _window(rec, t0, t1, lvl, inp, f"clean/{seed}")
+                    seen.clear()
+                    c0 = time.process_time()
+                    before = pipeline.diagnose(w, config=pipeline.DiagnosisConfig(bound_rule=False))
+                    c1 = time.process_time()
+                    rep = pipeline.diagnose(w)
+                    cpu, cpu0 = time.process_time() - c1, c1 - c0
+                    causes = ([before.cause] if before.verdict == "explained" else
+                              list(before.causes) if before.verdict == "ambiguous" else [])
+                    row = {"seed": seed, "window": [t0, t1], "level": lvl, "input_noise": inp, "snr_db": snr,
+                           "verdict": rep.verdict, "cause": rep.cause, "causes_before_rule": causes,
+                           "verdict_without_rule": before.verdict, "plain_at_bound": rep.model.at_bound,
+                           "plain_d": rep.model.dynamic, "message": rep.message, "cpu_s": cpu,
+                           "cpu_s_without_rule": cpu0, **_rival_fields(seen)}
+                    rows.append(row)
+                    print(f"clean {seed} {t0:4.0f} L{lvl} {'V/θ' if inp else 'P/Q'}: at_bound "
+                          f"{rep.model.at_bound}  without the rule {causes or before.verdict}  now {rep.verdict}"
+                          f"{'/' + rep.cause if rep.cause else ''}  {cpu:.2f} s CPU", flush=True)
+    return rows
+
+
+def _rival_fields(seen: list) -> dict:
+    """The motor-outside-the-box rival of one diagnosis: its fit's cost and the cause's paired statistic against it
+    (None where no bound opened or no cause reached the paired tests)."""
+    if not seen:
+        return {"rival_cpu_s": None, "rival_separation_z": None, "rival_separated": None, "rival_d": None}
+    out, cpu = seen[-1]
+    entry = out[0] if out is not None else None
+    return {"rival_cpu_s": cpu, "rival_separation_z": getattr(entry, "separation_z", None),
+            "rival_separated": getattr(entry, "separated", None),
+            "rival_d": {k: v for k, v in entry.parameters.items()} if entry is not None else None}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -4,8 +4,9 @@
 
 Reads ``docs/results/diagnosis_independent_<run>.json`` for both runs and matches their records by kind, seed,
 window, level and noise mode.  Prints each case whose answer (the named cause for ``explained``, else the
-verdict; ``ambiguous`` with its causes) differs, marks those the sixth round's rule made ``unexplained`` (the
-plain fit on its box's bound, :func:`aslm_core.diagnosis.pipeline._pinned`: the message says so), counts the
+verdict; ``ambiguous`` with its causes) differs, marks those the plain fit's bound made ``unexplained``
+(``DiagnosisConfig.bound_rule``: a veto in the sixth round, the motor outside the box as a rival since the
+seventh; the message says so either way), counts the
 right names each run has and the rule took, the cases whose plain fit sits on a bound (``plain_at_bound``,
 recorded by runs since the sixth round), and CPU per diagnosis of both runs.
 """

@@ -122,7 +122,8 @@ def _train_residuals(pr: Prediction, seg: Segment, noise: NoiseModel):
 
 def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, noise, *,
                   d_start: np.ndarray | None = None, z_starts: list[np.ndarray] | None = None,
-                  max_nfev: int | None = None) -> Fit:
+                  max_nfev: int | None = None,
+                  d_bounds: tuple[np.ndarray, np.ndarray] | None = None) -> Fit:
     """Fit one candidate on ``seg.train``.
 
     Parameters
@@ -139,6 +140,9 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, noise, *,
         Starts of z (default ``cand.starts``); the best run is kept.
     max_nfev : int, optional
         Function evaluations per start.
+    d_bounds : (ndarray, ndarray), optional
+        Box of D (lower, upper) [1/s, 1/s, s, pu] in identified mode (default: the identifier's,
+        :func:`aslm_core.params.dynamic_bounds`); ``at_bound`` refers to it.
     """
     noise = as_noise(noise, seg)
     d0 = np.asarray(ctx.d0 if d_start is None else d_start, dtype=np.float64)
@@ -146,8 +150,8 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, noise, *,
     zlo, zhi = cand.bounds(seg, ctx)
     free = ctx.free
     if free:
-        dlo, dhi = dynamic_bounds(float(np.mean(seg.P)))
-        dlo, dhi = dlo.copy(), dhi.copy()
+        dlo, dhi = dynamic_bounds(float(np.mean(seg.P))) if d_bounds is None else d_bounds
+        dlo, dhi = np.array(dlo, dtype=np.float64), np.array(dhi, dtype=np.float64)
         dhi[3] = max(dhi[3], d0[3] * 1.05, 1e-6)
         lo, hi = np.concatenate([dlo, zlo]), np.concatenate([dhi, zhi])
     else:

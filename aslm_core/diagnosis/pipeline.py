@@ -66,10 +66,13 @@ from aslm_core.diagnosis.report import (
 )
 from aslm_core.diagnosis.segment import Segment, make_segment
 from aslm_core.identify import identify
-from aslm_core.params import DYNAMIC_NAMES, DYNAMIC_PARAMS
+from aslm_core.params import DYNAMIC_NAMES, DYNAMIC_PARAMS, dynamic_bounds, physical_bounds
 from aslm_core.window import Window
 
 _PLAIN = Candidate()
+#: The plain model refitted with its box opened where it is pinned (``DiagnosisConfig.bound_rule``): a rival of
+#: every cause under this name, never itself named (not a library member).
+OUTSIDE_BOX = "motor_outside_box"
 
 
 @dataclass(frozen=True)
@@ -114,9 +117,14 @@ class DiagnosisConfig:
         counts (the rule of the third to fifth rounds of issue 12).  Not applied between declared look-alikes
         (``Candidate.confusable``, either way round): their distinguishing evidence is a sliver by construction.
     bound_rule : bool
-        Withhold a name when the plain fit sits on a bound of the identifier's box and the named cause's own fit
-        stays there (``unexplained``, the message naming the bound): the mismatch may then be a motor outside the
-        box.  It costs right names where a true motor lies just inside the box (docs/diagnosis.md, sixth round).
+        When the plain fit sits on a bound of the identifier's box, the plain model refitted on the training
+        samples with the box opened on that side to the physical range (:func:`aslm_core.params.physical_bounds`)
+        — a motor outside the box — is one more rival of the cause (:data:`OUTSIDE_BOX`, the same paired tests
+        and Holm family as the others): a cause is named only when it beats it, and when it does not (or, for an
+        ``ambiguous`` list, one member does not) the verdict is ``unexplained``, the message naming the bound.
+        Until the seventh round of issue 12 this withheld every name whose cause's fit stayed on the plain fit's
+        bound, whether the bound mattered or not (docs/diagnosis.md, "Seventh round (stop 29): the plain fit's
+        bound as a rival, not a veto").  False: the plain fit's bound does not enter the verdict.
     challengers : bool
         When the top candidate is not separated from a rival, try the unseparated rivals (in the order of
         their gain) as the cause: one that is significant, explains the mismatch and is separated from every
@@ -227,6 +235,64 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
         out.refit_comp = engine.compare(seg, plain, re, 4 + 5, test_noise, config.lag_s,
                                         probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
     return out
+
+
+def _opened_box(a: _WindowAnalysis) -> tuple[np.ndarray, np.ndarray] | None:
+    """The identifier's box with each side the window's plain fit sits on opened to the physical range (None: the
+    fit is on no bound, or only on one that is the physical limit already, e.g. Tm = 0)."""
+    p_mean = float(np.mean(a.seg.P))
+    lo, hi = dynamic_bounds(p_mean)
+    plo, phi = physical_bounds(p_mean)
+    lo, hi = lo.copy(), hi.copy()
+    opened = False
+    for i, name in enumerate(DYNAMIC_NAMES):
+        v = a.plain.at_bound.get(name)
+        if v is not None and v == lo[i] and plo[i] < lo[i]:
+            lo[i], opened = plo[i], True
+        elif v is not None and v == hi[i] and phi[i] > hi[i]:
+            hi[i], opened = phi[i], True
+    return (lo, hi) if opened else None
+
+
+def _outside_box(analyses: list[_WindowAnalysis], config: DiagnosisConfig) -> tuple[CandidateEntry, dict] | None:
+    """The plain motor outside the box as a rival: its entry and the bounds opened {parameter: bound} (None: none).
+
+    In each window whose plain fit sits on an openable bound the plain model is refitted on the training samples
+    from the plain fit with the box opened there (:func:`_opened_box`); elsewhere it is the plain fit.  A true
+    motor outside the box leaves the in-box plain fit a residual that a candidate with more freedom absorbs
+    ("Why clean 9303 and 9305 were not clean"); this rival fits it without any candidate's physics, so a cause
+    that does not beat it on the held-out data is not shown to be there.  Its fit, input-noise draws and
+    comparison with the plain model go where the paired tests look for a candidate's (``fits``, ``probes``).
+    """
+    boxes = [_opened_box(a) if a.ctx.free else None for a in analyses]
+    if all(b is None for b in boxes):
+        return None
+    opened: dict[str, float] = {}
+    comps = []
+    for a, box in zip(analyses, boxes, strict=True):
+        f = a.plain
+        if box is not None:
+            opened.update({k: v for k, v in a.plain.at_bound.items()
+                           if v not in (box[0][DYNAMIC_NAMES.index(k)], box[1][DYNAMIC_NAMES.index(k)])})
+            wide = engine.fit_candidate(_PLAIN, a.seg, a.ctx, a.weights, d_start=a.plain.d, d_bounds=box)
+            f = wide if wide.ok else a.plain  # from the plain fit's point: a failure only where D cannot move
+        a.fits[OUTSIDE_BOX] = f
+        g1 = _probes(a.seg, a.weights, _PLAIN, a.ctx, f) if a.noise.has_inputs else None
+        a.probes[OUTSIDE_BOX] = g1
+        g0 = (a.noise.probes_p, a.noise.probes_q) if g1 is not None else None
+        comps.append(engine.compare(a.seg, a.plain, f, 0, a.noise, config.lag_s,
+                                    probes=(g0, g1) if g1 is not None else None))
+    m = len(comps)
+    entry = CandidateEntry(
+        name=OUTSIDE_BOX, parameters={f"D.{k}": v for k, v in _dynamic(analyses[0].fits[OUTSIDE_BOX].d).items()},
+        stderr={}, derived={}, units={}, improvement=PerChannel(float(np.mean([c.reduction_p for c in comps])),
+                                                                 float(np.mean([c.reduction_q for c in comps]))),
+        improvement_band=PerChannel(None, None), excess_reduction=PerChannel(None, None),
+        penalised_gain=float(sum(c.penalised_gain for c in comps)),
+        score_z=float(sum(c.score_z for c in comps) / math.sqrt(m)), dm_z=float(sum(c.dm_z for c in comps) / math.sqrt(m)),
+        magnitude_z=None, n_params=0, significant=False,
+        signature="the plain model with its box opened where it is pinned", tested=True)
+    return entry, opened
 
 
 def _through(seg: Segment, noise: NoiseModel, cand: Candidate, ctx: Context, fit: engine.Fit) -> NoiseModel:
@@ -377,15 +443,27 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         left = _remaining(analyses, best.name)
         best.remaining_excess_channels = left
         if frac >= config.explained_fraction or not left:
-            rivals = _rivals(analyses, entries, best, zcrit)
+            outside = _outside_box(analyses, config) if config.bound_rule else None
+            extra = [outside[0]] if outside is not None else []
+            rivals = _rivals(analyses, entries, best, zcrit, extra)
             tied = sorted([best, *_unseparated(analyses, best, rivals, config)], key=lambda e: -e.penalised_gain)
             if len(tied) > 1 and config.challengers:
-                winner = _challenger(analyses, entries, tied, zcrit, config)
+                winner = _challenger(analyses, entries, tied, zcrit, config, extra)
                 if winner is not None:
                     best, tied = winner, [winner]
                     frac = best.explained_fraction
             causes = [e.name for e in tied]
-            if len(tied) == 1:
+            # An ambiguous list stands for "one of these": each member has to beat the motor outside the box too.
+            if outside is not None and len(tied) > 1 and OUTSIDE_BOX not in causes and any(
+                    _unseparated(analyses, e, extra, config) for e in tied if e is not best):
+                causes.append(OUTSIDE_BOX)
+            if OUTSIDE_BOX in causes:
+                named = [c for c in causes if c != OUTSIDE_BOX]
+                verdict, cause, causes = "unexplained", None, []
+                message = (f"the plain model sits on its box's bound ({_bounds_text(outside[1])}), and refitted with "
+                           f"the box opened there it explains the held-out data as well as {' and '.join(named)}: "
+                           f"the mismatch may be a motor outside the identifier's box, so no cause is named")
+            elif len(tied) == 1:
                 verdict, cause = "explained", best.name
                 after = _mean_fit([_held_out_fit(a.seg, a.fits[cause]) for a in analyses])
                 message = f"{cause} explains {100 * frac:.0f} % of the held-out excess residual variance"
@@ -402,12 +480,6 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         message = "residual above the noise floor in " + ", ".join(
             f"{c} ({', '.join(f'{b[0]:g}–{b[1]:g} Hz' for b in located.bands[c])})" for c in located.channels
         ) + "; no candidate explains it"
-    pinned = _pinned(analyses, causes) if config.bound_rule and verdict in ("explained", "ambiguous") else {}
-    if pinned:
-        message = (f"the plain model sits on its box's bound ({_bounds_text(pinned)}) and the fit of "
-                   f"{' and '.join(causes)} stays there: the mismatch may be a motor outside the identifier's box, "
-                   f"so no cause is named")
-        verdict, cause, causes, after = "unexplained", None, [], before
     a0 = analyses[0]
     plain_model = Diagnosed(dynamic=_dynamic(a0.plain.d), mode=a0.ctx.mode,
                             at_bound={k: v for a in analyses for k, v in a.plain.at_bound.items()})
@@ -437,25 +509,6 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
     )
 
 
-def _pinned(analyses: list[_WindowAnalysis], causes: list[str]) -> dict[str, float]:
-    """The plain fit's bounds {parameter: bound} that none of ``causes`` lifts (sixth round of issue 12).
-
-    The plain model sits on a bound of the identifier's box when the true motor is outside it, and then leaves
-    a residual no candidate's physics stands for, which a candidate with more freedom absorbs (a second rotor
-    cage for a too light motor, "Why clean 9303 and 9305 were not clean").  A cause explains such a residual
-    only if its own fit moves the motor off that bound in every window where the plain fit is on it; returned
-    are the bounds of the windows where no cause does (empty: the verdict stands).
-    """
-    out: dict[str, float] = {}
-    for a in analyses:
-        flagged = a.plain.at_bound
-        if not flagged:
-            continue
-        if all(any(a.fits[c].at_bound.get(k) == v for k, v in flagged.items()) for c in causes):
-            out.update(flagged)
-    return out
-
-
 def _bounds_text(bounds: dict[str, float]) -> str:
     """'H2 = 0.5 s (lower bound)'-style text of {parameter: bound}."""
     spec = {p.name: p for p in DYNAMIC_PARAMS}
@@ -464,7 +517,7 @@ def _bounds_text(bounds: dict[str, float]) -> str:
 
 
 def _rivals(analyses: list[_WindowAnalysis], entries: list[CandidateEntry], best: CandidateEntry,
-            zcrit: float) -> list[CandidateEntry]:
+            zcrit: float, extra: Sequence[CandidateEntry] = ()) -> list[CandidateEntry]:
     """The candidates the best one must be separated from before it is named.
 
     Every other tested candidate that explains the held-out data (score test and penalty), the magnitude
@@ -472,13 +525,14 @@ def _rivals(analyses: list[_WindowAnalysis], entries: list[CandidateEntry], best
     declared look-alikes (``Candidate.confusable``) whenever they were fitted, even when they miss the score
     test.  Not a rival: a fit whose parameters are outside what its physics can be (``Candidate.implausible``,
     round 4 of issue 12): it fits something else, e.g. a "second motor" with a flywheel's inertia and no load
-    torque standing in for a torque-speed law, and is no competing explanation.
+    torque standing in for a torque-speed law, and is no competing explanation.  ``extra``: rivals that are
+    always included (the plain motor outside the box, :func:`_outside_box`).
     """
     a0 = analyses[0]
     look_alikes = LIBRARY[best.name].confusable
     return [e for e in entries if e is not best and e.tested and e.penalised_gain is not None
             and ((e.score_z > zcrit and e.penalised_gain > 0) or e.name in look_alikes)
-            and LIBRARY[e.name].implausible(e.parameters, a0.seg, a0.ctx) is None]
+            and LIBRARY[e.name].implausible(e.parameters, a0.seg, a0.ctx) is None] + list(extra)
 
 
 def _look_alikes(a: str, b: str) -> bool:
@@ -511,7 +565,8 @@ def paired_comparisons(analyses: list[_WindowAnalysis], best: str, rival: str,
         fb, fr = a.fits[best], a.fits[rival]
         if not (fb.ok and fr.ok):
             return None
-        cov = engine.prediction_cov(LIBRARY[rival], a.seg, a.ctx, fr, a.weights) if config.prediction_variance else None
+        cand = _PLAIN if rival == OUTSIDE_BOX else LIBRARY[rival]
+        cov = engine.prediction_cov(cand, a.seg, a.ctx, fr, a.weights) if config.prediction_variance else None
         gb, gr = a.probes.get(best), a.probes.get(rival)
         out.append(engine.compare(a.seg, fr, fb, 0, a.noise, config.lag_s,
                                   probes=(gr, gb) if gb is not None and gr is not None else None, plain_cov=cov))
@@ -566,7 +621,7 @@ def _unseparated(analyses: list[_WindowAnalysis], best: CandidateEntry, rivals: 
 
 
 def _challenger(analyses: list[_WindowAnalysis], entries: list[CandidateEntry], tied: list[CandidateEntry],
-                zcrit: float, config: DiagnosisConfig) -> CandidateEntry | None:
+                zcrit: float, config: DiagnosisConfig, extra: Sequence[CandidateEntry] = ()) -> CandidateEntry | None:
     """The unseparated rival that the paired tests name in the top candidate's place, or None.
 
     The penalised gain ranks candidates whose held-out fits are often within a nat of each other (on ANDES's
@@ -591,7 +646,7 @@ def _challenger(analyses: list[_WindowAnalysis], entries: list[CandidateEntry], 
         left = _remaining(analyses, cand.name)
         if frac < config.explained_fraction and left:
             continue
-        if not _unseparated(analyses, cand, _rivals(analyses, entries, cand, zcrit), strict):
+        if not _unseparated(analyses, cand, _rivals(analyses, entries, cand, zcrit, extra), strict):
             cand.separation_z, cand.separated = None, None
             cand.explained_fraction, cand.remaining_excess_channels = frac, left
             top.explained_fraction, top.remaining_excess_channels = None, None

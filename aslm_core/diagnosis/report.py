@@ -403,7 +403,8 @@ class Diagnosed(Motor):
         identified (fitted on the training samples) or user (the given model, frozen).
     at_bound : dict
         The parameters of D on a bound of the identifier's box in any window {name: the bound} (identified mode;
-        empty when none): a cause is then named only if its own fit moves D off that bound.
+        empty when none): a cause is then named only if it beats, on the held-out data, the plain model refitted
+        with the box opened there (a motor outside the box).
     """
 
     mode: str

@@ -182,7 +182,8 @@ def test_an_unseparated_rival_that_the_paired_tests_separate_is_named_in_the_top
                                explained_fraction=None, remaining_excess_channels=None, score_z=6.0)
 
     top, fd = entry("sdt"), entry("fd")
-    monkeypatch.setattr(pipeline, "_rivals", lambda analyses, entries, best, zcrit: [e for e in entries if e is not best])
+    monkeypatch.setattr(pipeline, "_rivals",
+                        lambda analyses, entries, best, zcrit, extra=(): [e for e in entries if e is not best])
     tied = [top, *pipeline._unseparated([], top, [fd], pipeline.DiagnosisConfig())]
     assert [e.name for e in tied] == ["sdt", "fd"]
     before = (fd.separation_z, fd.separated, top.separation_z, top.separated)
@@ -222,43 +223,87 @@ def test_an_implausible_fit_is_no_rival():
     assert pipeline._rivals([a], [best, motor, freq], best, 3.0) == [motor, freq]
 
 
-@pytest.mark.parametrize(("plain", "fits", "causes", "pinned"), [
-    ({"H2": 0.5}, {"double_cage_rotor": {"H2": 0.5}}, ["double_cage_rotor"], {"H2": 0.5}),
-    ({"H2": 0.5}, {"double_cage_rotor": {}}, ["double_cage_rotor"], {}),
-    ({"H2": 0.5}, {"double_cage_rotor": {"b": 30.0}}, ["double_cage_rotor"], {}),
-    ({"b": 30.0}, {"second_motor": {"b": 30.0}, "measurement_skew": {"b": 30.0}}, ["second_motor", "measurement_skew"],
-     {"b": 30.0}),
-    ({"b": 30.0}, {"second_motor": {"b": 30.0}, "measurement_skew": {}}, ["second_motor", "measurement_skew"], {}),
-    ({}, {"double_cage_rotor": {"H2": 0.5}}, ["double_cage_rotor"], {}),
+@pytest.mark.parametrize(("at_bound", "opened"), [
+    ({"H2": 0.5}, {"H2": (0.1, 3.0)}),
+    ({"b": 30.0}, {"b": (3.0, 100.0)}),
+    ({"a": 80.0, "H2": 0.5}, {"a": (10.0, 200.0), "H2": (0.1, 3.0)}),
+    ({"Tm": 0.0}, None),
+    ({}, None),
 ])
-def test_a_cause_whose_fit_stays_on_the_plain_fits_bound_is_not_named(plain, fits, causes, pinned):
-    """Sixth round of issue 12: a motor outside the identifier's box leaves the plain fit on a bound and a residual
-    that a candidate with more freedom absorbs (ANDES clean 9303 with H2 = 0.475 s was named `double_cage_rotor`).
-    A cause (every listed cause, when ambiguous) whose own fit stays on the plain fit's bound is not named; one that
-    moves the motor off it, or a plain fit inside the box, leaves the verdict alone."""
+def test_the_box_opens_to_the_physical_range_only_where_the_plain_fit_is_pinned(at_bound, opened):
+    """Seventh round of issue 12: the rival "motor outside the box" is the plain model refitted with the box opened
+    on the side it is pinned to, to :func:`aslm_core.params.physical_bounds`; the other sides and parameters keep
+    the identifier's box, and a bound that is the physical limit already (Tm = 0) opens nothing (no rival)."""
     from types import SimpleNamespace
 
+    import numpy as np
+
+    from aslm_core.diagnosis import pipeline
+    from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
+
+    seg = SimpleNamespace(P=np.full(10, 0.3))
+    box = pipeline._opened_box(SimpleNamespace(seg=seg, plain=SimpleNamespace(at_bound=at_bound)))
+    if opened is None:
+        assert box is None
+        return
+    lo0, hi0 = dynamic_bounds(float(np.mean(seg.P)))
+    lo, hi = box
+    for i, name in enumerate(DYNAMIC_NAMES):
+        assert (lo[i], hi[i]) == opened.get(name, (lo0[i], hi0[i])), name
+
+
+def _record_rival(monkeypatch) -> list:
+    """Every motor-outside-the-box rival the next diagnoses build (its entry carries the paired test's outcome)."""
     from aslm_core.diagnosis import pipeline
 
-    a = SimpleNamespace(plain=SimpleNamespace(at_bound=plain),
-                        fits={k: SimpleNamespace(at_bound=v) for k, v in fits.items()})
-    assert pipeline._pinned([a], causes) == pinned
+    seen: list = []
+    build = pipeline._outside_box
+
+    def recorded(analyses, config):
+        out = build(analyses, config)
+        if out is not None:
+            seen.append(out[0])
+        return out
+
+    monkeypatch.setattr(pipeline, "_outside_box", recorded)
+    return seen
+
+
+@pytest.mark.parametrize("job", [("second_motor", 2, 0), ("switched_shunt", 3, 10)])
+def test_a_cause_that_beats_the_motor_outside_the_box_is_named(monkeypatch, job):
+    """Seventh round of issue 12: self-test cases whose plain fit an effect pulls onto a bound of the box (a = 80 /s
+    or H2 = 3 s, upper bounds) while the true motor is inside it.  The sixth round's veto withheld their right
+    names (the cause's fit stayed on the bound too); the plain model refitted with the box opened there does not
+    explain what the effect adds, the cause beats it on the held-out data and is named."""
+    effect, level, i = job
+    ec = apply_effect(make_case(10_000 * level + i, level=level), effect,
+                      seed=zlib.crc32(f"{effect}/{level}/{i}".encode()))
+    rival = _record_rival(monkeypatch)
+    rep = diagnose(ec.window)
+    assert rep.model.at_bound, "the case no longer has its plain fit on a bound: it tests nothing here"
+    assert rival and rival[-1].separated is True
+    assert rep.verdict == "explained" and rep.cause == effect, rep.message
 
 
 def test_a_motor_outside_the_box_is_not_explained_and_the_message_names_the_bound(monkeypatch):
     """A synthetic load whose motor has H2 = 0.3 s, below the identifier's 0.5 s, at 30 dB: the plain fit sits on
     H2's bound and a second rotor cage's extra freedom absorbs what it leaves — named `double_cage_rotor` without
-    the rule, `unexplained` with it, the report saying where the plain model sits."""
+    the rule, `unexplained` with it (the plain model refitted below H2's bound explains the held-out data as
+    well), the report saying where the plain model sits."""
     from dataclasses import replace
 
     from aslm_core.diagnosis import pipeline
 
     truth = replace(make_case(23, level=2, input_noise=False).truth, H2=0.3)
     window = make_cases(1, seed=23, snr_db=30.0, input_noise=False, truths=[truth])[0].window
+    rival = _record_rival(monkeypatch)
     rep = diagnose(window)
     assert rep.model.at_bound.get("H2") == 0.5
     assert rep.verdict == "unexplained" and rep.cause is None and rep.causes == [], rep.message
     assert "H2 = 0.5 s (lower bound)" in rep.message and "double_cage_rotor" in rep.message
+    # The rival fitted below the box's H2, and the cause did not beat it on the held-out data.
+    assert rival and rival[-1].parameters["D.H2"] < 0.5
+    assert "refitted with the box opened there it explains the held-out data as well" in rep.message
     assert rep.to_dict()["model"]["at_bound"]["H2"] == 0.5
     without = diagnose(window, config=pipeline.DiagnosisConfig(bound_rule=False))
     assert without.verdict == "explained" and without.cause == "double_cage_rotor", without.message
