@@ -33,9 +33,23 @@ event threshold; dV = 0 (below ``DV_STEP_MIN``) selects the relay law above.  Wi
 too (the recorded Q step may trail V's: ANDES's bench books the bank one 10 ms step late in Q), Vc ∓ dv are
 reported as the median V the relay read before its switchings in and out, and τ as 0.
 
+When V carries measurement noise of the order of the step (a PMU's 0.1 %: σ ≈ 1e-3 pu against steps of
+2–4.5e-3 pu), the 20 ms statistic drowns, and a longer one does not help: the ambient V moves by as much within a
+few 0.1 s.  The third form reads the state as the likelihood's two-state path under a smooth background::
+
+    V = b + h·s + e,   b below 2.5 Hz,  e white (σ: V's own robust scale)
+    s = argmin |(1 − L)(V − h·s)|²/(2σ²) + ½·ln n·(switchings),   each state held ≥ τ
+
+(L the low-pass; a switching's time priced as one parameter by BIC; τ, the relay's delay, is the least
+dwell, since the relay's timer restarts at each switching), found by alternating background and Viterbi path,
+then a local search over flips of runs (:func:`two_state`).  It is selected by dV < 0, with h = −dV; τ is
+scanned with it and Vc ∓ dv reported as in the steps' form.  A step the background can mimic (h ≲ 3σ) is not
+read reliably by any of the forms.
+
 The law is piecewise constant in (Vc, dv, τ, t_op, s0, dV): finite differences see no slope, so these are
 chosen by a scan (Vc over the window's V range, dv and τ over coarse grids, both s0, then finer passes
-that also place t_op; dV over multiples of the step statistic's noise scale) with D held at the plain fit,
+that also place t_op; dV over multiples of the step statistic's noise scale; −dV over multiples of V's white
+scale, with τ over the relay delays) with D held at the plain fit,
 the form with the smaller training residual kept; the upper stage then refines D with them fixed, and they
 have no standard error (left out of ``stderr``; ``Candidate.scanned``).  Magnitude: B.
 
@@ -70,9 +84,9 @@ DV_STEP_MIN = 1e-6
 STEP_SIGMAS = (3.0, 4.0, 5.0, 6.0)
 #: Scan of the two-state form's least dwell (the relay's delay τ: the timer restarts at each switching) [s].
 DWELL_S = (0.0, 0.1, 0.2)
-#: Edge of the smooth background the two-state form fits under the bank's steps [Hz]: tuned on ANDES's V/θ-noise
-#: windows of `confirm6` (switched capacitor 9501–9504) and a synthetic bank: 2.5 Hz left the state wrong in a
-#: median 4 % of the samples of the two large banks, 2 Hz 4–9 %, 3 Hz 10–17 %, 4 Hz 20–27 % (docs/diagnosis.md).
+#: Edge of the smooth background the two-state form fits under the bank's steps [Hz]: lower, the ambient V's
+#: 1–2 Hz swing is read as switchings; higher, the background follows the steps.  Tuned on ANDES's V/θ-noise windows
+#: of `confirm6`'s switched capacitor and a synthetic bank (docs/diagnosis.md, stop 29).
 BACKGROUND_HZ = 2.5
 #: Passes of the alternation (background, path) before the local search.
 BACKFIT_PASSES = 2
