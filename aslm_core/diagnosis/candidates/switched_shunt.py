@@ -33,9 +33,23 @@ event threshold; dV = 0 (below ``DV_STEP_MIN``) selects the relay law above.  Wi
 too (the recorded Q step may trail V's: ANDES's bench books the bank one 10 ms step late in Q), Vc ∓ dv are
 reported as the median V the relay read before its switchings in and out, and τ as 0.
 
+When V carries measurement noise of the order of the step (a PMU's 0.1 %: σ ≈ 1e-3 pu against steps of
+2–4.5e-3 pu), the 20 ms statistic drowns, and a longer one does not help: the ambient V moves by as much within a
+few 0.1 s.  The third form reads the state as the likelihood's two-state path under a smooth background::
+
+    V = b + h·s + e,   b below 2.5 Hz,  e white (σ: V's own robust scale)
+    s = argmin |(1 − L)(V − h·s)|²/(2σ²) + ½·ln n·(switchings),   each state held ≥ τ
+
+(L the low-pass; a switching's time priced as one parameter by BIC; τ, the relay's delay, is the least
+dwell, since the relay's timer restarts at each switching), found by alternating background and Viterbi path,
+then a local search over flips of runs (:func:`two_state`).  It is selected by dV < 0, with h = −dV; τ is
+scanned with it and Vc ∓ dv reported as in the steps' form.  A step the background can mimic (h ≲ 3σ) is not
+read reliably by any of the forms.
+
 The law is piecewise constant in (Vc, dv, τ, t_op, s0, dV): finite differences see no slope, so these are
 chosen by a scan (Vc over the window's V range, dv and τ over coarse grids, both s0, then finer passes
-that also place t_op; dV over multiples of the step statistic's noise scale) with D held at the plain fit,
+that also place t_op; dV over multiples of the step statistic's noise scale; −dV over multiples of V's white
+scale, with τ over the relay delays) with D held at the plain fit,
 the form with the smaller training residual kept; the upper stage then refines D with them fixed, and they
 have no standard error (left out of ``stderr``; ``Candidate.scanned``).  Magnitude: B.
 
@@ -44,6 +58,8 @@ fixed delay, or at V's own steps; a continuous droop (``inverter_der``) has no t
 """
 
 from __future__ import annotations
+
+from functools import lru_cache
 
 import numba
 import numpy as np
@@ -64,6 +80,21 @@ STEP_SAMPLES = 2
 STEP_SCALES = (3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 16.0)
 #: dV below this [pu] selects the relay law: the upper stage's box clipping nudges a scanned 0 to ~1e-9.
 DV_STEP_MIN = 1e-6
+#: Scan of the two-state form's V step h = −dV in units of V's robust white-noise scale (:func:`white_sigma`).
+STEP_SIGMAS = (3.0, 4.0, 5.0, 6.0)
+#: Scan of the two-state form's least dwell (the relay's delay τ: the timer restarts at each switching) [s].
+DWELL_S = (0.0, 0.1, 0.2)
+#: Edge of the smooth background the two-state form fits under the bank's steps [Hz]: lower, the ambient V's
+#: 1–2 Hz swing is read as switchings; higher, the background follows the steps.  Tuned on ANDES's V/θ-noise windows
+#: of `confirm6`'s switched capacitor and a synthetic bank (docs/diagnosis.md, stop 29).
+BACKGROUND_HZ = 2.5
+#: Passes of the alternation (background, path) before the local search.
+BACKFIT_PASSES = 2
+#: The local search after the alternation: the high-pass step response kept over ±TEMPLATE_S [s], runs of up to
+#: FLIP_S [s] flipped at once (longer runs whole), at most LOCAL_MOVES moves.
+TEMPLATE_S = 1.0
+FLIP_S = 0.5
+LOCAL_MOVES = 300
 
 
 @numba.njit(cache=True)
@@ -131,11 +162,228 @@ def step_state(d: np.ndarray, dv_step: float, m: int) -> np.ndarray:
     return s
 
 
-def _state(v: np.ndarray, z, dt: float, d: np.ndarray | None = None) -> np.ndarray:
-    """The bank's state s(t) for z = (Vc, dv, τ, t_op, s0, dV): from V's steps (``d``) when dV > 0, else
-    the relay's decision on ``v``, t_op later."""
+@numba.njit(cache=True)
+def two_state_path(r: np.ndarray, h: float, inv2s2: float, lam: float, dmin: int) -> np.ndarray:
+    """The least-cost path s ∈ {0, 1}ⁿ of Σ_k (r_k − h·s_k)²·inv2s2 + lam·(switchings), each state held at
+    least ``dmin`` samples after a switching (Viterbi over (state, samples since the switching, capped))."""
+    n = r.shape[0]
+    a_n = dmin + 1
+    inf = 1e300
+    cost = np.full((2, a_n), inf)
+    cost[0, a_n - 1] = r[0] ** 2 * inv2s2
+    cost[1, a_n - 1] = (r[0] - h) ** 2 * inv2s2
+    back = np.zeros((n, 2, a_n), dtype=np.int32)
+    new = np.empty((2, a_n))
+    for k in range(1, n):
+        new[:, :] = inf
+        for st in range(2):
+            e = (r[k] - h * st) ** 2 * inv2s2
+            for a in range(a_n):
+                c = cost[st, a]
+                if c < inf:
+                    a2 = min(a + 1, a_n - 1)
+                    if c + e < new[st, a2]:
+                        new[st, a2] = c + e
+                        back[k, st, a2] = st * a_n + a
+            c = cost[1 - st, a_n - 1] + lam + e
+            if c < new[st, 0]:
+                new[st, 0] = c
+                back[k, st, 0] = (1 - st) * a_n + a_n - 1
+        cost[:, :] = new
+    flat = int(np.argmin(cost))
+    st, a = flat // a_n, flat % a_n
+    out = np.empty(n)
+    for k in range(n - 1, -1, -1):
+        out[k] = st
+        prev = back[k, st, a]
+        st, a = prev // a_n, prev % a_n
+    return out
+
+
+def white_sigma(x: np.ndarray) -> float:
+    """Robust scale of a record's white part [its unit]: MAD of its first differences / √2 (a smooth part
+    barely moves from sample to sample; a few steps are outliers the median ignores)."""
+    dx = np.diff(x)
+    return 1.4826 * float(np.median(np.abs(dx - np.median(dx)))) / np.sqrt(2.0)
+
+
+@lru_cache(maxsize=8)
+def _step_template(fs: float, fb: float, k: int, lmax: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """The high-pass (1 − lowpass at ``fb``) response to a unit step over ±k samples, |(1 − L)·1[0, L)|² for
+    L = 0..lmax and |(1 − L)·step|² — the local search's costs, shift-invariant away from the record's ends."""
+    n = 4 * k + 2 * lmax
+    x0 = n // 2
+    u = np.zeros(n)
+    u[x0:] = 1.0
+    t = (u - _lowpass(u, fs, fb))[x0 - k:x0 + k].copy()
+    pulse = np.zeros(lmax + 1)
+    for m in range(1, lmax + 1):
+        p = np.zeros(n)
+        p[x0:x0 + m] = 1.0
+        hp = p - _lowpass(p, fs, fb)
+        pulse[m] = float(hp @ hp)
+    return t, pulse, float(t @ t)
+
+
+@numba.njit(cache=True)
+def _template_products(e: np.ndarray, t: np.ndarray, k: int) -> np.ndarray:
+    # q_x = e · (1 − L)·step_x for x = 0..n
+    n = e.shape[0]
+    q = np.zeros(n + 1)
+    for x in range(n + 1):
+        acc = 0.0
+        for j in range(max(0, x - k), min(n, x + k)):
+            acc += e[j] * t[j - x + k]
+        q[x] = acc
+    return q
+
+
+@numba.njit(cache=True)
+def _dwell_kept(s: np.ndarray, a: int, b: int, dmin: int) -> bool:
+    # The switchings of s flipped on [a, b) about a and b stay dmin samples apart.
+    n = s.shape[0]
+    last = -(1 << 30)
+    for j in range(max(1, a - dmin - 1), min(n - 1, b + dmin + 1) + 1):
+        sj = 1.0 - s[j] if a <= j < b else s[j]
+        sp = 1.0 - s[j - 1] if a <= j - 1 < b else s[j - 1]
+        if sj != sp:
+            if j - last < dmin:
+                return False
+            last = j
+    return True
+
+
+@numba.njit(cache=True)
+def _add_step(e: np.ndarray, x: int, w: float, t: np.ndarray, k: int) -> None:
+    n = e.shape[0]
+    if 0 < x < n:
+        for i in range(max(0, x - k), min(n, x + k)):
+            e[i] -= w * t[i - x + k]
+
+
+@numba.njit(cache=True)
+def _flip_cost(s, q, a, b, n, lmax, h, inv2s2, lam, pulse, e_step) -> float:
+    # ΔJ of flipping the constant run s[a:b].
+    m = b - a
+    if a == 0 or b == n:
+        en = e_step
+    elif m <= lmax:
+        en = pulse[m]
+    else:
+        en = 2.0 * e_step
+    cr = (q[a] if a > 0 else 0.0) - (q[b] if b < n else 0.0)
+    dj = inv2s2 * (h * h * en - 2.0 * h * (1.0 - 2.0 * s[a]) * cr)
+    if a > 0:
+        dj += lam if s[a - 1] == s[a] else -lam
+    if b < n:
+        dj += lam if s[b - 1] == s[b] else -lam
+    return dj
+
+
+@numba.njit(cache=True)
+def local_search(y: np.ndarray, s: np.ndarray, h: float, inv2s2: float, lam: float, dmin: int, t: np.ndarray,
+                 k: int, pulse: np.ndarray, e_step: float, moves: int) -> np.ndarray:
+    """Descent of J(s) = |y − h·(1 − L)s|²·inv2s2 + lam·(switchings) from ``s``: each move flips one run of
+    constant state, or a part of it up to len(pulse) − 1 samples at either end or inside (a switching moved,
+    a short state inserted or removed), the best decrease first, the least dwell ``dmin`` kept; ``y`` = (1 − L)v,
+    t, pulse, e_step from :func:`_step_template`."""
+    n = y.shape[0]
+    lmax = pulse.shape[0] - 1
+    s = s.copy()
+    e = y.copy()
+    for j in range(1, n):
+        if s[j] != s[j - 1]:
+            _add_step(e, j, h * (s[j] - s[j - 1]), t, k)
+    rend = np.empty(n, dtype=np.int64)
+    q = _template_products(e, t, k)
+    # c[d + 2k] = Σ_m t[m]·t[m − d]: a step added at x0 changes q_x by its weight times c[x − x0 + 2k].
+    c = np.zeros(4 * k + 1)
+    for d in range(-2 * k, 2 * k + 1):
+        for m in range(max(0, d), min(2 * k, 2 * k + d)):
+            c[d + 2 * k] += t[m] * t[m - d]
+    best_b = np.empty(n, dtype=np.int64)
+    best_d = np.empty(n)
+    done = 0
+    while done < moves:
+        rend[n - 1] = n
+        for j in range(n - 2, -1, -1):
+            rend[j] = rend[j + 1] if s[j + 1] == s[j] else j + 1
+        # Each start's best flip; then the improving ones, best first, applied together where they are further
+        # apart than the template's reach (their costs do not interact), and the costs recomputed.
+        for a in range(n):
+            best_d[a], best_b[a] = 0.0, -1
+            r = rend[a]
+            hi = min(r, a + lmax)
+            for b in range(a + 1, hi + 2):
+                if b == hi + 1:  # the whole run beyond lmax, when it starts at a
+                    if r - a <= lmax or not (a == 0 or s[a - 1] != s[a]):
+                        break
+                    b = r
+                if a == 0 and b == n:
+                    continue
+                dj = _flip_cost(s, q, a, b, n, lmax, h, inv2s2, lam, pulse, e_step)
+                if dj < best_d[a] - 1e-9 and _dwell_kept(s, a, b, dmin):
+                    best_d[a], best_b[a] = dj, b
+        order = np.argsort(best_d)
+        taken = np.zeros(n + 1, dtype=np.bool_)
+        applied = 0
+        for i in range(n):
+            a = order[i]
+            if best_d[a] >= -1e-9:
+                break
+            b = best_b[a]
+            lo, hi = max(0, a - 2 * k - lmax), min(n, b + 2 * k + lmax)
+            if taken[lo:hi + 1].any():
+                continue
+            taken[a:b + 1] = True
+            sg = 1.0 - 2.0 * s[a]
+            for j in range(a, b):
+                s[j] = 1.0 - s[j]
+            for x0, w in ((a, h * sg), (b, -h * sg)):
+                if 0 < x0 < n:
+                    for x in range(max(0, x0 - 2 * k), min(n + 1, x0 + 2 * k + 1)):
+                        q[x] -= w * c[x - x0 + 2 * k]
+            applied += 1
+            done += 1
+            if done >= moves:
+                break
+        if applied == 0:
+            break
+    return s
+
+
+def two_state(v: np.ndarray, h: float, dmin: int, fs: float) -> np.ndarray:
+    """The bank's state s(t) ∈ {0, 1} as the likelihood's two-state path under a smooth background.
+
+    ``v`` = b + h·s + e [pu]: b the ambient V, smooth (below :data:`BACKGROUND_HZ`), h [pu] the bank's V step, e
+    white.  The path minimises J(s) = |(1 − L)(v − h·s)|²/(2σ²) + ½ ln n·(switchings) — L the low-pass at
+    :data:`BACKGROUND_HZ`, σ = :func:`white_sigma` (v), a switching's time one parameter at BIC's price —
+    each state held ≥ ``dmin`` samples.  Sought by :data:`BACKFIT_PASSES` alternations — b = lowpass(v − h·s),
+    then s the least-cost path (:func:`two_state_path`, σ read off the residual) — from the steps' form at
+    threshold h/2, then descended by :func:`local_search` (the alternation alone stays where its first state
+    put it: the background absorbs that state's errors).  Fs [Hz].
+    """
+    s = step_state(step_statistic(v), 0.5 * h, STEP_SAMPLES)
+    lam = 0.5 * float(np.log(v.size))
+    inv2s2 = 0.5 / max(white_sigma(v), 1e-12) ** 2
+    for _ in range(BACKFIT_PASSES):
+        r = v - _lowpass(v - h * s, fs, BACKGROUND_HZ)
+        sig = max(white_sigma(r - h * s), 1e-12)
+        s = two_state_path(r, h, 0.5 / sig**2, lam, dmin)
+    k = int(round(TEMPLATE_S * fs))
+    t, pulse, e_step = _step_template(float(fs), BACKGROUND_HZ, k, int(round(FLIP_S * fs)))
+    return local_search(v - _lowpass(v, fs, BACKGROUND_HZ), s, h, inv2s2, lam, dmin, t, k, pulse, e_step,
+                        LOCAL_MOVES)
+
+
+def _state(v: np.ndarray, z, dt: float, d: np.ndarray | None = None, two=None) -> np.ndarray:
+    """The bank's state s(t) for z = (Vc, dv, τ, t_op, s0, dV): from V's steps (``d``) when dV > 0, the
+    two-state path (``two(h, dmin)``, h = −dV, dmin = τ in samples) when dV < 0, else the relay's decision on
+    ``v``; t_op later."""
     if float(z[5]) >= DV_STEP_MIN and d is not None:
         r = step_state(d, float(z[5]), STEP_SAMPLES)
+    elif float(z[5]) <= -DV_STEP_MIN and two is not None:
+        r = two(-float(z[5]), int(round(float(z[2]) / dt)))
     else:
         r = relay_state(v, float(z[0]), float(z[1]), float(z[2]), dt, float(z[4]))
     k = int(round(float(z[3]) / dt))
@@ -161,6 +409,7 @@ class SwitchedShunt(Candidate):
 
     _last_v: tuple = (None, None)  # (V, its low-passed copy): the fits ask for the same V hundreds of times
     _last_d: tuple = (None, None)  # (V, its step statistic), likewise
+    _last_two: tuple = (None, None, None)  # (V, (h, dmin), the two-state path)
 
     def _relay_v(self, seg: Segment) -> np.ndarray:
         # Keyed on the V array itself, not the segment: the noise model perturbs segments' V (new arrays),
@@ -180,21 +429,35 @@ class SwitchedShunt(Candidate):
             self._last_d = (seg.V, d)
         return d
 
+    def _two(self, seg: Segment):
+        """h [pu], dmin [samples] ↦ :func:`two_state` on ``seg``'s V (the last one kept: the upper stage asks for
+        the same one at each of its evaluations, with h moved by its finite differences only)."""
+        def path(h: float, dmin: int) -> np.ndarray:
+            v, key, s = self._last_two
+            k = (float(f"{h:.6g}"), dmin)
+            if v is not seg.V or key != k:
+                s = two_state(seg.V, k[0], dmin, 1.0 / seg.dt)
+                self._last_two = (seg.V, k, s)
+            return s
+        return path
+
     def bounds(self, seg: Segment, ctx: Context):
         v = self._relay_v(seg)
         sd = max(float(np.std(v)), 1e-6)
         # Vc ∓ dv of the steps' form are medians of the measured V, which may lie outside the low-passed range.
-        return (np.array([float(seg.V.min()), -4.0 * sd, 0.0, 0.0, 0.0, 0.0]),
+        h_max = max(STEP_SIGMAS[-1] * white_sigma(seg.V), 1e-9) * (1.0 + 1e-6)
+        return (np.array([float(seg.V.min()), -4.0 * sd, 0.0, 0.0, 0.0, -h_max]),
                 np.array([float(seg.V.max()), 4.0 * sd, 2.0, T_OP_MAX_S, 1.0,
                           max(float(np.abs(self._steps(seg)).max()), 1e-9)]))
 
     def extra_columns(self, seg: Segment, d: np.ndarray, z: np.ndarray):
-        s = _state(self._relay_v(seg), z, seg.dt, self._steps(seg))
+        s = _state(self._relay_v(seg), z, seg.dt, self._steps(seg), self._two(seg))
         return np.zeros((seg.n, 0)), (-s * seg.V**2)[:, None]
 
     def starts(self, seg: Segment, ctx: Context) -> list[np.ndarray]:
         v = self._relay_v(seg)
         steps = self._steps(seg)
+        two = self._two(seg)
         lo, hi = self.bounds(seg, ctx)
         mid = 0.5 * (lo + hi)
         mid[5] = 0.0
@@ -208,7 +471,7 @@ class SwitchedShunt(Candidate):
         v2 = seg.V[tr] ** 2
 
         def ssr(z) -> float:
-            s = _state(v, z, seg.dt, steps)[tr]
+            s = _state(v, z, seg.dt, steps, two)[tr]
             if s.min() == s.max():  # no switching in training: nothing to fit
                 return np.inf
             x = np.column_stack([x0, -s * v2])
@@ -243,18 +506,29 @@ class SwitchedShunt(Candidate):
         scale = 1.4826 * float(np.median(np.abs(steps - np.median(steps))))
         for q in STEP_SCALES:
             if scale > 0.0:
-                zq = self._step_point(seg, steps, q * scale)
+                zq = self._point(seg, step_state(steps, q * scale, STEP_SAMPLES), 0.0, q * scale)
+                for c3 in np.arange(0, int(T_OP_MAX_S / seg.dt + 1e-9) + 1) * seg.dt:
+                    best, z = _better(ssr, best, z, (*zq[:3], float(c3), *zq[4:]))
+        # The third: the two-state path under a smooth background, for a V whose noise drowns the 20 ms steps;
+        # h over multiples of V's white-noise scale, the least dwell over the relay delays.  Larger h and dwells
+        # first: where the training samples' states tie, the path with fewer, better-supported switchings stays.
+        sig = white_sigma(seg.V)
+        for q in STEP_SIGMAS[::-1]:
+            for dwell in DWELL_S[::-1]:
+                if sig <= 0.0:
+                    break
+                dmin = int(round(dwell / seg.dt))
+                zq = self._point(seg, two(q * sig, dmin), dmin * seg.dt, -q * sig)
                 for c3 in np.arange(0, int(T_OP_MAX_S / seg.dt + 1e-9) + 1) * seg.dt:
                     best, z = _better(ssr, best, z, (*zq[:3], float(c3), *zq[4:]))
         if not np.isfinite(best):
             return [mid]
         return [np.clip(np.array(z), lo, hi)]
 
-    def _step_point(self, seg: Segment, steps: np.ndarray, dv_step: float) -> tuple:
-        """z of the steps' form at threshold ``dv_step``: Vc ∓ dv the median V read before the switchings in
-        and out (the relay's thresholds lie beyond them), τ = t_op = 0 (t_op is scanned after), s0 the initial
-        state."""
-        s = step_state(steps, dv_step, STEP_SAMPLES)
+    def _point(self, seg: Segment, s: np.ndarray, tau: float, dv_step: float) -> tuple:
+        """z of a state read from V (``s``, the steps' or the two-state form, ``dv_step`` its dV): Vc ∓ dv the
+        median V read before the switchings in and out (the relay's thresholds lie beyond them), τ as given,
+        t_op = 0 (scanned after), s0 the initial state."""
         k = np.flatnonzero(np.diff(s)) + 1
         before = seg.V[np.maximum(k - STEP_SAMPLES - 1, 0)]
         rising = np.diff(s)[k - 1] > 0
@@ -262,10 +536,10 @@ class SwitchedShunt(Candidate):
             vin = vout = float(np.median(seg.V))
         else:
             vin, vout = float(np.median(before[rising])), float(np.median(before[~rising]))
-        return (0.5 * (vin + vout), 0.5 * (vout - vin), 0.0, 0.0, float(s[0]), float(dv_step))
+        return (0.5 * (vin + vout), 0.5 * (vout - vin), float(tau), 0.0, float(s[0]), float(dv_step))
 
     def implausible(self, params: dict[str, float], seg: Segment, ctx: Context) -> str | None:
-        if params.get("dV", 0.0) >= DV_STEP_MIN and params.get("dv", 0.0) <= 0.0:
+        if abs(params.get("dV", 0.0)) >= DV_STEP_MIN and params.get("dv", 0.0) <= 0.0:
             return ("V before the bank's switchings in is not below V before its switchings out: "
                     "no voltage relay switches it")
         return None

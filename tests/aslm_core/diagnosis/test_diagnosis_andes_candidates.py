@@ -102,6 +102,24 @@ def test_switched_shunt_recovers_an_andes_bank_whose_relay_chatters_against_its_
     assert e.parameters["B"] == pytest.approx(b, rel=0.05), (e.parameters, e.stderr)
 
 
+def test_switched_shunt_names_an_andes_bank_when_v_and_theta_are_noisy_too():
+    from aslm_sim.andes import effects
+    from benchmarks import diagnosis_independent as di
+
+    # Scenario 9504 of the sixth confirmation set (seen since), second window at L3 with the benchmark's V/θ noise
+    # (0.1 % of V, 1e-3 rad): b = 0.0270 pu, a V step of 0.0038 pu against V noise of 0.0011 pu, so the 20 ms
+    # steps drown.  Before the two-state form (stop 29) `unexplained` (relay law, z 28, gain +8.5; the run of
+    # record).  Measured 2026-11-25: named, B 0.0268, the state from the two-state path (dV < 0).
+    rec = effects.recording("switched_capacitor", 9504, tf=di.TF, tstep=di.TSTEP)
+    b = rec["meta"]["drawn"]["effect"]["relay"]["b"]
+    w, _ = di._window(rec, *di.WINDOWS[1], 3, True, "switched_capacitor/9504")
+    rep = diagnose(w)
+    assert rep.verdict == "explained" and rep.cause == "switched_shunt", rep.message
+    e = rep.candidate("switched_shunt")
+    assert e.parameters["dV"] < 0.0, e.parameters
+    assert e.parameters["B"] == pytest.approx(b, rel=0.05), (e.parameters, e.stderr)
+
+
 def test_a_second_andes_motor_is_not_named_inverter_der():
     from aslm_sim.andes import effects
     from benchmarks import diagnosis_independent as di
