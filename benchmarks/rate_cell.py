@@ -6,9 +6,9 @@ and ``"spectral"`` on each window in turn.  Per seed and pooled: μ of a and b, 
 lowest a with the flags they carry — so a mean pulled by a few windows is told from a shift of the whole
 distribution.  Issue 11's follow-up: μ(a) 0.965 at 60 frames/s on seed 43 (docs/numerics.md).
 
-    .venv/bin/python -m benchmarks.rate_cell [--fs 60] [--seeds 43 41 44 48 49 50] [--n 100]
+    .venv/bin/python -m benchmarks.rate_cell [--fs 60] [--seeds 43 41 44 48 49 50] [--n 100] [--tag NAME] [--summary-only]
 
-Results in ``docs/results/rate_cell_<fs>.json``.
+Results in ``docs/results/rate_cell_<fs>[_<tag>].json`` (``--tag`` keeps a run of record).
 """
 
 from __future__ import annotations
@@ -74,6 +74,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--fs", type=float, default=60.0, help="reporting rate [frames/s]")
     ap.add_argument("--seeds", type=int, nargs="+", default=[43, 41, 44, 48, 49, 50])
     ap.add_argument("--n", type=int, default=None, help="windows per seed (default 100; --quick: 10)")
+    ap.add_argument("--tag", default="", help="suffix of the results file")
+    ap.add_argument("--summary-only", action="store_true", help="write the summaries without the per-window records")
     args = ap.parse_args(argv)
     n = args.n or (10 if args.quick else 100)
     t0 = time.perf_counter()
@@ -82,6 +84,7 @@ def main(argv=None) -> dict:
            "summary": {str(s): summary(v) for s, v in per.items()}}
     if len(args.seeds) > 1:
         out["summary"]["pooled, all but the first seed"] = summary([x for s in args.seeds[1:] for x in per[s]])
+        out["summary"]["pooled, all seeds"] = summary([x for s in args.seeds for x in per[s]])
     out["total_s"] = time.perf_counter() - t0
     rows = [[key, name, st["n"], f"{st['mu_a']:.3f} ± {st['se_mu_a']:.3f}", f"{st['mu_b']:.3f}", f"{st['median_a']:.3f}",
              f"{st['n_swamped']}: {st['mu_a_swamped']:.3f}" if st["mu_a_swamped"] is not None else "0",
@@ -89,8 +92,11 @@ def main(argv=None) -> dict:
             for key, per_est in out["summary"].items() for name, st in per_est.items()]
     print(common.md_table(["seed", "estimator", "n", "μ a ± SE", "μ b", "median a", f"{SWAMPED}: n, μ a",
                            "μ a, others", "lowest a"], rows))
+    if args.summary_only:
+        del out["per_window"]
     if not args.no_write:
-        common.write_json(f"rate_cell_{args.fs:g}" + ("_quick" if args.quick else ""), out)
+        common.write_json(f"rate_cell_{args.fs:g}" + (f"_{args.tag}" if args.tag else "") + ("_quick" if args.quick else ""),
+                          out)
     return out
 
 
