@@ -95,6 +95,11 @@ BACKFIT_PASSES = 2
 TEMPLATE_S = 1.0
 FLIP_S = 0.5
 LOCAL_MOVES = 300
+#: The two-state form is scanned only where V's white noise is at least this share of the step statistic's
+#: variance (the noise that drowns the 20 ms steps): white noise alone gives 1, an exact V sampled from a
+#: simulation about 0.13 (ratio of scales ~0.36), a random walk 1/3.  Below it the steps' form sees what the
+#: two-state form would, and its scan (a third of a diagnosis's time) is saved.
+TWO_STATE_MIN_WHITE_SHARE = 0.5
 
 
 @numba.njit(cache=True)
@@ -205,6 +210,15 @@ def white_sigma(x: np.ndarray) -> float:
     barely moves from sample to sample; a few steps are outliers the median ignores)."""
     dx = np.diff(x)
     return 1.4826 * float(np.median(np.abs(dx - np.median(dx)))) / np.sqrt(2.0)
+
+
+def white_share(v: np.ndarray) -> float:
+    """The share of the step statistic's variance that V's white noise accounts for [-]: (:func:`white_sigma` /
+    the statistic's robust scale)², with :data:`STEP_SAMPLES` a side — 1 for white noise alone, small where the
+    20 ms steps stand above the noise."""
+    d = step_statistic(v)
+    scale = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+    return white_sigma(v) ** 2 / scale**2 if scale > 0.0 else 0.0
 
 
 @lru_cache(maxsize=8)
@@ -512,7 +526,7 @@ class SwitchedShunt(Candidate):
         # The third: the two-state path under a smooth background, for a V whose noise drowns the 20 ms steps;
         # h over multiples of V's white-noise scale, the least dwell over the relay delays.  Larger h and dwells
         # first: where the training samples' states tie, the path with fewer, better-supported switchings stays.
-        sig = white_sigma(seg.V)
+        sig = white_sigma(seg.V) if white_share(seg.V) >= TWO_STATE_MIN_WHITE_SHARE else 0.0
         for q in STEP_SIGMAS[::-1]:
             for dwell in DWELL_S[::-1]:
                 if sig <= 0.0:
