@@ -423,7 +423,7 @@ class SwitchedShunt(Candidate):
 
     _last_v: tuple = (None, None)  # (V, its low-passed copy): the fits ask for the same V hundreds of times
     _last_d: tuple = (None, None)  # (V, its step statistic), likewise
-    _last_two: tuple = (None, None, None)  # (V, (h, dmin), the two-state path)
+    _last_two: tuple = (None, None)  # (V, {(h, dmin): the two-state path})
 
     def _relay_v(self, seg: Segment) -> np.ndarray:
         # Keyed on the V array itself, not the segment: the noise model perturbs segments' V (new arrays),
@@ -444,15 +444,17 @@ class SwitchedShunt(Candidate):
         return d
 
     def _two(self, seg: Segment):
-        """h [pu], dmin [samples] ↦ :func:`two_state` on ``seg``'s V (the last one kept: the upper stage asks for
-        the same one at each of its evaluations, with h moved by its finite differences only)."""
+        """h [pu], dmin [samples] ↦ :func:`two_state` on ``seg``'s V (the paths of the last V kept: the upper stage
+        asks for the same few at each of its evaluations, with h moved by its finite differences only)."""
         def path(h: float, dmin: int) -> np.ndarray:
-            v, key, s = self._last_two
+            v, paths = self._last_two
+            if v is not seg.V:
+                paths = {}
+                self._last_two = (seg.V, paths)
             k = (float(f"{h:.6g}"), dmin)
-            if v is not seg.V or key != k:
-                s = two_state(seg.V, k[0], dmin, 1.0 / seg.dt)
-                self._last_two = (seg.V, k, s)
-            return s
+            if k not in paths:
+                paths[k] = two_state(seg.V, k[0], dmin, 1.0 / seg.dt)
+            return paths[k]
         return path
 
     def bounds(self, seg: Segment, ctx: Context):
