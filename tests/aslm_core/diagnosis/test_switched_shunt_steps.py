@@ -68,7 +68,7 @@ def test_two_state_path_holds_each_state_the_least_dwell():
 def test_the_two_state_form_is_scanned_only_where_v_noise_drowns_the_steps():
     # The same ambient V and bank with and without the PMU's white noise (0.1 % of V): the white share of the step
     # statistic's variance is what gates the two-state scan (TWO_STATE_MIN_WHITE_SHARE).  Measured (2026-11-25) on
-    # ANDES windows (seen sets): exact V 0.12–0.13, with 0.1 % noise 0.61–1.17; here 0.10–0.12 and 0.74–0.97.
+    # ANDES windows (seen sets): exact V 0.11–0.13, with 0.1 % noise 0.61–1.17; here 0.10–0.12 and 0.74–0.97.
     for seed in range(6):
         noisy, _ = _bank(seed)
         exact, _ = _bank(seed, sigma=0.0)
