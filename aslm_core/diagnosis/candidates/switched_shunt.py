@@ -205,11 +205,17 @@ def two_state_path(r: np.ndarray, h: float, inv2s2: float, lam: float, dmin: int
     return out
 
 
+def robust_scale(x: np.ndarray) -> float:
+    """Standard deviation of a record's bulk, robust to its outliers [its unit]: 1.4826 × the median absolute
+    deviation (the bank's few steps are the outliers)."""
+    return 1.4826 * float(np.median(np.abs(x - np.median(x))))
+
+
 def white_sigma(x: np.ndarray) -> float:
     """Robust scale of a record's white part [its unit]: MAD of its first differences / √2 (a smooth part
     barely moves from sample to sample; a few steps are outliers the median ignores)."""
     dx = np.diff(x)
-    return 1.4826 * float(np.median(np.abs(dx - np.median(dx)))) / np.sqrt(2.0)
+    return robust_scale(dx) / np.sqrt(2.0)
 
 
 def white_share(v: np.ndarray) -> float:
@@ -217,7 +223,7 @@ def white_share(v: np.ndarray) -> float:
     the statistic's robust scale)², with :data:`STEP_SAMPLES` a side — 1 for white noise alone, small where the
     20 ms steps stand above the noise."""
     d = step_statistic(v)
-    scale = 1.4826 * float(np.median(np.abs(d - np.median(d))))
+    scale = robust_scale(d)
     return white_sigma(v) ** 2 / scale**2 if scale > 0.0 else 0.0
 
 
@@ -519,7 +525,7 @@ class SwitchedShunt(Candidate):
         else:
             z, best = tuple(mid), np.inf
         # The other source of the state: V's own steps, the threshold over multiples of the statistic's noise.
-        scale = 1.4826 * float(np.median(np.abs(steps - np.median(steps))))
+        scale = robust_scale(steps)
         for q in STEP_SCALES:
             if scale > 0.0:
                 zq = self._point(seg, step_state(steps, q * scale, STEP_SAMPLES), 0.0, q * scale)
