@@ -4,7 +4,7 @@
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm    # once, after tuning: the result
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm2   # the second confirmation (below)
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm3   # the third, once (docs/diagnosis.md)
-    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once (and so on to confirm7)
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once (and so on to confirm8)
 
 Each scenario of :mod:`aslm_sim.andes.effects` (a kind and a seed: the motor data, the effect's magnitude,
 the ambient noise) is simulated by ANDES for 22 s (10 ms step) and cut into two 10 s windows (2–12 s,
@@ -68,6 +68,9 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     # Seventh round (issue 12): confirm6 has been seen too; confirm7 was fixed here and committed before it was
     # simulated or diagnosed, its seeds disjoint from every seed above.
     "confirm7": {"clean": tuple(range(9601, 9611)), "effect": tuple(range(9601, 9605))},
+    # Eighth round (issue 12): confirm7 has been seen too; confirm8 was fixed here and committed before it was
+    # simulated or diagnosed, its seeds disjoint from every seed above.
+    "confirm8": {"clean": tuple(range(9701, 9711)), "effect": tuple(range(9701, 9705))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
