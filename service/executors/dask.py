@@ -10,8 +10,13 @@ future per window.
 
 A worker that dies mid-batch: the scheduler runs the batch again on another worker (the batch's
 partial work is never reported, so no bus is duplicated); if that one dies too (the scheduler's
-``distributed.scheduler.allowed-failures``, which the compose profile and the tests set to 1), every
-window of the batch fails with ``worker_crashed``.  No window is ever left without an outcome.
+``distributed.scheduler.allowed-failures``, which the compose profile and the tests set to 1), the
+batch's windows are run again one at a time, each alone on the cluster (no other batch of this pool
+in flight), and a window whose lone run kills the workers again fails with ``worker_crashed``.  Why
+alone: the scheduler counts a worker's death against every task that worker held, so a batch that
+merely ran or queued beside a poisonous one on both workers fails too; only a window that kills
+its workers while nothing else ran is certainly the cause.  No window is ever left without an
+outcome.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ import sys
 import tempfile
 import threading
 import time
-from concurrent.futures import Future
+from concurrent.futures import CancelledError, Future
 
 from service.executors.base import TaskOutcome, WindowTask
 from service.worker import resolve, run_task
@@ -134,13 +139,14 @@ def worker_state(dask_worker=None) -> dict:
 class _Batch:
     """Windows handed to the scheduler as one Dask task, with their futures."""
 
-    __slots__ = ("tasks", "futures", "dfut", "timer")
+    __slots__ = ("tasks", "futures", "dfut", "timer", "alone")
 
-    def __init__(self, tasks: list[WindowTask], futures: list[Future]) -> None:
+    def __init__(self, tasks: list[WindowTask], futures: list[Future], alone: bool = False) -> None:
         self.tasks = tasks
         self.futures = futures
         self.dfut = None
         self.timer: threading.Timer | None = None
+        self.alone = alone  # one window of a killed batch, run with nothing else of this pool in flight
 
 
 class DaskPool:
@@ -175,6 +181,8 @@ class DaskPool:
         Running estimate of the wall time per window [s] (``elapsed_s``), for the batches' deadlines.
     batches : int
         Batches handed to the scheduler so far.
+    rerun_alone : int
+        Windows of killed batches run again one at a time, each alone on the cluster.
     """
 
     def __init__(self, address: str, fn_path: str, timeout_s: float, *, batch_s: float = BATCH_S,
@@ -192,12 +200,14 @@ class DaskPool:
         self.cost_s = COST_S
         self.wall_s = COST_S
         self.batches = 0
+        self.rerun_alone = 0
         self.replaced = 0  # the Executor attribute /health reports; Dask's nannies replace workers
         self._lock = threading.Lock()
         # Windows not yet handed over: cut into batches only when a batch can go, so windows submitted in
         # small groups (the period scheduler hands them over 64 at a time) still travel in full batches.
         self._waiting: collections.deque[tuple[WindowTask, Future]] = collections.deque()
         self._inflight = 0  # batches handed to the scheduler and not resolved
+        self._suspects: collections.deque[tuple[WindowTask, Future]] = collections.deque()  # of killed batches
         self._inflight_windows = 0
         self._threads = (0, -math.inf)  # (count, monotonic time it was asked)
         self._closed = False
@@ -243,7 +253,8 @@ class DaskPool:
         """Fail what has not finished as ``shutdown`` and disconnect from the scheduler."""
         with self._lock:
             self._closed = True
-            waiting, self._waiting = list(self._waiting), collections.deque()
+            waiting, self._waiting = list(self._waiting) + list(self._suspects), collections.deque()
+            self._suspects = collections.deque()
         for _, fut in waiting:
             fut.set_result(TaskOutcome(ok=False, reason="shutdown", message="executor closed"))
         self.client.close()
@@ -256,6 +267,20 @@ class DaskPool:
         limit = self.inflight_per_thread * threads
         while True:
             with self._lock:
+                if self._suspects and not self._closed:
+                    if self._inflight:  # a suspect runs alone: let what is in flight finish first
+                        return
+                    task, fut = self._suspects.popleft()
+                    batch = _Batch([task], [fut], alone=True)
+                    self._inflight, self._inflight_windows = 1, 1
+                    self.batches += 1
+                    self.rerun_alone += 1
+                else:
+                    batch = None
+            if batch is not None:
+                self._launch(batch)
+                return
+            with self._lock:
                 if self._closed or not self._waiting or self._inflight >= limit:
                     return
                 size = self.batch_size(len(self._waiting) + self._inflight_windows, threads)
@@ -264,29 +289,54 @@ class DaskPool:
                 self._inflight += 1
                 self._inflight_windows += len(items)
                 self.batches += 1
-            try:
-                batch.dfut = self.client.submit(run_batch, self.fn_path, batch.tasks, pure=False)
-            except Exception as exc:  # noqa: BLE001 - e.g. the scheduler is gone: fail this batch
-                self._settle(batch, None, f"error:{type(exc).__name__}", str(exc)[:500])
-                continue
-            limit_s = self.timeout_s + 2.0 * len(batch.tasks) * max(self.wall_s, self.cost_s)
-            batch.timer = threading.Timer(limit_s, self._expire, args=(batch, limit_s))
-            batch.timer.daemon = True
-            batch.timer.start()
-            batch.dfut.add_done_callback(lambda f, batch=batch: self._done(batch, f))
+            self._launch(batch)
+
+    def _launch(self, batch: _Batch) -> None:
+        """Hand one batch (already counted in flight) to the scheduler, with its deadline."""
+        try:
+            batch.dfut = self.client.submit(run_batch, self.fn_path, batch.tasks, pure=False)
+        except Exception as exc:  # noqa: BLE001 - e.g. the scheduler is gone: fail this batch
+            self._settle(batch, None, f"error:{type(exc).__name__}", str(exc)[:500])
+            return
+        limit_s = self.timeout_s + 2.0 * len(batch.tasks) * max(self.wall_s, self.cost_s)
+        batch.timer = threading.Timer(limit_s, self._expire, args=(batch, limit_s))
+        batch.timer.daemon = True
+        batch.timer.start()
+        batch.dfut.add_done_callback(lambda f, batch=batch: self._done(batch, f))
+
+    def _suspect(self, batch: _Batch) -> bool:
+        """Queue the windows of a batch killed beside others to run again alone (False: it ran alone,
+        or it is already resolved)."""
+        if batch.timer is not None:
+            batch.timer.cancel()
+        with self._lock:
+            if batch.alone or not batch.futures or self._closed:
+                return False
+            futures, batch.futures = batch.futures, []
+            self._suspects.extend(zip(batch.tasks, futures, strict=True))
+            self._inflight -= 1
+            self._inflight_windows -= len(batch.tasks)
+        log.warning("a batch of %d windows was on workers that died: running them again one at a time",
+                    len(futures))
+        self._pump()
+        return True
 
     def _expire(self, batch: _Batch, limit_s: float) -> None:
+        # Resolve before cancelling: the cancellation calls _done on another thread, which must find
+        # the batch resolved (else its windows could fail as the cancellation, not as the timeout).
+        self._settle(batch, None, "timeout", f"batch of {len(batch.tasks)} not done within {limit_s:.3g} s")
         if batch.dfut is not None:
             batch.dfut.cancel()
-        self._settle(batch, None, "timeout", f"batch of {len(batch.tasks)} not done within {limit_s:.3g} s")
 
     def _done(self, batch: _Batch, dfut) -> None:
         try:
             outcomes = dfut.result()
         except Exception as exc:  # noqa: BLE001 - KilledWorker, CancelledError, ...
             name = type(exc).__name__
-            if name == "CancelledError":
+            if isinstance(exc, CancelledError):  # distributed's FutureCancelledError is one too
                 return  # cancelled by the timeout, which has resolved the batch
+            if name == "KilledWorker" and self._suspect(batch):
+                return
             reason = "worker_crashed" if name == "KilledWorker" else f"error:{name}"
             self._settle(batch, None, reason, str(exc)[:500])
             return
