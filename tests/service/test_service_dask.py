@@ -29,9 +29,16 @@ from service.sources.base import Inlet
 pytestmark = pytest.mark.slow  # real processes and a real scheduler on 127.0.0.1
 
 
+#: A LocalCluster closes a worker's nanny for good when no worker of that name is back within this after a
+#: death (Dask's default 15 s).  The kill tests replace workers four times in a row; on a loaded machine (CI
+#: at 6bc57db, load ~7) a replacement took longer, the cluster dropped to one worker and the next tests
+#: waited for a second in vain.  A deployed cluster's nannies (docker-compose.yml) have no such watchdog.
+LOCAL_CLUSTER_CONFIG = {**CLUSTER_CONFIG, "distributed.deploy.lost-worker-timeout": "900s"}
+
+
 @pytest.fixture(scope="module")
 def cluster():
-    with dask.config.set(CLUSTER_CONFIG), distributed.LocalCluster(
+    with dask.config.set(LOCAL_CLUSTER_CONFIG), distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, processes=True, protocol="tcp://", host="127.0.0.1",
             scheduler_port=0, dashboard_address=None) as cluster:
         yield cluster
