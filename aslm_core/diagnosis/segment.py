@@ -109,7 +109,7 @@ def _lowpass(x: np.ndarray, fs: float, fc: float) -> np.ndarray:
         return signal.sosfiltfilt(sos, x)
     # scipy's sosfiltfilt (odd extension, forward and backward passes from the steady state) step for step, its
     # initial state computed once per filter: the switched-shunt fits low-pass hundreds of V's a diagnosis, and
-    # that solve was two thirds of each.
+    # solving that state is most of each call (docs/diagnosis.md, stop 30).
     ext = np.concatenate((2 * x[0:1] - x[edge:0:-1], x, 2 * x[-1:] - x[-2:-(edge + 2):-1]))
     y, _ = signal.sosfilt(sos, ext, zi=zi * ext[0:1])
     y, _ = signal.sosfilt(sos, y[::-1], zi=zi * y[-1:])

@@ -326,8 +326,8 @@ def local_search(y: np.ndarray, s: np.ndarray, h: float, inv2s2: float, lam: flo
     best_b = np.empty(n, dtype=np.int64)
     best_d = np.empty(n)
     # What the last move changed (s on its runs, q about its edges), as prefix counts: a start whose flips read
-    # none of it keeps its best flip, bit for bit (a move touches a few 100 samples of the window; its
-    # recomputation was nearly all of this search's time).
+    # none of it keeps its best flip, bit for bit (a move touches a few 100 samples of the window, and pricing every
+    # start anew each round is this search's cost).
     ds = np.ones(n + 1, dtype=np.int64)
     dq = np.ones(n + 2, dtype=np.int64)
     ds_c = np.zeros(n + 2, dtype=np.int64)
