@@ -93,10 +93,27 @@ def butter_sos(fc: float, fs: float) -> np.ndarray:
     return signal.butter(4, fc, fs=fs, output="sos")
 
 
+@lru_cache(maxsize=16)
+def _filtfilt_setup(fc: float, fs: float) -> tuple[np.ndarray, np.ndarray, int]:
+    # sosfiltfilt's own steps that depend on the filter only: its initial state and its odd-extension length.
+    sos = butter_sos(fc, fs)
+    ntaps = 2 * sos.shape[0] + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+    return sos, signal.sosfilt_zi(sos), 3 * ntaps
+
+
 def _lowpass(x: np.ndarray, fs: float, fc: float) -> np.ndarray:
     if fc >= 0.45 * fs:
         return x
-    return signal.sosfiltfilt(butter_sos(float(fc), float(fs)), x)
+    sos, zi, edge = _filtfilt_setup(float(fc), float(fs))
+    if x.ndim != 1 or x.shape[0] <= edge or x.dtype != np.float64:
+        return signal.sosfiltfilt(sos, x)
+    # scipy's sosfiltfilt (odd extension, forward and backward passes from the steady state) step for step, its
+    # initial state computed once per filter: the switched-shunt fits low-pass hundreds of V's a diagnosis, and
+    # solving that state is most of each call (docs/diagnosis.md, stop 30).
+    ext = np.concatenate((2 * x[0:1] - x[edge:0:-1], x, 2 * x[-1:] - x[-2:-(edge + 2):-1]))
+    y, _ = signal.sosfilt(sos, ext, zi=zi * ext[0:1])
+    y, _ = signal.sosfilt(sos, y[::-1], zi=zi * y[-1:])
+    return y[::-1][edge:-edge]
 
 
 def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float = 0.65,

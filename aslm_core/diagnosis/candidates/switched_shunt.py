@@ -95,6 +95,8 @@ BACKFIT_PASSES = 2
 TEMPLATE_S = 1.0
 FLIP_S = 0.5
 LOCAL_MOVES = 300
+#: Lengths of an inserted state bounded together by the local search before it prices them one by one (speed only).
+PRUNE_BLOCK = 8
 #: The two-state form is scanned only where V's white noise is at least this share of the step statistic's
 #: variance (the noise that drowns the 20 ms steps): white noise alone gives 1, an exact V sampled from a
 #: simulation about 0.13 (ratio of scales ~0.36), a random walk 1/3.  Below it the steps' form sees what the
@@ -323,29 +325,74 @@ def local_search(y: np.ndarray, s: np.ndarray, h: float, inv2s2: float, lam: flo
             c[d + 2 * k] += t[m] * t[m - d]
     best_b = np.empty(n, dtype=np.int64)
     best_d = np.empty(n)
+    # What the last move changed (s on its runs, q about its edges), as prefix counts: a start whose flips read
+    # none of it keeps its best flip, bit for bit (a move touches a few 100 samples of the window, and pricing every
+    # start anew each round is this search's cost).
+    ds = np.ones(n + 1, dtype=np.int64)
+    dq = np.ones(n + 2, dtype=np.int64)
+    ds_c = np.zeros(n + 2, dtype=np.int64)
+    dq_c = np.zeros(n + 3, dtype=np.int64)
+    rend_old = np.full(n, -1, dtype=np.int64)
+    # Blocks of blk lengths b − a of an inserted state: their least pulse, and q's extremes over each start's block.
+    blk = PRUNE_BLOCK
+    p_lo = np.array([np.min(pulse[1 + i * blk:1 + (i + 1) * blk]) for i in range(lmax // blk)])
+    q_lo = np.zeros(n + 1)
+    q_hi = np.zeros(n + 1)
     done = 0
     while done < moves:
         rend[n - 1] = n
         for j in range(n - 2, -1, -1):
             rend[j] = rend[j + 1] if s[j + 1] == s[j] else j + 1
+        for j in range(n + 1):
+            ds_c[j + 1] = ds_c[j] + ds[j]
+        for j in range(n + 2):
+            dq_c[j + 1] = dq_c[j] + dq[j]
+        for x in range(n + 2 - blk):
+            q_lo[x], q_hi[x] = np.min(q[x:x + blk]), np.max(q[x:x + blk])
         # Each start's best flip; then the improving ones, best first, applied together where they are further
         # apart than the template's reach (their costs do not interact), and the costs recomputed.
         for a in range(n):
-            best_d[a], best_b[a] = 0.0, -1
             r = rend[a]
             hi = min(r, a + lmax)
-            for b in range(a + 1, hi + 2):
+            # The flips from a read s on [a − dmin − 2, b_max + dmin + 1] (their costs and the dwell) and q at a,
+            # on (a, hi] and at the run's end r (the whole run).
+            whole = r - a > lmax and (a == 0 or s[a - 1] != s[a])
+            b_max = r if whole else hi
+            lo_s, hi_s = max(0, a - dmin - 2), min(n, b_max + dmin + 1)
+            if (r == rend_old[a] and ds_c[hi_s + 1] == ds_c[lo_s] and dq_c[hi + 1] == dq_c[a]
+                    and not (whole and dq[r] != 0)):
+                continue
+            rend_old[a] = r
+            best_d[a], best_b[a] = 0.0, -1
+            # A short state inserted inside the run (a after its start, b before its end) costs
+            # inv2s2·(h²·pulse[b − a] − 2h·sg·(q[a] − q[b])) + 2·lam; a block of such b whose least cost, bounded
+            # below by the block's least pulse and extreme q, is above 0 holds no move the test below would take.
+            inner = a > 0 and s[a - 1] == s[a]
+            sg = 1.0 - 2.0 * s[a]
+            b_in = min(hi, r - 1)
+            b = a + 1
+            while b <= hi + 1:
+                bb = b
                 if b == hi + 1:  # the whole run beyond lmax, when it starts at a
                     if r - a <= lmax or not (a == 0 or s[a - 1] != s[a]):
                         break
-                    b = r
-                if a == 0 and b == n:
-                    continue
-                dj = _flip_cost(s, q, a, b, n, lmax, h, inv2s2, lam, pulse, e_step)
-                if dj < best_d[a] - 1e-9 and _dwell_kept(s, a, b, dmin):
-                    best_d[a], best_b[a] = dj, b
+                    bb = r
+                elif inner and (b - a - 1) % blk == 0 and b + blk - 1 <= b_in:
+                    ext = q_lo[b] if sg > 0 else -q_hi[b]
+                    dec = 2.0 * h * inv2s2 * (sg * q[a] - ext)
+                    grow = inv2s2 * h * h * p_lo[(b - a - 1) // blk]
+                    if grow - dec + 2.0 * lam > 1e-9 * (1.0 + grow + abs(dec) + 2.0 * lam):
+                        b += blk
+                        continue
+                if not (a == 0 and bb == n):
+                    dj = _flip_cost(s, q, a, bb, n, lmax, h, inv2s2, lam, pulse, e_step)
+                    if dj < best_d[a] - 1e-9 and _dwell_kept(s, a, bb, dmin):
+                        best_d[a], best_b[a] = dj, bb
+                b += 1
         order = np.argsort(best_d)
         taken = np.zeros(n + 1, dtype=np.bool_)
+        ds[:] = 0
+        dq[:] = 0
         applied = 0
         for i in range(n):
             a = order[i]
@@ -359,10 +406,12 @@ def local_search(y: np.ndarray, s: np.ndarray, h: float, inv2s2: float, lam: flo
             sg = 1.0 - 2.0 * s[a]
             for j in range(a, b):
                 s[j] = 1.0 - s[j]
+                ds[j] = 1
             for x0, w in ((a, h * sg), (b, -h * sg)):
                 if 0 < x0 < n:
                     for x in range(max(0, x0 - 2 * k), min(n + 1, x0 + 2 * k + 1)):
                         q[x] -= w * c[x - x0 + 2 * k]
+                        dq[x] = 1
             applied += 1
             done += 1
             if done >= moves:
@@ -492,15 +541,22 @@ class SwitchedShunt(Candidate):
         x0 = sx[tr]
         v2 = seg.V[tr] ** 2
 
+        # The scan's points share training states (a coarse relay grid and its shifts read the same few paths):
+        # each state's residual is solved once.
+        seen: dict[bytes, float] = {}
+
         def ssr(z) -> float:
             s = _state(v, z, seg.dt, steps, two)[tr]
             if s.min() == s.max():  # no switching in training: nothing to fit
                 return np.inf
-            x = np.column_stack([x0, -s * v2])
-            xs = np.linalg.norm(x, axis=0)
-            beta, *_ = np.linalg.lstsq(x / xs, y, rcond=None)
-            r = y - (x / xs) @ beta
-            return float(r @ r)
+            key = s.tobytes()
+            if key not in seen:
+                x = np.column_stack([x0, -s * v2])
+                xs = np.linalg.norm(x, axis=0)
+                beta, *_ = np.linalg.lstsq(x / xs, y, rcond=None)
+                r = y - (x / xs) @ beta
+                seen[key] = float(r @ r)
+            return seen[key]
 
         sd = float(np.std(v))
         grid = [(float(vc), k * sd, tau, 0.0, s0, 0.0) for vc in np.quantile(v, VC_QUANTILES) for k in DV_STD

@@ -73,3 +73,82 @@ def test_the_two_state_form_is_scanned_only_where_v_noise_drowns_the_steps():
         noisy, _ = _bank(seed)
         exact, _ = _bank(seed, sigma=0.0)
         assert ss.white_share(noisy) >= ss.TWO_STATE_MIN_WHITE_SHARE > ss.white_share(exact)
+
+
+def _local_search_exhaustive(y, s, h, inv2s2, lam, dmin, t, k, pulse, e_step, moves):
+    """The local search as stop 29 wrote it: every start's every flip priced anew each round (no reuse, no bound)."""
+    n, lmax = y.size, pulse.size - 1
+    s = s.copy()
+    e = y.copy()
+    for j in range(1, n):
+        if s[j] != s[j - 1]:
+            ss._add_step(e, j, h * (s[j] - s[j - 1]), t, k)
+    q = ss._template_products(e, t, k)
+    c = np.array([sum(t[m] * t[m - d] for m in range(max(0, d), min(2 * k, 2 * k + d))) for d in range(-2 * k, 2 * k + 1)])
+    done = 0
+    while done < moves:
+        rend = np.empty(n, dtype=np.int64)
+        rend[n - 1] = n
+        for j in range(n - 2, -1, -1):
+            rend[j] = rend[j + 1] if s[j + 1] == s[j] else j + 1
+        best_d, best_b = np.zeros(n), np.full(n, -1)
+        for a in range(n):
+            r = rend[a]
+            hi = min(r, a + lmax)
+            for b in range(a + 1, hi + 2):
+                if b == hi + 1:
+                    if r - a <= lmax or not (a == 0 or s[a - 1] != s[a]):
+                        break
+                    b = r
+                if a == 0 and b == n:
+                    continue
+                dj = ss._flip_cost(s, q, a, b, n, lmax, h, inv2s2, lam, pulse, e_step)
+                if dj < best_d[a] - 1e-9 and ss._dwell_kept(s, a, b, dmin):
+                    best_d[a], best_b[a] = dj, b
+        taken = np.zeros(n + 1, dtype=bool)
+        applied = 0
+        for a in np.argsort(best_d):
+            if best_d[a] >= -1e-9:
+                break
+            b = best_b[a]
+            if taken[max(0, a - 2 * k - lmax):min(n, b + 2 * k + lmax) + 1].any():
+                continue
+            taken[a:b + 1] = True
+            sg = 1.0 - 2.0 * s[a]
+            s[a:b] = 1.0 - s[a:b]
+            for x0, w in ((a, h * sg), (b, -h * sg)):
+                if 0 < x0 < n:
+                    x = np.arange(max(0, x0 - 2 * k), min(n + 1, x0 + 2 * k + 1))
+                    q[x] -= w * c[x - x0 + 2 * k]
+            applied += 1
+            done += 1
+            if done >= moves:
+                break
+        if applied == 0:
+            break
+    return s
+
+
+def test_local_search_reusing_unchanged_starts_and_bounding_blocks_finds_the_exhaustive_searchs_path():
+    # The compiled search keeps the best flip of each start whose inputs the last moves left alone and skips blocks
+    # of inserted states its bound prices above zero (stop 30, speed only): the path must be the same, sample for
+    # sample, as pricing everything every round — from the steps' form (a poor start: many moves, rounds of several)
+    # and from the alternation's path, over the least dwells of the scan.
+    k = int(round(ss.TEMPLATE_S * FS))
+    t, pulse, e_step = ss._step_template(FS, ss.BACKGROUND_HZ, k, int(round(ss.FLIP_S * FS)))
+    checked = moved = 0
+    for seed, h, dmin in ((0, 4e-3, 0), (1, 3e-3, 10), (2, 5e-3, 20)):
+        v, _ = _bank(seed)
+        y = v - ss._lowpass(v, FS, ss.BACKGROUND_HZ)
+        lam = 0.5 * np.log(v.size)
+        inv2s2 = 0.5 / ss.white_sigma(v) ** 2
+        poor = ss.step_state(ss.step_statistic(v), 0.5 * h, ss.STEP_SAMPLES)
+        r = v - ss._lowpass(v - h * poor, FS, ss.BACKGROUND_HZ)
+        good = ss.two_state_path(r, h, inv2s2, lam, dmin)
+        for s0 in (poor, good):
+            fast = ss.local_search(y, s0, h, inv2s2, lam, dmin, t, k, pulse, e_step, ss.LOCAL_MOVES)
+            slow = _local_search_exhaustive(y, s0, h, inv2s2, lam, dmin, t, k, pulse, e_step, ss.LOCAL_MOVES)
+            assert np.array_equal(fast, slow), (seed, dmin, np.flatnonzero(fast != slow))
+            checked += 1
+            moved += int(np.any(fast != s0))
+    assert checked == 6 and moved >= 3  # the searches did move: the comparison is not of six untouched starts
