@@ -122,7 +122,9 @@ class DiagnosisConfig:
         — a motor outside the box — is one more rival of the cause (:data:`OUTSIDE_BOX`, the same paired tests
         and Holm family as the others): a cause is named only when it beats it, and when it does not (or, for an
         ``ambiguous`` list, one member does not) the verdict is ``unexplained``, the message naming the bound.
-        Until the seventh round of issue 12 this withheld every name whose cause's fit stayed on the plain fit's
+        And when that rival does not beat the pinned plain fit itself (no motor outside the box in sight), a cause
+        that changes the motor (``Candidate.motor_form``), keeps its own D on the plain fit's bound and leaves a
+        located excess is not named either (:func:`_kept_on_bound`; stop 30).  Until the seventh round of issue 12 this withheld every name whose cause's fit stayed on the plain fit's
         bound, whether the bound mattered or not (docs/diagnosis.md, "Seventh round (stop 29): the plain fit's
         bound as a rival, not a veto").  False: the plain fit's bound does not enter the verdict.
     challengers : bool
