@@ -122,7 +122,9 @@ class DiagnosisConfig:
         — a motor outside the box — is one more rival of the cause (:data:`OUTSIDE_BOX`, the same paired tests
         and Holm family as the others): a cause is named only when it beats it, and when it does not (or, for an
         ``ambiguous`` list, one member does not) the verdict is ``unexplained``, the message naming the bound.
-        Until the seventh round of issue 12 this withheld every name whose cause's fit stayed on the plain fit's
+        And when that rival does not beat the pinned plain fit itself (no motor outside the box in sight), a cause
+        that changes the motor (``Candidate.motor_form``), keeps its own D on the plain fit's bound and leaves a
+        located excess is not named either (:func:`_kept_on_bound`; stop 30).  Until the seventh round of issue 12 this withheld every name whose cause's fit stayed on the plain fit's
         bound, whether the bound mattered or not (docs/diagnosis.md, "Seventh round (stop 29): the plain fit's
         bound as a rival, not a veto").  False: the plain fit's bound does not enter the verdict.
     challengers : bool
@@ -463,6 +465,13 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
                 message = (f"the plain model sits on its box's bound ({_bounds_text(outside[1])}), and refitted with "
                            f"the box opened there it explains the held-out data as well as {' and '.join(named)}: "
                            f"the mismatch may be a motor outside the identifier's box, so no cause is named")
+            elif len(tied) == 1 and outside is not None and (kept := _kept_on_bound(analyses, best, outside, zcrit)):
+                verdict, cause, causes = "unexplained", None, []
+                message = (f"the plain model sits on its box's bound ({_bounds_text(outside[1])}) and opening the "
+                           f"box there does not improve it, while {best.name}, a change of the motor, keeps its "
+                           f"motor on that bound ({_bounds_text(kept)}) and leaves excess residual in "
+                           f"{', '.join(best.remaining_excess_channels)}: what pins the motor is not shown to be "
+                           f"{best.name}, so no cause is named")
             elif len(tied) == 1:
                 verdict, cause = "explained", best.name
                 after = _mean_fit([_held_out_fit(a.seg, a.fits[cause]) for a in analyses])
@@ -507,6 +516,27 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         message=message, elapsed_s=time.perf_counter() - t0, mode=a0.ctx.mode,
         parameter_mismatch=mismatch_info, series=series,
     )
+
+
+def _kept_on_bound(analyses: list[_WindowAnalysis], best: CandidateEntry, outside: tuple[CandidateEntry, dict],
+                   zcrit: float) -> dict[str, float]:
+    """The plain fit's bounds a motor-form cause keeps its own D on when the bound does not bind and the cause
+    leaves located excess ({parameter: bound}; empty: the cause may be named).
+
+    When the plain model refitted with the box opened (:func:`_outside_box`) does not beat the pinned fit on the
+    held-out data (its score test and penalty, as any candidate's), no motor outside the box is in sight: the fit is
+    pinned because the one motor absorbs something it cannot represent.  A cause that changes the motor
+    (``Candidate.motor_form``) and still keeps it on that bound has not undone the distortion, and when it also
+    leaves a located excess it has absorbed part of an effect outside the library, not shown to be its cause
+    (docs/diagnosis.md, "Stop 30: the bound rival and outside-library names").
+    """
+    rival = outside[0]
+    binds = rival.score_z is not None and rival.score_z > zcrit and (rival.penalised_gain or 0.0) > 0
+    if binds or not LIBRARY[best.name].motor_form:
+        return {}
+    kept = {k: v for a in analyses for k, v in a.fits[best.name].at_bound.items()
+            if a.plain.at_bound.get(k) == v and k in outside[1]}
+    return kept if kept and best.remaining_excess_channels else {}
 
 
 def _bounds_text(bounds: dict[str, float]) -> str:

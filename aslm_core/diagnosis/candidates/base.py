@@ -143,6 +143,10 @@ class Candidate:
     confusable : tuple of str
         Candidates that produce a similar signature from other physics: this one is named only when the
         paired held-out test separates it from each of them (whether or not they are significant themselves).
+    motor_form : bool
+        The candidate changes or extends the induction motor itself (its circuit, rotor, torque law, or a
+        second group), so its fit re-places D: a motor-form cause whose D stays on the plain fit's bound has
+        not undone what pinned it (``DiagnosisConfig.bound_rule``).
     """
 
     name = "plain"
@@ -156,6 +160,7 @@ class Candidate:
     magnitude_z_min = 2.0
     scanned: tuple[str, ...] = ()
     confusable: tuple[str, ...] = ()
+    motor_form = False
     max_nfev = 40  # upper-stage function evaluations per start (each iteration adds a Jacobian)
 
     @property

@@ -38,6 +38,7 @@ B2_BOUNDS = (0.2, 400.0)  # [1/s]
 
 class DoubleCageRotor(Candidate):
     name = "double_cage_rotor"
+    motor_form = True
     magnitude = ("g2",)
     nl_names = ("g2", "b2")
     nl_units = ("1/pu", "1/s")

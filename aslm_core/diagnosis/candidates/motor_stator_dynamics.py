@@ -37,6 +37,7 @@ from aslm_core.diagnosis.segment import Segment
 
 class MotorStatorDynamics(Candidate):
     name = "motor_stator_dynamics"
+    motor_form = True
     magnitude = ("inv_Xp",)
     nl_names = ("inv_Xp",)
     nl_units = ("1/pu",)

@@ -40,6 +40,7 @@ MAX_H_PER_TORQUE_S = 40.0
 
 class SecondMotor(Candidate):
     name = "second_motor"
+    motor_form = True
     magnitude = ("Tm2",)
     # Tm and Tm2 trade off (their sum is well determined, the split is not), which inflates se(Tm2): a
     # zero-torque "motor" (a pure lagged reactive element, e.g. soaking up a stator resistance) is still

@@ -65,6 +65,7 @@ def simulate_k(vd, vq, vdm, vqm, a, b, h2, tm, k, w0, dt, fd, fq, s):  # pragma:
 
 class SpeedDependentTorque(Candidate):
     name = "speed_dependent_torque"
+    motor_form = True
     magnitude = ("k",)
     nl_names = ("k",)
     nl_units = ("-",)

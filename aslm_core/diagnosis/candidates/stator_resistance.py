@@ -38,6 +38,7 @@ RHO_MAX = 0.3  # |Rs|/X' bound [-]
 
 class StatorResistance(Candidate):
     name = "stator_resistance"
+    motor_form = True
     magnitude = ("Rs",)
     nl_names = ("Rs", "gamma")
     nl_units = ("pu", "-")

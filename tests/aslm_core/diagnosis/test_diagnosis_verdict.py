@@ -309,6 +309,47 @@ def test_a_motor_outside_the_box_is_not_explained_and_the_message_names_the_boun
     assert without.verdict == "explained" and without.cause == "double_cage_rotor", without.message
 
 
+@pytest.mark.parametrize(("cause", "rival_z", "cause_at_bound", "left", "withheld"), [
+    ("second_motor", 1.0, {"b": 30.0}, ["P", "Q"], True),  # the bound does not bind, motor kept there, excess left
+    ("second_motor", 21.8, {"b": 30.0}, ["P", "Q"], False),  # opening the box helps: the rival's test decides
+    ("second_motor", 1.0, {"b": 30.0}, [], False),  # the cause clears the excess
+    ("second_motor", 1.0, {}, ["P", "Q"], False),  # the cause moved its motor off the bound
+    ("second_motor", 1.0, {"H2": 3.0}, ["P", "Q"], False),  # on another bound than the plain fit's
+    ("switched_shunt", 1.0, {"b": 30.0}, ["P", "Q"], False),  # not a change of the motor: its D is the plain one
+])
+def test_a_motor_form_cause_kept_on_a_bound_that_does_not_bind_is_withheld(cause, rival_z, cause_at_bound, left,
+                                                                           withheld):
+    """Stop 30: when the plain fit is pinned and the plain model refitted with the box opened there is no better on
+    the held-out data, a cause that changes the motor, keeps its motor on that bound and leaves a located excess is
+    not named; each condition alone leaves the name to the other tests."""
+    from types import SimpleNamespace
+
+    from aslm_core.diagnosis import pipeline
+
+    a = SimpleNamespace(plain=SimpleNamespace(at_bound={"b": 30.0}),
+                        fits={cause: SimpleNamespace(at_bound=cause_at_bound)})
+    rival = SimpleNamespace(score_z=rival_z, penalised_gain=1.5)
+    best = SimpleNamespace(name=cause, remaining_excess_channels=left)
+    kept = pipeline._kept_on_bound([a], best, (rival, {"b": 30.0}), zcrit=3.3)
+    assert kept == ({"b": 30.0} if withheld else {})
+
+
+def test_a_second_motor_kept_on_a_bound_that_binds_is_named(monkeypatch):
+    """Self-test case second_motor/1/10 (14 dB): the plain fit sits on H2 = 3 s, opening the box improves it (z ≈ 22)
+    and the second motor, its first motor still on H2's bound and P and Q excess left, beats that rival: the
+    stop-30 rule leaves it to the rival's test and it is named."""
+    from benchmarks.diagnosis import case
+
+    effect = "second_motor"
+    _, ec, _, _ = case((effect, 1, 10, False))  # the self-test's own construction of the case
+    rival = _record_rival(monkeypatch)
+    rep = diagnose(ec.window)
+    assert rep.model.at_bound.get("H2") == 3.0, "the case no longer pins the plain fit: it tests nothing here"
+    assert rival and rival[-1].score_z > rep.held_out.dm_critical
+    assert rep.verdict == "explained" and rep.cause == effect, rep.message
+    assert rep.candidate(effect).remaining_excess_channels
+
+
 def test_a_declared_look_alike_counts_at_any_margin(monkeypatch):
     """Look-alikes fit the same bulk, so what tells their physics apart is a sliver by construction: a second
     motor that beats a top `inverter_der` (z 46 over the plain model) back by z 3.4 — 0.5 % of the DER's
