@@ -140,6 +140,42 @@ def jackknife(groups: int):
     return refine_
 
 
+def linear_jackknife(groups: int):
+    """:func:`jackknife` with each D̂₋g one Gauss–Newton step from D̂ on the whitened residual and Jacobian at D̂, the
+    group's rows left out and the static part projected off the rest: no simulation beyond the one at D̂."""
+
+    def refine_(prep, f0, config, d0, skip_s, margin):
+        out = _refine(prep, f0, config, d0, skip_s, margin)
+        if out is None:
+            return out
+        iw = input_weighting
+        pb, d = out["problem"], out["d"]
+        white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
+        wt = iw.build_weighting(pb, np.asarray(d0, dtype=np.float64), prep.input_error, white, iw.BAND_FRACTION / pb.dt)
+        if wt is None or not iw._simulate(pb, d):
+            return out
+        k0 = pb.k0
+        z = iw._stack(wt.w, np.column_stack([pb.p_meas - pb._p[k0:], pb._dp[k0:]]),
+                      np.column_stack([pb.q_meas - pb._q[k0:], pb._dq[k0:]]), iw.bin_weights(pb.l))
+        m = wt.w[0].size
+        kept = np.flatnonzero(np.abs(wt.w[0]) > 0)
+        reps = []
+        for g in range(groups):
+            rows = np.ones(4 * m, dtype=bool)
+            for o in range(4):
+                rows[o * m + kept[g::groups]] = False
+            zr, nr = z[rows], wt.nuisance[rows]
+            zr = zr - nr @ np.linalg.lstsq(nr, zr, rcond=None)[0]
+            e, jac = zr[:, 0], zr[:, 1:]
+            reps.append(d + np.linalg.solve(jac.T @ jac, jac.T @ e))
+        dj = groups * d - (groups - 1) * np.mean(reps, axis=0)
+        if np.all(dj >= pb.lower) and np.all(dj <= pb.upper) and pb.feasible(dj):
+            out = {**out, "d": dj}
+        return out
+
+    return refine_
+
+
 #: Variants: (module, attribute, value) changes; band fractions at 25 frames/s: 0.12 = 3 Hz, 0.2 = 5 Hz, 0.24 = 6 Hz.
 VARIANTS = {
     "default": (),
@@ -164,6 +200,8 @@ VARIANTS = {
     "3 rounds": ((input_weighting, "ROUNDS", 3),),
     "jackknife 5": ((input_weighting, "refine", jackknife(5)),),
     "jackknife 10": ((input_weighting, "refine", jackknife(10)),),
+    "linear jackknife 10": ((input_weighting, "refine", linear_jackknife(10)),),
+    "linear jackknife 25": ((input_weighting, "refine", linear_jackknife(25)),),
     "oracle V": ((input_weighting, "prepare", oracle_channel("V")),),
     "oracle theta": ((input_weighting, "prepare", oracle_channel("theta")),),
     "oracle middle": ((input_weighting, "prepare", oracle_part(1.0, False)),),
@@ -239,7 +277,8 @@ def calibration(seeds: list[int], fs: float, n: int) -> dict:
 def gauss_newton(seeds: list[int], fs: float, n: int) -> dict:
     """One Gauss–Newton step of the S-weighted fit from the true D (its mean over windows is the fit's bias to
     first order in the step): δ = M⁻¹·g, M = J̃ᵀJ̃ and g = J̃ᵀẽ on the smoothed inputs, the weighting at the true D,
-    skip 1 s; the same with the exact inputs (the oracle); and the smoothed inputs' g with the exact inputs' M."""
+    skip 1 s; the same with the exact inputs (the oracle, its weighting formed on them); and the smoothed inputs' g
+    with the exact inputs' M."""
     cfg, steps = IdentifyConfig(), {"smoothed": [], "exact inputs": [], "smoothed g, exact-input M": []}
     for seed in seeds:
         ws, truths = windows(seed, fs, n, 1.0, False)
@@ -250,9 +289,12 @@ def gauss_newton(seeds: list[int], fs: float, n: int) -> dict:
                          theta=np.asarray(exact.theta, dtype=np.float64).copy())
             pb, pbx = (Problem(p_, w.f0, replace(cfg, skip_s=1.0)) for p_ in (prep, px))
             white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
-            wt = input_weighting.build_weighting(pb, d, prep.input_error, white, input_weighting.BAND_FRACTION / pb.dt)
+            band = input_weighting.BAND_FRACTION / pb.dt
+            wt = input_weighting.build_weighting(pb, d, prep.input_error, white, band)
+            # The exact inputs' own weighting: its static regressors (and projection) are the exact V's.
+            wtx = input_weighting.build_weighting(pbx, d, prep.input_error, white, band)
             e, j = input_weighting.whitened_residuals(pb, d, wt)
-            ex, jx = input_weighting.whitened_residuals(pbx, d, wt)
+            ex, jx = input_weighting.whitened_residuals(pbx, d, wtx)
             steps["smoothed"].append(np.linalg.solve(j.T @ j, j.T @ e) / d)
             steps["exact inputs"].append(np.linalg.solve(jx.T @ jx, jx.T @ ex) / d)
             steps["smoothed g, exact-input M"].append(np.linalg.solve(jx.T @ jx, j.T @ e) / d)
