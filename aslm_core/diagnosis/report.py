@@ -404,7 +404,9 @@ class Diagnosed(Motor):
     at_bound : dict
         The parameters of D on a bound of the identifier's box in any window {name: the bound} (identified mode;
         empty when none): a cause is then named only if it beats, on the held-out data, the plain model refitted
-        with the box opened there (a motor outside the box).
+        with the box opened there (a motor outside the box); and when that refit does not beat the plain model,
+        a cause that changes the motor is not named while its own D stays on that bound and it leaves a located
+        excess (``DiagnosisConfig.bound_rule``).
     """
 
     mode: str
