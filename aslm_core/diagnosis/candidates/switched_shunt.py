@@ -100,7 +100,7 @@ PRUNE_BLOCK = 8
 #: The two-state form is scanned only where V's white noise is at least this share of the step statistic's
 #: variance (the noise that drowns the 20 ms steps): white noise alone gives 1, an exact V sampled from a
 #: simulation about 0.13 (ratio of scales ~0.36), a random walk 1/3.  Below it the steps' form sees what the
-#: two-state form would, and its scan (a third of a diagnosis's time) is saved.
+#: two-state form would, and its scan, most of the candidate's time, is saved.
 TWO_STATE_MIN_WHITE_SHARE = 0.5
 
 
