@@ -45,6 +45,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy import stats
 
+from aslm_core import motor
 from aslm_core.diagnosis import engine
 from aslm_core.diagnosis.candidates import LIBRARY, Candidate, Context
 from aslm_core.diagnosis.identify_options import pinned_config
@@ -757,3 +758,29 @@ def diagnose_dict(windows: Window | Sequence[Window], previous=None, model=None,
         :meth:`DiagnosisReport.to_dict` — JSON-ready (DESIGN §4 fields plus ``cause``, ``noise``, ...).
     """
     return diagnose(windows, model, previous=previous, config=config).to_dict()
+
+
+def warmup_window() -> Window:
+    """A 10 s window at 100 frames/s of the plain model (eq. 4–5, ZIP part) with white PMU noise on every channel:
+    0.1 % of V, 1e-3 rad on θ, 2e-3 pu on P and Q.
+
+    Noisy enough in V for the switched shunt's two-state search (its gate, ``TWO_STATE_MIN_WHITE_SHARE``), so one
+    diagnosis of it reaches every numba kernel of the diagnosis.
+    """
+    rng = np.random.default_rng(0)
+    t = np.arange(1001) * 0.01
+    v = 1.0 + 0.003 * np.sin(2 * np.pi * 0.7 * t) + 0.002 * np.sin(2 * np.pi * 1.9 * t)
+    theta = 0.005 * np.sin(2 * np.pi * 0.4 * t)
+    p_im, q_im, _ = motor.simulate(v, theta, np.array([40.0, 15.0, 1.3, 1.0]), 0.01, motor.omega0_of(50.0))
+    noise = rng.standard_normal((4, t.size))
+    return Window(t, v + 1e-3 * noise[0], theta + 1e-3 * noise[1], p_im + 2.0 + v + 2e-3 * noise[2],
+                  q_im + 0.5 * v * v + 2e-3 * noise[3])
+
+
+def warmup() -> None:
+    """Load (or compile) every numba kernel of the diagnosis, so that the first diagnosis times only the work.
+
+    Diagnoses :func:`warmup_window` once: about 1 s of CPU from a warm cache.  Why: the switched shunt's two-state
+    search runs only where V is noisy, and compiling it in the first such diagnosis took 12–13 s.
+    """
+    diagnose(warmup_window())

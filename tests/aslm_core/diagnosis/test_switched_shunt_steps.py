@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from aslm_core.diagnosis.candidates import switched_shunt as ss
+from aslm_core.diagnosis.pipeline import warmup_window
+from aslm_core.diagnosis.segment import make_segment
 
 FS = 100.0
 
@@ -73,6 +75,13 @@ def test_the_two_state_form_is_scanned_only_where_v_noise_drowns_the_steps():
         noisy, _ = _bank(seed)
         exact, _ = _bank(seed, sigma=0.0)
         assert ss.white_share(noisy) >= ss.TWO_STATE_MIN_WHITE_SHARE > ss.white_share(exact)
+
+
+def test_the_diagnosis_warmup_window_reaches_the_two_state_search():
+    # scripts/setup compiles the diagnosis's kernels with one diagnosis of this window; were its V under the gate,
+    # the two-state search would be left to compile in the first real V/θ diagnosis (12–13 s at confirm8).
+    seg = make_segment(warmup_window())
+    assert ss.white_share(seg.V) >= ss.TWO_STATE_MIN_WHITE_SHARE
 
 
 def _local_search_exhaustive(y, s, h, inv2s2, lam, dmin, t, k, pulse, e_step, moves):
