@@ -104,21 +104,29 @@ def oracle_part(edges_s: float, at_edges: bool):
 _refine = input_weighting.refine
 
 
+def _refined_with_weighting(prep, f0, config, d0, skip_s, margin):
+    """The unchanged refinement's answer and the weighting at ``d0`` it descends with ((answer, None) where either is
+    missing)."""
+    out = _refine(prep, f0, config, d0, skip_s, margin)
+    if out is None:
+        return out, None
+    iw, pb = input_weighting, out["problem"]
+    white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
+    return out, iw.build_weighting(pb, np.asarray(d0, dtype=np.float64), prep.input_error, white,
+                                   iw.BAND_FRACTION / pb.dt)
+
+
 def jackknife(groups: int):
     """The refinement with a delete-a-group jackknife over its frequency bins (every ``groups``-th kept bin a group):
     D = G·D̂ − (G − 1)·mean(D̂₋g), each D̂₋g descended from D̂ with the same weighting and one group's bins at zero
     weight.  Removes a bias of order 1/(bins) (a finite-sample bias); kept where the result stays feasible."""
 
     def refine_(prep, f0, config, d0, skip_s, margin):
-        out = _refine(prep, f0, config, d0, skip_s, margin)
-        if out is None:
+        out, wt = _refined_with_weighting(prep, f0, config, d0, skip_s, margin)
+        if wt is None:
             return out
         iw = input_weighting
         pb, d = out["problem"], out["d"]
-        white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
-        wt = iw.build_weighting(pb, np.asarray(d0, dtype=np.float64), prep.input_error, white, iw.BAND_FRACTION / pb.dt)
-        if wt is None:
-            return out
         kept = np.flatnonzero(np.abs(wt.w[0]) > 0)
         mult, phi = iw.bin_weights(pb.l), pb.basis
         zero = np.zeros_like(phi)
@@ -145,15 +153,11 @@ def linear_jackknife(groups: int):
     group's rows left out and the static part projected off the rest: no simulation beyond the one at D̂."""
 
     def refine_(prep, f0, config, d0, skip_s, margin):
-        out = _refine(prep, f0, config, d0, skip_s, margin)
-        if out is None:
-            return out
+        out, wt = _refined_with_weighting(prep, f0, config, d0, skip_s, margin)
         iw = input_weighting
-        pb, d = out["problem"], out["d"]
-        white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
-        wt = iw.build_weighting(pb, np.asarray(d0, dtype=np.float64), prep.input_error, white, iw.BAND_FRACTION / pb.dt)
-        if wt is None or not iw._simulate(pb, d):
+        if wt is None or not iw._simulate(out["problem"], out["d"]):
             return out
+        pb, d = out["problem"], out["d"]
         k0 = pb.k0
         z = iw._stack(wt.w, np.column_stack([pb.p_meas - pb._p[k0:], pb._dp[k0:]]),
                       np.column_stack([pb.q_meas - pb._q[k0:], pb._dq[k0:]]), iw.bin_weights(pb.l))
