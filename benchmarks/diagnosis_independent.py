@@ -4,7 +4,7 @@
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm    # once, after tuning: the result
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm2   # the second confirmation (below)
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm3   # the third, once (docs/diagnosis.md)
-    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once (and so on to confirm8)
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once (and so on to confirm9)
 
 Each scenario of :mod:`aslm_sim.andes.effects` (a kind and a seed: the motor data, the effect's magnitude,
 the ambient noise) is simulated by ANDES for 22 s (10 ms step) and cut into two 10 s windows (2–12 s,
@@ -71,6 +71,9 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     # Eighth round (issue 12): confirm7 has been seen too; confirm8 was fixed here and committed before it was
     # simulated or diagnosed, its seeds disjoint from every seed above.
     "confirm8": {"clean": tuple(range(9701, 9711)), "effect": tuple(range(9701, 9705))},
+    # Ninth round (issue 12): confirm8 has been seen too; confirm9 was fixed here and committed before it was
+    # simulated or diagnosed, its seeds disjoint from every seed above.
+    "confirm9": {"clean": tuple(range(9801, 9811)), "effect": tuple(range(9801, 9805))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
