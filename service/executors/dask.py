@@ -272,7 +272,8 @@ class DaskPool:
                         return
                     task, fut = self._suspects.popleft()
                     batch = _Batch([task], [fut], alone=True)
-                    self._inflight, self._inflight_windows = 1, 1
+                    self._inflight += 1
+                    self._inflight_windows += len(batch.tasks)
                     self.batches += 1
                     self.rerun_alone += 1
                 else:

@@ -188,7 +188,7 @@ def test_a_period_on_the_cluster_gives_the_local_pools_parameters(pool_of):
     on_dask = _period(dask_pool, windows, warm)
     local = LocalPool(2, "service.worker:identify_window", 120.0)
     try:
-        assert local.wait_ready(180)
+        assert local.wait_ready(600)  # workers import numpy/numba: minutes on a loaded 2-core machine
         on_local = _period(local, windows, warm)
     finally:
         local.close()
