@@ -163,7 +163,7 @@ def window_library(kind: str, seed: int) -> list[dict]:
             snr = noise_draw(f"{kind}/{seed}", lvl, t0)[1]
             cell = {"snr_db": snr}
             for mode in MODES:
-                g = (gp, gq, gpq) if mode == "input" else (np.zersep_oclike(gp),) * 3
+                g = (gp, gq, gpq) if mode == "input" else (np.zeros_like(gp),) * 3
                 cell[mode] = pair_zs(r0, res, true, snr, (sp, sq), g)
             row["levels"][str(lvl)] = cell
         out.append(row)
@@ -267,6 +267,8 @@ def library_cases(windows: list[dict], sets: list[str], stems: dict[str, str], z
                     if r is not None:
                         row["snr_record_db"] = r["snr_db"]
                         row["outcome"] = r["cause"] if r["verdict"] == "explained" else r["verdict"]
+                        true_z = [x["z"] for x in r["candidates"] if x["name"] == w["truth"]]
+                        row["z_true_diag"] = true_z[0] if true_z else None
                         named = row["outcome"]
                         if named in cell["fwd"]:  # a wrong name: the true form against the named one
                             row["named"] = {"fwd": cell["fwd"][named], "back": cell["back"][named],
@@ -348,6 +350,13 @@ def library_markdown(tab: list[dict], targets: list[dict], cases: list[dict], zc
         lines.append(f"| {g['mode']} | L{g['level']} | {g['cases']} | {g['detectable']} | {g['det_sep']} | "
                      f"{g['right_det_sep']}/{g['det_sep']} = {share} | {100 * g['goal']:.0f} % | "
                      f"{'met' if g['met'] else 'not met'} | {miss} |")
+    lines += ["", "The diagnosis's score z of the true candidate over the oracle's (detectable cases): median (quartiles)", ""]
+    for mode in MODES:
+        q = [c["z_true_diag"] / c["z_true"] for c in cases if c["mode"] == mode and c["detectable"]
+             and c.get("z_true_diag") is not None and c.get("z_true")]
+        if q:
+            lo, mid, hi = np.percentile(q, [25, 50, 75])
+            lines.append(f"* {mode}: {mid:.2f} ({lo:.2f}–{hi:.2f}), {len(q)} cases")
     wrong = [c for c in cases if "named" in c]
     if wrong:
         lines += ["", "Wrong names: the true form against the named one (oracle z forward = true over named, back = "
@@ -385,7 +394,7 @@ def library_main(args, argv) -> int:
     have = {(w["kind"], w["seed"]) for w in windows}
     todo = [j for j in todo if j not in have]
     partial = cache_dir() / f"{args.out}.partial.jsonl"  # every scenario's windows as they come
-    with ProcessPoolExecutor(max_workers=args.workers) as pool, partial.open("a") as fh:
+    with ProcessPoolExecutor(max_workers=args.workers) as pool, (partial.open("a") if todo else open(os.devnull, "w")) as fh:
         for job, ws in zip(todo, pool.map(window_library, *zip(*todo, strict=True)) if todo else [], strict=True):
             windows += ws
             fh.writelines(json.dumps(w, default=float) + "\n" for w in ws)
