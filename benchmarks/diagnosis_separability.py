@@ -245,6 +245,7 @@ def _holm(p: dict[str, float], alpha: float) -> list[str]:
 def library_cases(windows: list[dict], sets: list[str], stems: dict[str, str], zcrit: float,
                   margin: float = 0.0) -> list[dict]:
     """Every case (window, level, noise mode) of the sets with its oracle and its run-of-record verdict."""
+    from aslm_core.diagnosis.candidates import LIBRARY
     from benchmarks.diagnosis_detectability import _records
 
     by_key = {(w["kind"], w["seed"], w["window"][0]): w for w in windows}
@@ -267,13 +268,28 @@ def library_cases(windows: list[dict], sets: list[str], stems: dict[str, str], z
                     if r is not None:
                         row["snr_record_db"] = r["snr_db"]
                         row["outcome"] = r["cause"] if r["verdict"] == "explained" else r["verdict"]
+                        if r["verdict"] == "ambiguous":
+                            row["causes"] = {n: [cell["fwd"].get(n), cell["back"].get(n)]
+                                             for n in r.get("report_extra", {}).get("causes", []) if n != w["truth"]}
                         true_z = [x["z"] for x in r["candidates"] if x["name"] == w["truth"]]
                         row["z_true_diag"] = true_z[0] if true_z else None
                         named = row["outcome"]
                         if named in cell["fwd"]:  # a wrong name: the true form against the named one
                             row["named"] = {"fwd": cell["fwd"][named], "back": cell["back"][named],
                                             "score": cell["score"][named], "rival": named in sep["rivals"]}
+                    row["fwd_look_alikes"] = {n: cell["fwd"][n] for n in LIBRARY[w["truth"]].confusable
+                                              if n in cell["fwd"]}
                     out.append(row)
+    return out
+
+
+def look_alike_margins(cases: list[dict]) -> dict:
+    """{(mode, kind, look-alike): [forward z's of the detectable cases at L1, L2, L3]}."""
+    out: dict = {}
+    for c in cases:
+        if c["detectable"]:
+            for n, z in c.get("fwd_look_alikes", {}).items():
+                out.setdefault((c["mode"], c["kind"], n), [[], [], []])[c["level"] - 1].append(z)
     return out
 
 
@@ -357,6 +373,20 @@ def library_markdown(tab: list[dict], targets: list[dict], cases: list[dict], zc
         if q:
             lo, mid, hi = np.percentile(q, [25, 50, 75])
             lines.append(f"* {mode}: {mid:.2f} ({lo:.2f}–{hi:.2f}), {len(q)} cases")
+    lines += ["", "The true form over its declared look-alike, detectable windows: median (range) of the oracle's forward z",
+              "", "| mode | kind | look-alike | L1 | L2 | L3 |", "|---|---|---|---|---|---|"]
+    for (mode, kind, other), per in look_alike_margins(cases).items():
+        cells = [f"{np.median(z):.1f} ({min(z):.1f}–{max(z):.1f}), {len(z)}" if z else "-" for z in per]
+        lines.append(f"| {mode} | {kind} | {other} | " + " | ".join(cells) + " |")
+    amb = [c for c in cases if c.get("outcome") == "ambiguous" and c["detectable"] and c["separable"]]
+    if amb:
+        lines += ["", "Detectable, separable and `ambiguous`: the oracle's z of the true form over each other listed "
+                  "cause, and back", "", "| mode | kind | seed | window | level | z_oracle | listed with (fwd / back) |",
+                  "|---|---|---|---|---|---|---|"]
+        for c in amb:
+            listed = "; ".join(f"{n} {_f(zs[0])} / {_f(zs[1])}" for n, zs in c.get("causes", {}).items()) or "-"
+            lines.append(f"| {c['mode']} | {c['kind']} | {c['seed']} | {c['window']:g} | L{c['level']} | "
+                         f"{c['z_oracle']:.1f} | {listed} |")
     wrong = [c for c in cases if "named" in c]
     if wrong:
         lines += ["", "Wrong names: the true form against the named one (oracle z forward = true over named, back = "
@@ -373,18 +403,28 @@ def library_markdown(tab: list[dict], targets: list[dict], cases: list[dict], zc
     return "\n".join(lines)
 
 
+def _f(x: float | None) -> str:
+    return "-" if x is None else f"{x:.1f}"
+
+
+def _sets(arg: str) -> list[str]:
+    """The comma-separated set names, refused when unknown or fixed for a later confirmation."""
+    sets = [s for s in arg.split(",") if s]
+    if "confirm5" in sets:
+        raise SystemExit("confirm5 is fixed for a later confirmation: not for development")
+    unknown = [s for s in sets if s not in SETS]
+    if unknown:
+        raise SystemExit(f"unknown sets {unknown}")
+    return sets
+
+
 def library_main(args, argv) -> int:
     """``--library``: :func:`window_library` on the sets' inside-library kinds, tallied against the verdicts."""
     from aslm_core.diagnosis.candidates import LIBRARY
     from aslm_sim.andes.effects import KINDS, cache_dir
     from benchmarks.diagnosis_detectability import _load_windows, critical_z
 
-    sets = [s for s in args.sets.split(",") if s]
-    if "confirm5" in sets:
-        raise SystemExit("confirm5 is fixed for a later confirmation: not for development")
-    unknown = [s for s in sets if s not in SETS]
-    if unknown:
-        raise SystemExit(f"unknown sets {unknown}")
+    sets = _sets(args.sets)
     kinds = [k for k in (args.kinds.split(",") if args.kinds else KINDS) if KINDS[k].expected in LIBRARY]
     stems = {s: f"diagnosis_independent_{s}" for s in sets}
     stems.update(dict(kv.split(":", 1) for kv in args.verdicts.split(",") if kv))
@@ -434,12 +474,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.library:
         return library_main(args, argv)
-    sets = [s for s in args.sets.split(",") if s]
-    if "confirm5" in sets:
-        raise SystemExit("confirm5 is fixed for a later confirmation: not for development")
-    unknown = [s for s in sets if s not in SETS]
-    if unknown:
-        raise SystemExit(f"unknown sets {unknown}")
+    sets = _sets(args.sets)
     todo = sorted({j for st in sets for j in jobs(st, list(PAIR))})
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
