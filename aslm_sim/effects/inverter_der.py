@@ -1,7 +1,9 @@
 """A DER/inverter load: Q–V droop and a P–V response through a first-order voltage transducer lag T.
 
 The lag (T ~ U[0.3, 2] s) is integrated by RK4 at 1 ms on the spline-interpolated voltage magnitude.
-Magnitude: the droop Kq/P0 [pu/pu]; Kp is up to 0.3 of it, either sign.
+Magnitude: the droop Kq/P0 [pu/pu]; Kp is up to 0.3 of it, either sign.  Load convention (P, Q consumed): a
+Q–V droop (volt-var) injects Q when V drops and absorbs it when V rises, so the consumed Q rises with V,
+Kq > 0.  Until stop 31 this effect had the opposite sign (Q injected as V rises), which no droop does.
 """
 
 from __future__ import annotations
@@ -40,10 +42,10 @@ def generate(case: SyntheticCase, magnitude: float, rng: np.random.Generator) ->
     T = rng.uniform(0.3, 2.0)
     vdf, _, stride, h = fine_inputs(w.t, w.V, np.zeros_like(w.V))
     vf = _lag(vdf, stride, h, T, w.V.size)
-    kq = magnitude * p0  # Q–V droop [pu/pu]: Q_der = −Kq·(Vf − V0)
+    kq = magnitude * p0  # Q–V droop [pu/pu], consumed: Q_der = Kq·(Vf − V0)
     kp = 0.3 * magnitude * p0 * rng.uniform(-1.0, 1.0)
     dv = vf - vf[0]
-    return -kp * dv, -kq * dv, {"T": T, "Kp": -kp, "Kq": -kq}
+    return -kp * dv, kq * dv, {"T": T, "Kp": -kp, "Kq": kq}
 
 
 EFFECT = Effect(name="inverter_der", generate=generate, magnitude=(1.0, 4.0), channels="Q", in_library=True,

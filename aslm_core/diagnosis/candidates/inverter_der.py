@@ -7,10 +7,16 @@ linearly to it::
 
     T·dVf/dt = V − Vf,        P_der = Kp·Vf + const,    Q_der = Kq·Vf + const
 
-For a given T the extra columns Vf enter the lower-stage regression (Kp [pu/pu] on P, Kq [pu/pu] on Q;
-droop: Kq < 0 for a DER injecting Q when V drops, as a load convention); T is one nonlinear parameter of
-the upper stage, bounded to [0.02, 10] s, started from the best of a logarithmic scan with D held at the
-plain fit.  Vf is integrated with the trapezoidal rule at the sample step from Vf(0) = V(0).
+For a given T the extra columns Vf enter the lower-stage regression (Kp [pu/pu] on P, Kq [pu/pu] on Q,
+load convention: P, Q consumed); T is one nonlinear parameter of the upper stage, bounded to [0.02, 10] s,
+started from the best of a logarithmic scan with D held at the plain fit.  Vf is integrated with the
+trapezoidal rule at the sample step from Vf(0) = V(0).
+
+Sign: a Q–V droop (volt-var) injects Q when V drops and absorbs it when V rises, so the Q it consumes rises
+with V: Kq > 0.  A fit with Kq < 0 is implausible (never significant, no rival): a lagged Q that falls as V
+rises is what a load's own Q switching looks like through the network (its step pulls V down, so the consumed
+Q and the lagged V move against each other), not a droop.  Kp has no such constraint: a volt-watt DER gives
+Kp > 0, a power-electronic load whose controller restores its power after a voltage change Kp < 0.
 
 Signature: a residual coherent with V but lagging it (phase −atan(2πfT)), strongest in Q; with T → 0 it
 is indistinguishable from ZIP's linear term, so only lags of ~0.1 s and more are detectable.
@@ -49,6 +55,12 @@ class InverterDER(Candidate):
 
     def starts(self, seg: Segment, ctx: Context) -> list[np.ndarray]:
         return [np.array([lag_start(seg, ctx, seg.V, T_GRID_S, 0.5)])]
+
+    def implausible(self, params: dict[str, float], seg: Segment, ctx: Context) -> str | None:
+        if params.get("Kq", 0.0) < 0.0:
+            return (f"Kq = {params['Kq']:.3g} pu/pu < 0: the consumed Q falls as V rises, which no Q–V droop does "
+                    "(a load's own Q switching seen through the network does)")
+        return None
 
 
 #: The library entry (registered by module name in :mod:`aslm_core.diagnosis.candidates`).

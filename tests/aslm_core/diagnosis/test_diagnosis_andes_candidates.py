@@ -210,3 +210,20 @@ def test_a_stator_resistance_that_clears_the_excess_is_named_on_the_bound():
     assert rep.model.at_bound.get("b") == 30.0, "the case no longer pins the plain fit: it tests nothing here"
     assert rep.verdict == "explained" and rep.cause == "stator_resistance", rep.message
     assert rep.candidate("stator_resistance").remaining_excess_channels == []
+
+
+def test_a_thermostatic_load_fitted_as_a_droop_of_the_wrong_sign_is_not_named_inverter_der():
+    from aslm_sim.andes import effects
+    from benchmarks import diagnosis_independent as di
+
+    # Scenario 9703 of the eighth confirmation set (development data since), second window at L1 with the V/θ
+    # noise: a load cycling on and off (outside the library) was named `inverter_der` (z 25, 54 % of the held-out
+    # excess) with Kq = −1.38 ± 0.23: its Q steps pull V down through the network, so the consumed Q moves against
+    # the lagged V, which a droop (Kq > 0 in load convention) cannot do.  Stop 31: such a fit is implausible.
+    rec = effects.recording("thermostatic_cycling", 9703, tf=di.TF, tstep=di.TSTEP)
+    w, _ = di._window(rec, *di.WINDOWS[1], 1, True, "thermostatic_cycling/9703")
+    rep = diagnose(w)
+    e = rep.candidate("inverter_der")
+    assert e.parameters["Kq"] < 0 and e.score_z > 3, "the droop no longer fits this case: it tests nothing here"
+    assert not e.significant
+    assert rep.cause != "inverter_der" and "inverter_der" not in rep.causes, rep.message

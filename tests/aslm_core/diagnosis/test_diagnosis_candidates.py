@@ -118,7 +118,18 @@ def test_inverter_der_recovers_lag_and_droop():
     assert rep.cause == "inverter_der", rep.missing_physics[:2]
     e = rep.candidate("inverter_der")
     assert e.parameters["T"] == pytest.approx(ec.truth["T"], rel=0.15)
+    assert ec.truth["Kq"] > 0  # a droop: the consumed Q rises with V (load convention)
     assert e.parameters["Kq"] == pytest.approx(ec.truth["Kq"], rel=0.1)
+
+
+def test_a_droop_of_the_wrong_sign_is_implausible():
+    from aslm_core.diagnosis.candidates import LIBRARY
+
+    cand = LIBRARY["inverter_der"]
+    # Kp either sign (volt-watt DER or a power-restoring converter load); Kq only with the droop's sign.
+    assert cand.implausible({"Kp": -0.3, "Kq": 1.2, "T": 0.8}, None, None) is None
+    assert cand.implausible({"Kp": 0.3, "Kq": 1.2, "T": 0.8}, None, None) is None
+    assert "Kq" in cand.implausible({"Kp": 0.3, "Kq": -1.2, "T": 0.8}, None, None)
 
 
 def test_switched_shunt_recovers_the_banks_susceptance_and_relay():
