@@ -46,7 +46,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import fft
 
-from aslm_core.diagnosis.segment import Segment, _lowpass
+from aslm_core.diagnosis.segment import Segment, _lowpass, driver_noise
 from aslm_core.noise import FLOOR_FROM_HZ, noise_floor, periodogram
 
 #: Upper edge of the ambient band the fits and held-out tests use [Hz].
@@ -214,8 +214,16 @@ class NoiseModel:
 
 
 def perturbed(seg: Segment, V: np.ndarray, theta: np.ndarray) -> Segment:
-    """The segment with other V and θ (the dq inputs recomputed; everything else kept)."""
-    return replace(seg, V=V, theta=theta)
+    """The segment with other V and θ: the dq inputs, dV/dt and (when derived from θ) Δf follow them.
+
+    The candidates' extra columns are built from Δf and dV/dt, so an input-noise draw reaches a candidate's
+    output through them as well as through the dq inputs; without them its propagated noise, and the
+    errors-in-variables bias of the held-out tests estimated from it, missed that path (docs/diagnosis.md,
+    "Stop 31: the frequency term with noise on V and θ").
+    """
+    ddv, ddf = driver_noise(V - seg.V, theta - seg.theta, seg.fs)
+    return replace(seg, V=V, theta=theta, dvdt=seg.dvdt + ddv,
+                   dfreq=seg.dfreq + ddf if seg.dfreq_from_theta else seg.dfreq)
 
 
 def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndarray] | None], win: slice, *,

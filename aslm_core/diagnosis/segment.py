@@ -45,6 +45,10 @@ class Segment:
         First held-out sample.
     ke : int
         End (exclusive) of the held-out samples (a short guard before the window's end).
+    bus : str
+        The window's bus.
+    dfreq_from_theta : bool
+        Whether ``dfreq`` was derived from θ (False: from a recorded ``f``).
     """
 
     t: np.ndarray
@@ -60,6 +64,7 @@ class Segment:
     ks: int
     ke: int
     bus: str = ""
+    dfreq_from_theta: bool = True
 
     def __post_init__(self) -> None:
         self.omega0 = motor.omega0_of(self.f0)
@@ -116,6 +121,27 @@ def _lowpass(x: np.ndarray, fs: float, fc: float) -> np.ndarray:
     return y[::-1][edge:-edge]
 
 
+def driver_noise(dv: np.ndarray, dtheta: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """What a change (dv, dθ) of V [pu] and θ [rad] does to dV/dt [pu/s] and to Δf derived from θ [Hz], as
+    :func:`make_segment` builds them (both linear in the inputs but for Δf's median, a constant).
+
+    Parameters
+    ----------
+    dv, dtheta : ndarray
+        Changes of V and θ on the segment's grid.
+    fs : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        The changes of dV/dt and of Δf.
+    """
+    dt = 1.0 / fs
+    return (_lowpass(np.gradient(dv, dt), fs, FREQ_LOWPASS_HZ),
+            _lowpass(np.gradient(dtheta, dt) / (2.0 * math.pi), fs, FREQ_LOWPASS_HZ))
+
+
 def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float = 0.65,
                  guard_s: float = 0.1) -> Segment:
     """Prepare a window and split it in time.
@@ -139,7 +165,8 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
     n = prep.V.shape[0]
     dt = prep.dt
     fs = 1.0 / dt
-    if window.f is not None and window.f.shape[0] == n and np.all(np.isfinite(window.f)):
+    from_theta = not (window.f is not None and window.f.shape[0] == n and np.all(np.isfinite(window.f)))
+    if not from_theta:
         df = np.asarray(window.f, float) - window.f0
     else:
         df = np.gradient(prep.theta, dt) / (2.0 * math.pi)
@@ -151,4 +178,4 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
     if ks - k0 < 50 or ke - ks < 50:
         raise ValueError(f"window too short to split: {n} samples")
     return Segment(t=prep.t, V=prep.V, theta=prep.theta, P=prep.P, Q=prep.Q, dfreq=df, dvdt=dvdt, dt=dt,
-                   f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus)
+                   f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus, dfreq_from_theta=from_theta)
