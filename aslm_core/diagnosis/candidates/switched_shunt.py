@@ -641,7 +641,9 @@ class SwitchedShunt(Candidate):
                 for c3 in np.arange(0, int(T_OP_MAX_S / seg.dt + 1e-9) + 1) * seg.dt:
                     best, z = _better(ssr, best, z, (*zq[:3], float(c3), *zq[4:]))
         if np.isfinite(best):
-            z = (*z[:5], margin_threshold(steps, float(z[5]), tr, STEP_SCALES[0] * scale))
+            # The range is read on the training samples whose statistic sees no held-out V (it spans ±2m samples).
+            z = (*z[:5], margin_threshold(steps, float(z[5]), slice(tr.start, tr.stop - 2 * STEP_SAMPLES),
+                                          STEP_SCALES[0] * scale))
         if relay_best < best:
             best, z = relay_best, relay_z
         # The third: the two-state path under a smooth background, for a V whose noise drowns the 20 ms steps;
