@@ -26,9 +26,11 @@ many of its switchings even with its true settings (ANDES's relay of the indepen
 source, the steps the bank leaves in V itself — an input, so the held-out prediction still uses inputs only::
 
     d_k = mean(V[k : k+m]) − mean(V[k−m : k])           (m = STEP_SAMPLES: the step over 20 ms)
-    events: |d_k| ≥ dV at a local maximum of |d_k|;  s: 0 → 1 at a rising event, 1 → 0 at a falling one
+    e_k = 3/2·(d_k − (mean(V[k+m : k+2m]) − mean(V[k−2m : k−m]))/3)     (the step against V's local slope)
+    events: |e_k| ≥ dV at a local maximum of |e_k|;  s: 0 → 1 at a rising event, 1 → 0 at a falling one
 
-(an event of the sign the state already has is no switching: a bank cannot go in twice).  dV [pu] is the
+(an event of the sign the state already has is no switching: a bank cannot go in twice; a straight ramp gives
+e = 0, where a steep ambient swing of V gives d the size of a small bank's step).  dV [pu] is the
 event threshold; dV = 0 (below ``DV_STEP_MIN``) selects the relay law above.  With steps, s(t) is shifted by t_op
 too (the recorded Q step may trail V's: ANDES's bench books the bank one 10 ms step late in Q), Vc ∓ dv are
 reported as the median V the relay read before its switchings in and out, and τ as 0.
@@ -144,6 +146,22 @@ def step_statistic(v: np.ndarray, m: int = STEP_SAMPLES) -> np.ndarray:
     return d
 
 
+def detrended_step(v: np.ndarray, m: int = STEP_SAMPLES) -> np.ndarray:
+    """V's step at sample k against its local slope [pu]: 3/2·(d_k − o_k/3), d_k the :func:`step_statistic` and
+    o_k = mean(v[k+m:k+2m]) − mean(v[k−2m:k−m]) the step between its outer flanks (0 where the window is too short).
+
+    A step h gives h, a straight ramp 0: the ambient V is smooth over the 4m samples (content below ~2 Hz), a
+    bank's switching is not, and the 2m-sample statistic alone reads a steep ambient swing as a step.
+    """
+    c = np.concatenate([[0.0], np.cumsum(v)])
+    d = step_statistic(v, m)
+    out = np.zeros(v.shape[0])
+    k = np.arange(2 * m, v.shape[0] - 2 * m + 1)
+    outer = (c[k + 2 * m] - c[k + m] - c[k - m] + c[k - 2 * m]) / m
+    out[k] = 1.5 * (d[k] - outer / 3.0)
+    return out
+
+
 @numba.njit(cache=True)
 def _is_event(d: np.ndarray, k: int, dv_step: float, m: int) -> bool:
     # One event per step: |d| peaks once over the 2m samples its window straddles the step.
@@ -167,6 +185,36 @@ def step_state(d: np.ndarray, dv_step: float, m: int) -> np.ndarray:
             on = 1.0 if d[k] > 0 else 0.0
         s[k] = on
     return s
+
+
+def margin_threshold(d: np.ndarray, dv_step: float, part: slice, floor: float) -> float:
+    """The steps' threshold [pu] moved to the geometric middle of the range that reads the same state on ``part``.
+
+    The training samples fix the threshold only up to the range between the largest peak of |d| it must leave
+    out and the smallest it must take (both limits found among the peaks, each the point where ``part``'s state
+    changes); its middle keeps the held-out steps and the ambient's peaks as far from it, in ratio, as the training
+    ones allow.  The lower limit is at least ``floor`` [pu] (the scan's least threshold: below it, noise).
+    """
+    a = np.abs(d)
+    m = STEP_SAMPLES
+    pk = np.unique([a[k] for k in range(a.size) if a[k] > 0.0 and a[k] == a[max(k - m, 0):k + m + 1].max()])
+    ref = step_state(d, dv_step, m)[part]
+    lo = floor
+    for v in pk[pk < dv_step][::-1]:
+        if v <= floor:
+            break
+        if not np.array_equal(step_state(d, float(v), m)[part], ref):
+            lo = float(v)
+            break
+    hi = None
+    for v in pk[pk > dv_step]:
+        if not np.array_equal(step_state(d, float(v) * (1.0 + 1e-9), m)[part], ref):
+            hi = float(v)
+            break
+    if hi is None or lo <= 0.0 or hi <= lo:
+        return dv_step
+    mid = float(np.sqrt(lo * hi))
+    return mid if np.array_equal(step_state(d, mid, m)[part], ref) else dv_step
 
 
 @numba.njit(cache=True)
@@ -491,10 +539,11 @@ class SwitchedShunt(Candidate):
 
     def _steps(self, seg: Segment) -> np.ndarray:
         # The steps are read on V as measured: the 5 Hz low-pass the relay law reads through would spread a
-        # step over ±0.1 s, ahead of the switching too (zero phase).
+        # step over ±0.1 s, ahead of the switching too (zero phase).  Against V's local slope: a steep ambient
+        # swing crosses the plain statistic's threshold in held-out data the training scan never saw (stop 31).
         v, d = self._last_d
         if v is not seg.V:
-            d = step_statistic(seg.V)
+            d = detrended_step(seg.V)
             self._last_d = (seg.V, d)
         return d
 
@@ -581,12 +630,22 @@ class SwitchedShunt(Candidate):
         else:
             z, best = tuple(mid), np.inf
         # The other source of the state: V's own steps, the threshold over multiples of the statistic's noise.
+        # Where it ties with the relay law on the training samples, it is kept: the same training state with two
+        # scanned parameters instead of five.
+        relay_best, relay_z = best, z
+        best, z = np.inf, z
         scale = robust_scale(steps)
         for q in STEP_SCALES:
             if scale > 0.0:
                 zq = self._point(seg, step_state(steps, q * scale, STEP_SAMPLES), 0.0, q * scale)
                 for c3 in np.arange(0, int(T_OP_MAX_S / seg.dt + 1e-9) + 1) * seg.dt:
                     best, z = _better(ssr, best, z, (*zq[:3], float(c3), *zq[4:]))
+        if np.isfinite(best):
+            # The range is read on the training samples whose statistic sees no held-out V (it spans ±2m samples).
+            z = (*z[:5], margin_threshold(steps, float(z[5]), slice(tr.start, tr.stop - 2 * STEP_SAMPLES),
+                                          STEP_SCALES[0] * scale))
+        if relay_best < best:
+            best, z = relay_best, relay_z
         # The third: the two-state path under a smooth background, for a V whose noise drowns the 20 ms steps;
         # h over multiples of V's white-noise scale, the least dwell over the relay delays.  Larger h and dwells
         # first: where the training samples' states tie, the path with fewer, better-supported switchings stays.
