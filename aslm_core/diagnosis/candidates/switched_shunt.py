@@ -679,19 +679,6 @@ class SwitchedShunt(Candidate):
         if abs(params.get("dV", 0.0)) >= DV_STEP_MIN and params.get("dv", 0.0) <= 0.0:
             return ("V before the bank's switchings in is not below V before its switchings out: "
                     "no voltage relay switches it")
-        # A bank exchanges no active power: where it switches, Q steps by B·V² and P only through V's step (a few %
-        # of that).  Steps of P as large as Q's at the state's switchings are another load switching both.
-        z = np.array([float(params.get(k, 0.0)) for k in self.nl_names])
-        s = _state(self._relay_v(seg), z, seg.dt, self._steps(seg), self._two(seg))
-        k = np.flatnonzero(np.diff(s)) + 1
-        k = k[(k >= 2 * STEP_SAMPLES) & (k <= seg.n - 2 * STEP_SAMPLES)]
-        if k.size:
-            sg = s[k] - s[k - 1]
-            ep = float(np.mean(sg * detrended_step(seg.P)[k]))
-            eq = float(np.mean(sg * detrended_step(seg.Q)[k]))
-            if abs(ep) >= abs(eq):
-                return (f"P steps at the state's switchings as much as Q (mean steps {ep:.2g}, {eq:.2g} pu): "
-                        "a load switching P and Q together, not a capacitor bank")
         return None
 
 
