@@ -78,6 +78,9 @@ T_OP_MAX_S = 0.1  # [s] a breaker closes within a few cycles
 #: Samples each side of the V-step statistic: a switching's V step spreads over two samples when the record
 #: is interpolated between a simulator's (or a PMU's) instants.
 STEP_SAMPLES = 2
+#: How many standard errors P's mean step at a fitted state's switchings must reach before "P steps as much as
+#: Q" makes the fit implausible (:meth:`SwitchedShunt.implausible`) [-]; 3, a plain significance level, not tuned.
+P_STEP_Z = 3.0
 #: Scan of the V-step threshold dV in units of the step statistic's robust (MAD) noise scale.
 STEP_SCALES = (3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 16.0)
 #: dV below this [pu] selects the relay law: the upper stage's box clipping nudges a scanned 0 to ~1e-9.
@@ -679,6 +682,24 @@ class SwitchedShunt(Candidate):
         if abs(params.get("dV", 0.0)) >= DV_STEP_MIN and params.get("dv", 0.0) <= 0.0:
             return ("V before the bank's switchings in is not below V before its switchings out: "
                     "no voltage relay switches it")
+        # A bank exchanges no active power: where it switches, Q steps by B·V² and P only through V's step (a few %
+        # of that).  P stepping at the state's switchings, significantly and as much as Q, is another load switching
+        # both.  Significance matters: at a bank's switchings P's mean step is noise, which at a few switchings can
+        # match a small bank's Q step (the synthetic self-test's banks, ΔP = 0 by construction).
+        z = np.array([float(params.get(k, 0.0)) for k in self.nl_names])
+        s = _state(self._relay_v(seg), z, seg.dt, self._steps(seg), self._two(seg))
+        k = np.flatnonzero(np.diff(s)) + 1
+        k = k[(k >= 2 * STEP_SAMPLES) & (k <= seg.n - 2 * STEP_SAMPLES)]
+        if k.size:
+            sg = s[k] - s[k - 1]
+            dp = detrended_step(seg.P)
+            ep = float(np.mean(sg * dp[k]))
+            eq = float(np.mean(sg * detrended_step(seg.Q)[k]))
+            se_p = robust_scale(dp[2 * STEP_SAMPLES:seg.n - 2 * STEP_SAMPLES]) / np.sqrt(k.size)
+            if abs(ep) >= abs(eq) and abs(ep) > P_STEP_Z * se_p:
+                return (f"P steps at the state's switchings as much as Q (mean steps {ep:.2g}, {eq:.2g} pu; P's "
+                        f"{abs(ep) / se_p:.1f} standard errors): a load switching P and Q together, not a capacitor "
+                        "bank")
         return None
 
 

@@ -75,3 +75,33 @@ def test_margin_threshold_lies_between_the_peaks_the_training_state_leaves_and_t
         ambient = max(a[k] for k in peaks if np.min(np.abs(edges - k)) > m)
         # Above the floor and every ambient peak of the training part, below its least step.
         assert max(floor, ambient) < mid < a[edges].min(), (seed, floor, ambient, mid, a[edges].min())
+
+
+def test_a_load_switching_p_and_q_is_not_a_capacitor_bank():
+    # The same V steps, once from a bank (Q steps by −B·V², P only through V) and once from a load switching its
+    # own P and Q (confirm8's thermostatic cycling: V falls as it switches on): the steps' form reads the same state
+    # from both, and only the bank's fit is plausible.  P's step at the bank's switchings is noise (here none): the
+    # rule asks P to step significantly, so a bank whose P is noisy is not rejected by chance.
+    from aslm_core import Window
+    from aslm_core.diagnosis.segment import make_segment
+
+    v, s = _window(0)
+    t = np.arange(v.size) / FS
+    theta = 0.01 * np.sin(2 * np.pi * 0.3 * t)
+    b = 0.014
+    p_bank, q_bank = 0.3 * v**1.5, 0.1 * v**2 - b * s * v**2
+    u = 1.0 - s  # the load is on where the bank would be out
+    p_load, q_load = 0.3 * v**1.5 + 0.004 * u, 0.1 * v**2 + 0.0022 * u
+    params = {"Vc": 1.0, "dv": 1e-3, "tau": 0.0, "t_op": 0.0, "s0": 0.0, "dV": 0.75e-3}
+    cand = ss.CANDIDATE
+    # A small bank (Q step 2e-4 pu) under white noise on P of 2e-3 pu: P's mean step at its switchings is as large
+    # as Q's, by chance, but not significant — still a bank.
+    rng = np.random.default_rng(7)
+    p_noisy, q_small = 0.3 * v**1.5 + 2e-3 * rng.standard_normal(v.size), 0.1 * v**2 - 2e-4 * s * v**2
+    cases = ((p_bank, q_bank, True), (p_load, q_load, False), (p_noisy, q_small, True))
+    for p, q, plausible in cases:
+        seg = make_segment(Window(t, v, theta, p, q, f0=50.0))
+        state = ss._state(cand._relay_v(seg), np.array(list(params.values())), seg.dt, cand._steps(seg), None)
+        assert np.mean(state != s) < 0.01  # the steps' form reads the bank's (or the load's) switchings
+        why = cand.implausible(params, seg, None)
+        assert (why is None) == plausible, why
