@@ -636,7 +636,7 @@ class SwitchedShunt(Candidate):
         # Where it ties with the relay law on the training samples, it is kept: the same training state with two
         # scanned parameters instead of five.
         relay_best, relay_z = best, z
-        best, z = np.inf, z
+        best = np.inf
         scale = robust_scale(steps)
         for q in STEP_SCALES:
             if scale > 0.0:
@@ -697,9 +697,10 @@ class SwitchedShunt(Candidate):
             eq = float(np.mean(sg * detrended_step(seg.Q)[k]))
             se_p = robust_scale(dp[2 * STEP_SAMPLES:seg.n - 2 * STEP_SAMPLES]) / np.sqrt(k.size)
             if abs(ep) >= abs(eq) and abs(ep) > P_STEP_Z * se_p:
+                # A P without noise (se_p 0) is a synthetic window's: its step is certain, not infinitely many SEs.
+                z_text = f"{abs(ep) / se_p:.1f} standard errors" if se_p > 0 else "P carries no noise"
                 return (f"P steps at the state's switchings as much as Q (mean steps {ep:.2g}, {eq:.2g} pu; P's "
-                        f"{abs(ep) / se_p:.1f} standard errors): a load switching P and Q together, not a capacitor "
-                        "bank")
+                        f"{z_text}): a load switching P and Q together, not a capacitor bank")
         return None
 
 
