@@ -132,6 +132,7 @@ def main(argv=None) -> dict:
                        "tm_upper_rel": obj["upper_tm"] / c.truth.d[3],
                        "weighted_shift_z": r.quality.get("weighted_shift_z", math.nan),
                        "gated_iv": bool(r.quality.get("gated_ar_iv", 0.0)),
+                       "weighted_chi2": sw.quality.get("weighted_chi2", math.nan),
                        "S_at_truth": {"J_answer": obj_t["answer"]["J"], "J_truth": obj_t["truth"]["J"],
                                       "J_from_truth": obj_t["from_truth"]["J"],
                                       "from_truth_ratio": (np.array(obj_t["from_truth"]["d"]) / c.truth.d).tolist()},
@@ -147,6 +148,9 @@ def main(argv=None) -> dict:
                 best_alt = min(row["J_truth"], row["J_from_truth"], row["J_multistart"])
                 j_ref = row["J_ungated"]
                 row["verdict"] = "optimiser" if best_alt < j_ref - 1e-6 * abs(j_ref) else "data"
+                # The likelihood-ratio statistic of the truth against the answer, the objective scaled by the whitened
+                # residual's mean square: ~χ²(4) if S and the smoothed inputs were right.
+                row["lr_truth"] = 2.0 * (row["J_truth"] - j_ref) / row["weighted_chi2"]
                 rows.append(row)
                 print(f"w{i} DL{level} {cls[:6]} z a/Tm {z[0]:+.1f}/{z[3]:+.1f} ratio {ratio.round(3)} "
                       f"J ans {row['J_answer']:.2f} truth {row['J_truth']:.2f} near-truth {row['J_from_truth']:.2f} "
