@@ -13,12 +13,16 @@ ingredient at a time swapped from the default's estimate to the oracle's:
   floor on S's diagonal (:data:`aslm_core.input_weighting.RESIDUAL_SMOOTH_HZ` 0);
 * ``d_truth``: S formed at the true D instead of the output-error D;
 * ``rounds2``: S re-formed at the refined D and the descent repeated (``ROUNDS`` = 2);
-* ``oracle``: inputs, S true and S at the truth together (the frequency-domain counterpart of the oracle GLS).
+* ``oracle``: inputs, S true and S at the truth together (the frequency-domain counterpart of the oracle GLS);
+  ``oracle_full_band`` the same over every bin;
+* candidate estimates of the inputs, each with its own smoother's P_x: the Wiener smoother with the true spectrum
+  (:func:`wiener_given`, not runnable: the ceiling), ``smooth_hz`` 0.25 and 1 Hz, and the signal spectrum of a VAR
+  model of the measured inputs (order by BIC or AIC; with or without today's cut-off rule).
 
 Per cell: σ of D/D_real over the RMS structural bound, the robust spread of each window's error over its own bound
 (1.4826·MAD) and the windows more than ``--z`` of their bound off in a or Tm (and in any parameter).
 
-    .venv/bin/python -m benchmarks.input_noise_decompose [--n 100] [--z 3]
+    .venv/bin/python -m benchmarks.input_noise_decompose [--n 100] [--z 3] [--variants default inputs ...]
 """
 
 from __future__ import annotations
