@@ -69,6 +69,9 @@ VARIANTS = {
     "wiener_true_spectrum": ("fd_true", "own", "est", "oe", 1),
     "wiener_smooth_0.25": ("smooth_0.25", "own", "est", "oe", 1),
     "wiener_smooth_1": ("smooth_1", "own", "est", "oe", 1),
+    "wiener_no_cutoff": ("pgram_nocut", "own", "est", "oe", 1),
+    "wiener_true_spectrum_cut": ("fd_true_cut", "own", "est", "oe", 1),
+    "wiener_power_tail": ("pgram_tail", "own", "est", "oe", 1),
     "wiener_var_bic": ("var", "own", "est", "oe", 1),
     "wiener_var_bic_cut": ("var_bic_cut", "own", "est", "oe", 1),
     "wiener_var_aic_cut": ("var_aic_cut", "own", "est", "oe", 1),
@@ -104,7 +107,7 @@ def true_error_spectrum(v: np.ndarray, th: np.ndarray, fs: float, noise_var: tup
     return (f, px), spectrum
 
 
-def wiener_given(x: np.ndarray, fs: float, sigma, spectrum=None) -> tuple[np.ndarray, tuple]:
+def wiener_given(x: np.ndarray, fs: float, sigma, spectrum=None, tail: bool = False) -> tuple[np.ndarray, tuple]:
     """:func:`aslm_core.noise.wiener_smooth`'s extension, line and taper, with the signal's (V, θ) spectrum
     given: ``spectrum(freqs)`` → (m, 2, 2) per-sample units.  The smoothed signals and (freqs, P_x)."""
     x = np.asarray(x, float)
@@ -122,7 +125,34 @@ def wiener_given(x: np.ndarray, fs: float, sigma, spectrum=None) -> tuple[np.nda
         taper[:h], taper[ne - h:] = ramp, ramp[::-1]
     spec = np.fft.rfft((ext - line) * taper, axis=1)
     freqs = np.fft.rfftfreq(ne, 1.0 / fs)
-    s = spectrum(freqs)
+    if spectrum is None:
+        # wiener_smooth's own estimate (the smoothed periodogram matrix minus R, clipped) without its cut-off rule.
+        width = max(1, int(round(noise.WIENER_SMOOTH_HZ * ne / fs)))
+        sm = np.empty((freqs.size, 2, 2), complex)
+        for i in range(2):
+            for j in range(2):
+                sm[:, i, j] = noise._moving_average(spec[i] * spec[j].conj(), width) / ne
+        s = clipped(sm - np.diag(var))
+        if tail:
+            # Today's cut-off, and above it each channel's power-law continuation of its signal spectrum (a line in
+            # log-log fitted over the octave below the cut-off) instead of zero; no cross-spectrum there.
+            k_min = int(np.ceil(noise.MIN_CUTOFF_HZ * ne / fs))
+            for ch in range(2):
+                pc = sm[:, ch, ch].real
+                below = np.flatnonzero(pc[k_min:] <= noise.CUTOFF_FACTOR * var[ch])
+                end = k_min + int(below[0]) if below.size else pc.size
+                if end >= pc.size:
+                    continue
+                band = np.arange(max(1, end // 2), end)
+                sig = s[band, ch, ch].real
+                ok = sig > 0
+                s[end:, ch, :] = 0.0
+                s[end:, :, ch] = 0.0
+                if ok.sum() >= 3:
+                    slope, icpt = np.polyfit(np.log(freqs[band][ok]), np.log(sig[ok]), 1)
+                    s[end:, ch, ch] = np.exp(icpt + min(slope, 0.0) * np.log(freqs[end:]))
+    else:
+        s = spectrum(freqs)
     r = np.diag(var).astype(complex)
     gain = s @ np.linalg.inv(s + r)
     est = np.einsum("fij,jf->if", gain, spec)
@@ -183,6 +213,22 @@ def run_variant(prep, f0: float, d0: np.ndarray, skip_s: float, d_true: np.ndarr
                                               return_error=True)
         elif inputs == "fd_true":
             vt, own = wiener_given(x, fs, sigma, true_spec)
+        elif inputs == "pgram_nocut":
+            vt, own = wiener_given(x, fs, sigma, None)
+        elif inputs == "pgram_tail":
+            vt, own = wiener_given(x, fs, sigma, None, tail=True)
+        elif inputs == "fd_true_cut":
+            # The true spectrum, zeroed above the cut-offs today's smoother finds in the window.
+            _, cut = noise.wiener_smooth(x, fs, sigma, return_cutoffs=True)
+
+            def cut_spec(f, cut=cut):
+                out = true_spec(f)
+                for ch in range(2):
+                    out[f >= cut[ch], ch, :] = 0.0
+                    out[f >= cut[ch], :, ch] = 0.0
+                return out
+
+            vt, own = wiener_given(x, fs, sigma, cut_spec)
         else:  # "var", "var_bic_cut", "var_aic_cut"
             sp = var_spectrum(x, fs, 60 if "aic" in inputs else 40, "aic" if "aic" in inputs else "bic")
             r = np.diag(np.asarray(sigma, float) ** 2)
