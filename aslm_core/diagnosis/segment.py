@@ -15,7 +15,8 @@ import numpy as np
 from scipy import signal
 
 from aslm_core import motor
-from aslm_core.preprocess import prepare
+from aslm_core.input_weighting import noisy_inputs
+from aslm_core.preprocess import Prepared, prepare
 from aslm_core.window import Window
 
 #: Cut-off of the zero-phase low-pass applied to the bus-frequency deviation [Hz] (passes the ambient
@@ -49,6 +50,12 @@ class Segment:
         The window's bus.
     dfreq_from_theta : bool
         Whether ``dfreq`` was derived from θ (False: from a recorded ``f``).
+    V_raw, theta_raw : ndarray or None
+        V [pu] and θ [rad] as measured, where ``V`` and ``theta`` are their conditional mean
+        (:func:`conditional_mean`); None where they are the measured inputs themselves.
+    input_error : (ndarray, ndarray) or None
+        With the conditional mean: frequencies [Hz] and covariance spectrum (m, 2, 2) of its error x − x̂
+        (:attr:`aslm_core.preprocess.Prepared.input_error`, per-sample units).
     """
 
     t: np.ndarray
@@ -65,10 +72,29 @@ class Segment:
     ke: int
     bus: str = ""
     dfreq_from_theta: bool = True
+    V_raw: np.ndarray | None = None
+    theta_raw: np.ndarray | None = None
+    input_error: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         self.omega0 = motor.omega0_of(self.f0)
         self.vd, self.vq, self.vdm, self.vqm = motor.dq_inputs(self.V, self.theta)
+
+    @property
+    def v_measured(self) -> np.ndarray:
+        """V as measured [pu] (``V`` itself unless that is the conditional mean)."""
+        return self.V if self.V_raw is None else self.V_raw
+
+    @property
+    def theta_measured(self) -> np.ndarray:
+        """θ as measured [rad] (``theta`` itself unless that is the conditional mean)."""
+        return self.theta if self.theta_raw is None else self.theta_raw
+
+    @property
+    def conditional_mean(self) -> bool:
+        """Whether V and θ are the conditional mean of the measured inputs (their error modelled by
+        ``input_error``)."""
+        return self.input_error is not None
 
     @property
     def n(self) -> int:
@@ -142,8 +168,37 @@ def driver_noise(dv: np.ndarray, dtheta: np.ndarray, fs: float) -> tuple[np.ndar
             _lowpass(np.gradient(dtheta, dt) / (2.0 * math.pi), fs, FREQ_LOWPASS_HZ))
 
 
+def conditional_mean(window: Window) -> tuple[Prepared, Prepared | None]:
+    """The window prepared as measured and, where V or θ carries white PMU noise, with V and θ replaced by their
+    conditional mean given the window.
+
+    Parameters
+    ----------
+    window : Window
+
+    Returns
+    -------
+    (Prepared, Prepared or None)
+        ``prepare(window)`` with the floors (``noise``), and ``prepare(window, input_smoother="wiener")`` (P and Q
+        as measured, no low-pass) where :func:`aslm_core.input_weighting.noisy_inputs` says V or θ is noisy, else
+        None.
+
+    Notes
+    -----
+    Why: a model driven by the measured x = x_true + n leaves in its output residual −G·n, whose power
+    |G(f)|²·S_n(f) the fit reduces by shrinking G (errors in variables).  Driven by x̂ = E[x | window] the residual
+    carries G_true·e with e = x − x̂ independent of x̂ (jointly Gaussian signal and noise): its power does not
+    depend on the fitted parameters (regression calibration, as the identifier's ``input_smoother="wiener"``,
+    docs/numerics.md).  Exact inputs are left as measured, so their segment is the one built without this step.
+    """
+    raw = prepare(window, floors=True)
+    if not noisy_inputs(raw.noise):
+        return raw, None
+    return raw, prepare(window, input_smoother="wiener")
+
+
 def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float = 0.65,
-                 guard_s: float = 0.1) -> Segment:
+                 guard_s: float = 0.1, input_mean: bool = True) -> Segment:
     """Prepare a window and split it in time.
 
     Parameters
@@ -156,12 +211,18 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
         Fraction of the window (from its start) used for fitting [-]; the rest is held out.
     guard_s : float
         Samples at the very end left out of the held-out set [s] (room for time shifts).
+    input_mean : bool
+        Replace V and θ by their conditional mean where they carry white noise (:func:`conditional_mean`);
+        False: the measured inputs always.
 
     Returns
     -------
     Segment
+        Where V or θ carries white noise, V and θ (and Δf, dV/dt built from them) are their conditional mean
+        (:func:`conditional_mean`); a recorded f is used as measured.
     """
-    prep = prepare(window)
+    raw, smooth = conditional_mean(window) if input_mean else (prepare(window), None)
+    prep = raw if smooth is None else smooth
     n = prep.V.shape[0]
     dt = prep.dt
     fs = 1.0 / dt
@@ -177,5 +238,7 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
     ke = n - max(1, int(round(guard_s / dt)))
     if ks - k0 < 50 or ke - ks < 50:
         raise ValueError(f"window too short to split: {n} samples")
+    extra = {} if smooth is None else {
+        "V_raw": raw.V, "theta_raw": raw.theta, "input_error": smooth.input_error}
     return Segment(t=prep.t, V=prep.V, theta=prep.theta, P=prep.P, Q=prep.Q, dfreq=df, dvdt=dvdt, dt=dt,
-                   f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus, dfreq_from_theta=from_theta)
+                   f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus, dfreq_from_theta=from_theta, **extra)
