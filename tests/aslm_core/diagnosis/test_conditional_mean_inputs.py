@@ -13,6 +13,7 @@ from scipy import signal
 from aslm_core import motor
 from aslm_core.diagnosis.noise import estimate
 from aslm_core.diagnosis.segment import FREQ_LOWPASS_HZ, _lowpass, make_segment
+from aslm_core.noise import wiener_smooth
 from aslm_core.preprocess import prepare
 from aslm_core.window import Window
 
@@ -57,16 +58,24 @@ def test_the_draws_have_the_smoothers_error_spectrum(windows):
     # The reported floor stays the measured inputs' white noise.
     assert nm.conditional_mean and nm.sigma_v == pytest.approx(SIGMA, rel=0.15)
     f, px = seg.input_error
+    raw = prepare(windows[1], floors=True).noise
+    _, _, f_s, px_s = wiener_smooth(np.stack([seg.V_raw, seg.theta_raw]), 1.0 / DT,
+                                    [raw["noise_v"], raw["noise_theta"]], return_cutoffs=True, return_error=True)
     ff = np.fft.rfftfreq(N, DT)
-    for draws, c in ((nm.inputs_v, 0), (nm.inputs_theta, 1)):
+    for draws, c, name in ((nm.inputs_v, 0, "v"), (nm.inputs_theta, 1, "theta")):
+        var = raw[f"noise_{name}"] ** 2
+        smoother = px_s[:, c, c].real
+        # The smoother's error where it passes signal; the floor's variance where it passes none (the bound).
+        assert np.array_equal(px[:, c, c].real, np.where(smoother > 0.0, smoother, var))
         pw = np.mean(np.abs(np.fft.rfft(draws, axis=1)) ** 2, axis=0) / N  # per-sample units, as px
-        for lo, hi in ((0.0, 2.0), (2.0, 4.0)):
+        for lo, hi in ((0.0, 2.0), (2.0, 4.0), (10.0, 50.0)):
             want = px[(f >= lo) & (f < hi), c, c].real.mean()
             assert np.mean(pw[(ff >= lo) & (ff < hi)]) == pytest.approx(want, rel=0.2)
-        # Not white: above the smoother's cut-offs the error, and so the draws, hold next to nothing.
-        assert np.mean(pw[ff > 20.0]) < 1e-3 * np.mean(pw[ff < 2.0])
-        cut = f[np.flatnonzero(px[:, c, c].real > 0.0).max()]
-        assert cut < 15.0
+        # Not white: where the smoother's gain falls (its error below 0.8 of the floor's variance) so do the draws.
+        low = (smoother > 0.0) & (smoother < 0.8 * var)
+        band = (ff >= f[low].min()) & (ff <= f[low].max())
+        assert np.mean(pw[band]) == pytest.approx(np.mean(smoother[low]), rel=0.25)
+        assert np.mean(pw[band]) < 0.85 * var
 
 
 def test_exact_inputs_give_the_segment_as_before(windows):
