@@ -33,10 +33,10 @@ What is done here (all in :func:`estimate`):
   draws and smoothed over ±½ Hz, give per coefficient the variances of P and Q and their covariance:
   v_P = σ_P² + ⟨(G_P e)_k²⟩, v_Q likewise, c_PQ = ⟨(G_P e)_k (G_Q e)_k⟩.
 * **Conditional-mean inputs** (a segment whose V and θ are their Wiener conditional mean x̂,
-  :func:`aslm_core.diagnosis.segment.conditional_mean`): the draws are of the smoother's error e = x − x̂, with
-  its covariance spectrum (:func:`error_draws`), not white at the raw floor; σ_V, σ_θ stay the measured inputs'
-  floors.  The residual then carries G_true·e, independent of the inputs the models see, so the held-out
-  tests need no errors-in-variables bias term (``conditional_mean``).
+  :func:`aslm_core.diagnosis.segment.conditional_mean`): the draws stand for the smoother's error e = x − x̂, white
+  at the measured floors σ_V, σ_θ — the bound of its spectrum at every frequency, as P and Q see it (or, with
+  ``error_draws``, the smoother's own error spectrum, :func:`draw_error`).  The residual then carries G_true·e,
+  independent of the inputs the models see, so the held-out tests take no errors-in-variables bias term.
 
 With noise on P and Q only (the paper's protocol) σ_V and σ_θ are at the level of the recordings' own
 content above 5 Hz, the propagated part is negligible and every statistic reduces to the white one.
@@ -238,7 +238,7 @@ def perturbed(seg: Segment, V: np.ndarray, theta: np.ndarray) -> Segment:
                    dfreq=seg.dfreq + ddf if seg.dfreq_from_theta else seg.dfreq, **raw)
 
 
-def error_draws(freqs: np.ndarray, px: np.ndarray, n: int, fs: float, k: int,
+def draw_error(freqs: np.ndarray, px: np.ndarray, n: int, fs: float, k: int,
                 rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """Gaussian draws of a stationary two-channel error with a given covariance spectrum.
 
@@ -285,7 +285,8 @@ def error_draws(freqs: np.ndarray, px: np.ndarray, n: int, fs: float, k: int,
 
 
 def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndarray] | None], win: slice, *,
-             n_probes: int = N_PROBES, band_hz: float = BAND_HZ, seed: int = 0) -> NoiseModel:
+             n_probes: int = N_PROBES, band_hz: float = BAND_HZ, seed: int = 0,
+             error_draws: bool = False) -> NoiseModel:
     """Noise model of a segment for a fitted model.
 
     Parameters
@@ -303,6 +304,11 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
         Upper edge of the ambient band [Hz].
     seed : int
         Seed of the draws.
+    error_draws : bool
+        With conditional-mean inputs, draw the smoother's error spectrum (``seg.input_error``); False: white noise
+        at the measured floors, the bound of that error at every frequency (the default: on ``confirm7`` and
+        ``confirm8`` the smoother's spectrum left P's and Q's residual above the modelled noise at 2–5 Hz, where
+        they respond to input content V itself does not show above its floor; docs/diagnosis.md, "Stop 32").
 
     Returns
     -------
@@ -325,8 +331,8 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
     if n_probes <= 0 or (sv <= 0 and st <= 0):
         return nm
     rng = np.random.default_rng(seed)
-    if seg.conditional_mean:
-        nm.inputs_v, nm.inputs_theta = error_draws(*seg.input_error, seg.n, fs, n_probes, rng)
+    if seg.conditional_mean and error_draws:
+        nm.inputs_v, nm.inputs_theta = draw_error(*seg.input_error, seg.n, fs, n_probes, rng)
     else:
         nm.inputs_v = sv * rng.standard_normal((n_probes, seg.n))
         nm.inputs_theta = st * rng.standard_normal((n_probes, seg.n))

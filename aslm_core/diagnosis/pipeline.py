@@ -130,8 +130,9 @@ class DiagnosisConfig:
         bound as a rival, not a veto").  False: the plain fit's bound does not enter the verdict.
     input_mean : bool
         Where the floor test says V or θ carries white PMU noise, drive every model with their conditional mean
-        given the window (Wiener smoother) and model the noise by its error (:func:`segment.conditional_mean`,
-        docs/diagnosis.md, "Stop 32"); False: the measured inputs, their white noise propagated (before stop 32).
+        given the window (Wiener smoother; :func:`segment.conditional_mean`, docs/diagnosis.md, "Stop 32"), their
+        error drawn white at the measured floors; False: the measured inputs, their white noise propagated
+        (before stop 32).
     challengers : bool
         When the top candidate is not separated from a rival, try the unseparated rivals (in the order of
         their gain) as the cause: one that is significant, explains the mismatch and is separated from every

@@ -54,7 +54,7 @@ def test_the_conditional_mean_is_closer_to_the_clean_inputs(windows):
 
 def test_the_draws_have_the_smoothers_error_spectrum(windows):
     seg = make_segment(windows[1])
-    nm = estimate(seg, lambda s: (2.0 * s.V, s.theta + 0.5 * s.V), slice(seg.k0, seg.ke))
+    nm = estimate(seg, lambda s: (2.0 * s.V, s.theta + 0.5 * s.V), slice(seg.k0, seg.ke), error_draws=True)
     # The reported floor stays the measured inputs' white noise.
     assert nm.conditional_mean and nm.sigma_v == pytest.approx(SIGMA, rel=0.15)
     f, px = seg.input_error
@@ -94,3 +94,13 @@ def test_exact_inputs_give_the_segment_as_before(windows):
     assert not nm.conditional_mean
     rng = np.random.default_rng(0)  # the white draws at the measured floors, as before
     assert np.array_equal(nm.inputs_v, nm.sigma_v * rng.standard_normal((16, N)))
+
+
+def test_by_default_the_draws_are_white_at_the_measured_floors(windows):
+    seg = make_segment(windows[1])
+    win = slice(seg.k0, seg.ke)
+    nm = estimate(seg, lambda s: (2.0 * s.V, s.theta + 0.5 * s.V), win)
+    assert nm.conditional_mean and nm.sigma_v == pytest.approx(SIGMA, rel=0.15)
+    rng = np.random.default_rng(0)
+    assert np.array_equal(nm.inputs_v, nm.sigma_v * rng.standard_normal((16, N)))
+    assert np.array_equal(nm.inputs_theta, nm.sigma_theta * rng.standard_normal((16, N)))
