@@ -111,7 +111,8 @@ def _paired(a, cands: tuple[str, ...], config) -> dict:
     return out
 
 
-def run_window(kind: str, seed: int, t0: float, cands: tuple[str, ...], levels: tuple[int, ...]) -> dict:
+def run_window(kind: str, seed: int, t0: float, cands: tuple[str, ...], levels: tuple[int, ...],
+               variants: tuple[str, ...] = VARIANTS) -> dict:
     """One window: the noise-free fits and, per level and variant, the noisy analysis's fits."""
     from aslm_core.diagnosis import engine, pipeline
     from aslm_core.diagnosis.candidates import LIBRARY
@@ -138,7 +139,7 @@ def run_window(kind: str, seed: int, t0: float, cands: tuple[str, ...], levels: 
             wp, _ = _window(rec, t0, t1, level, False, f"{kind}/{seed}")
             kw = {"skip_s": config.skip_s, "train_fraction": config.train_fraction}
             sn, sp = make_segment(wn, **kw), make_segment(wp, **kw)
-            for variant in VARIANTS:
+            for variant in variants:
                 if variant == "vt_tf_clean" and tf0 is None:
                     continue
                 seg = _variant_segment(variant, wn, sn, sp, config)
@@ -236,6 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--candidates", default=",".join(CANDS))
     p.add_argument("--levels", default="1,2,3")
     p.add_argument("--out", default="")
+    p.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated, of " + ", ".join(VARIANTS))
     args = p.parse_args(argv)
     cands = tuple(c for c in args.candidates.split(",") if c)
     if args.summarise:
@@ -253,7 +255,8 @@ def main(argv: list[str] | None = None) -> int:
         t0s = [float(parts[3])] if len(parts) > 3 else [w[0] for w in WINDOWS]
         for s in seeds:
             for t0 in t0s:
-                r = run_window(kind, s, t0, cands, tuple(int(x) for x in args.levels.split(",")))
+                r = run_window(kind, s, t0, cands, tuple(int(x) for x in args.levels.split(",")),
+                               tuple(v for v in args.variants.split(",") if v))
                 rows.append(r)
                 cl = r["clean"].get("frequency_dependence", {}).get("params", {})
                 print(f"{kind}/{s} {t0:g} clean a {r['clean_plain_d'][0]:.1f} fd "

@@ -25,12 +25,18 @@ What is done here (all in :func:`estimate`):
   θ themselves — ambient V and θ have no content there (the same rule as P's floor).
 * **Output noise floors** σ_P, σ_Q: the floor of P − model(V_lp, θ_lp), the model played back on V and θ
   low-passed below the floor band, so the input noise it would propagate above 5 Hz is not counted as
-  measurement noise on P and Q.
+  measurement noise on P and Q.  The same rule with conditional-mean inputs (below): x̂ and its error have
+  nothing above the smoother's cut-off, so what is left there is P's and Q's own noise.
 * **Propagation** by Monte Carlo through the model itself (any model, any candidate structure): white
   V and θ noise at σ_V, σ_θ (independent draws, a fixed seed) perturbs the inputs; the change of the
   model output (parameters fixed) is a realisation of G·e.  Its DCT coefficients, averaged over the
   draws and smoothed over ±½ Hz, give per coefficient the variances of P and Q and their covariance:
   v_P = σ_P² + ⟨(G_P e)_k²⟩, v_Q likewise, c_PQ = ⟨(G_P e)_k (G_Q e)_k⟩.
+* **Conditional-mean inputs** (a segment whose V and θ are their Wiener conditional mean x̂,
+  :func:`aslm_core.diagnosis.segment.conditional_mean`): the draws stand for the smoother's error e = x − x̂, white
+  at the measured floors σ_V, σ_θ — the bound of its spectrum at every frequency, as P and Q see it (or, with
+  ``error_draws``, the smoother's own error spectrum, :func:`draw_error`).  The residual then carries G_true·e,
+  independent of the inputs the models see, so the held-out tests take no errors-in-variables bias term.
 
 With noise on P and Q only (the paper's protocol) σ_V and σ_θ are at the level of the recordings' own
 content above 5 Hz, the propagated part is negligible and every statistic reduces to the white one.
@@ -107,6 +113,9 @@ class NoiseModel:
         The white floors of P and Q as :func:`aslm_core.diagnosis.locate.noise_floor` gives them.
     inputs_v, inputs_theta : ndarray, shape (k, n)
         The input-noise draws behind the probes [pu, rad] (to push the same draws through another model).
+    conditional_mean : bool
+        The models are driven by the conditional mean of the inputs and the draws are its error: the models'
+        inputs carry no part of the draws (no errors-in-variables bias in a comparison of two of them).
     """
 
     sigma_p: float
@@ -120,6 +129,7 @@ class NoiseModel:
     floors: dict = field(default_factory=dict)
     inputs_v: np.ndarray | None = None
     inputs_theta: np.ndarray | None = None
+    conditional_mean: bool = False
     _cache: dict = field(default_factory=dict, repr=False)
 
     @classmethod
@@ -221,13 +231,62 @@ def perturbed(seg: Segment, V: np.ndarray, theta: np.ndarray) -> Segment:
     errors-in-variables bias of the held-out tests estimated from it, missed that path (docs/diagnosis.md,
     "Stop 31: the frequency term with noise on V and θ").
     """
-    ddv, ddf = driver_noise(V - seg.V, theta - seg.theta, seg.fs)
+    dv, dtheta = V - seg.V, theta - seg.theta
+    ddv, ddf = driver_noise(dv, dtheta, seg.fs)
+    raw = {} if seg.V_raw is None else {"V_raw": seg.V_raw + dv, "theta_raw": seg.theta_raw + dtheta}
     return replace(seg, V=V, theta=theta, dvdt=seg.dvdt + ddv,
-                   dfreq=seg.dfreq + ddf if seg.dfreq_from_theta else seg.dfreq)
+                   dfreq=seg.dfreq + ddf if seg.dfreq_from_theta else seg.dfreq, **raw)
+
+
+def draw_error(freqs: np.ndarray, px: np.ndarray, n: int, fs: float, k: int,
+                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Gaussian draws of a stationary two-channel error with a given covariance spectrum.
+
+    Parameters
+    ----------
+    freqs : ndarray, shape (m,)
+        Frequencies of the spectrum [Hz].
+    px : ndarray, shape (m, 2, 2)
+        Hermitian covariance spectrum of (V, θ) per frequency, per-sample units (white noise of variance σ² has
+        the flat spectrum σ²) [pu², pu·rad, rad²] (:func:`aslm_core.noise.wiener_smooth`'s error spectrum).
+    n : int
+        Samples per draw.
+    fs : float
+        Sample rate [Hz].
+    k : int
+        Number of draws.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    (ndarray, ndarray), each shape (k, n)
+        The draws of V [pu] and θ [rad].
+
+    Notes
+    -----
+    White unit noise on 2n samples, per rfft bin multiplied by L(f), the Cholesky factor of ``px`` interpolated
+    there (L·Lᴴ = P_x), and the first n samples kept: a stationary series whose cross-spectrum is P_x (the
+    doubled length keeps the circular filter's wrap-around correlation out of the kept samples).
+    """
+    m = 2 * n
+    f = np.fft.rfftfreq(m, 1.0 / fs)
+
+    def at(a: int, b: int) -> np.ndarray:
+        return np.interp(f, freqs, px[:, a, b].real) + 1j * np.interp(f, freqs, px[:, a, b].imag)
+
+    p00, p10, p11 = np.maximum(at(0, 0).real, 0.0), at(1, 0), np.maximum(at(1, 1).real, 0.0)
+    l00 = np.sqrt(p00)
+    l10 = np.where(l00 > 0.0, p10 / np.where(l00 > 0.0, l00, 1.0), 0.0)
+    l11 = np.sqrt(np.maximum(p11 - np.abs(l10) ** 2, 0.0))
+    w = np.fft.rfft(rng.standard_normal((2, k, m)), axis=2)
+    ev = np.fft.irfft(l00 * w[0], n=m, axis=1)[:, :n]
+    et = np.fft.irfft(l10 * w[0] + l11 * w[1], n=m, axis=1)[:, :n]
+    return ev, et
 
 
 def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndarray] | None], win: slice, *,
-             n_probes: int = N_PROBES, band_hz: float = BAND_HZ, seed: int = 0) -> NoiseModel:
+             n_probes: int = N_PROBES, band_hz: float = BAND_HZ, seed: int = 0,
+             error_draws: bool = False) -> NoiseModel:
     """Noise model of a segment for a fitted model.
 
     Parameters
@@ -245,14 +304,20 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
         Upper edge of the ambient band [Hz].
     seed : int
         Seed of the draws.
+    error_draws : bool
+        With conditional-mean inputs, draw the smoother's error spectrum (``seg.input_error``); False: white noise
+        at the measured floors, the bound of that error at every frequency (the default: on ``confirm7`` and
+        ``confirm8`` the smoother's spectrum left P's and Q's residual above the modelled noise at 2–5 Hz, where
+        they respond to input content V itself does not show above its floor; docs/diagnosis.md, "Stop 32").
 
     Returns
     -------
     NoiseModel
     """
     fs = seg.fs
-    sv = noise_floor(seg.V[win], fs)["sigma"]
-    st = noise_floor(seg.theta[win], fs)["sigma"]
+    # The measured inputs' floors (reported; with conditional-mean inputs the draws come from their error spectrum).
+    sv = noise_floor(seg.v_measured[win], fs)["sigma"]
+    st = noise_floor(seg.theta_measured[win], fs)["sigma"]
     fc = 0.8 * FLOOR_FROM_HZ
     lp = output(perturbed(seg, _lowpass(seg.V, fs, fc), _lowpass(seg.theta, fs, fc)))
     base = output(seg)
@@ -261,12 +326,16 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
     ref = lp if lp is not None else base
     fp = noise_floor((seg.P - ref[0])[win], fs)
     fq = noise_floor((seg.Q - ref[1])[win], fs)
-    nm = NoiseModel(max(fp["sigma"], 1e-12), max(fq["sigma"], 1e-12), fs, band_hz, sv, st, floors={"P": fp, "Q": fq})
+    nm = NoiseModel(max(fp["sigma"], 1e-12), max(fq["sigma"], 1e-12), fs, band_hz, sv, st, floors={"P": fp, "Q": fq},
+                    conditional_mean=seg.conditional_mean)
     if n_probes <= 0 or (sv <= 0 and st <= 0):
         return nm
     rng = np.random.default_rng(seed)
-    nm.inputs_v = sv * rng.standard_normal((n_probes, seg.n))
-    nm.inputs_theta = st * rng.standard_normal((n_probes, seg.n))
+    if seg.conditional_mean and error_draws:
+        nm.inputs_v, nm.inputs_theta = draw_error(*seg.input_error, seg.n, fs, n_probes, rng)
+    else:
+        nm.inputs_v = sv * rng.standard_normal((n_probes, seg.n))
+        nm.inputs_theta = st * rng.standard_normal((n_probes, seg.n))
     prop = nm.propagate(seg, output, base)
     if prop is None:
         nm.inputs_v = nm.inputs_theta = None

@@ -128,6 +128,11 @@ class DiagnosisConfig:
         located excess is not named either (:func:`_kept_on_bound`; stop 30).  Until the seventh round of issue 12 this withheld every name whose cause's fit stayed on the plain fit's
         bound, whether the bound mattered or not (docs/diagnosis.md, "Seventh round (stop 29): the plain fit's
         bound as a rival, not a veto").  False: the plain fit's bound does not enter the verdict.
+    input_mean : bool
+        Where the floor test says V or θ carries white PMU noise, drive every model with their conditional mean
+        given the window (Wiener smoother; :func:`segment.conditional_mean`, docs/diagnosis.md, "Stop 32"), their
+        error drawn white at the measured floors; False: the measured inputs, their white noise propagated
+        (before stop 32).
     challengers : bool
         When the top candidate is not separated from a rival, try the unseparated rivals (in the order of
         their gain) as the cause: one that is significant, explains the mismatch and is separated from every
@@ -149,6 +154,7 @@ class DiagnosisConfig:
     reverse_margin: float = 0.01
     bound_rule: bool = True
     challengers: bool = True
+    input_mean: bool = True
 
 
 @dataclass
@@ -183,7 +189,8 @@ def _plain_d(seg: Segment, previous, config: DiagnosisConfig) -> np.ndarray:
 
 
 def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _WindowAnalysis:
-    seg = make_segment(window, skip_s=config.skip_s, train_fraction=config.train_fraction)
+    seg = make_segment(window, skip_s=config.skip_s, train_fraction=config.train_fraction,
+                       input_mean=config.input_mean)
     if model is None:
         ctx = Context("identified", _plain_d(seg, previous, config))
     else:
@@ -306,8 +313,13 @@ def _through(seg: Segment, noise: NoiseModel, cand: Candidate, ctx: Context, fit
 
 
 def _probes(seg: Segment, noise: NoiseModel, cand: Candidate, ctx: Context, fit: engine.Fit):
-    """The noise model's input-noise draws pushed through a fitted candidate (None: not modelled/failed)."""
-    if not noise.has_inputs or not fit.ok:
+    """The noise model's input-noise draws pushed through a fitted candidate (None: not modelled/failed, or not
+    needed).
+
+    They serve the comparisons' errors-in-variables term only (:func:`engine.compare`), which conditional-mean
+    inputs do not have: the candidates' held-out correction is a function of x̂, independent of its error e, so
+    b = 0 and neither the term nor the draws' cost is taken (docs/diagnosis.md, "Stop 32")."""
+    if not noise.has_inputs or not fit.ok or noise.conditional_mean:
         return None
     return noise.propagate(seg, lambda s: engine.output(cand, s, ctx, fit), (fit.model_p, fit.model_q))
 

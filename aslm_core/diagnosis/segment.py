@@ -15,7 +15,8 @@ import numpy as np
 from scipy import signal
 
 from aslm_core import motor
-from aslm_core.preprocess import prepare
+from aslm_core.input_weighting import noisy_inputs
+from aslm_core.preprocess import Prepared, prepare, white_floor
 from aslm_core.window import Window
 
 #: Cut-off of the zero-phase low-pass applied to the bus-frequency deviation [Hz] (passes the ambient
@@ -49,6 +50,12 @@ class Segment:
         The window's bus.
     dfreq_from_theta : bool
         Whether ``dfreq`` was derived from θ (False: from a recorded ``f``).
+    V_raw, theta_raw : ndarray or None
+        V [pu] and θ [rad] as measured, where ``V`` and ``theta`` are their conditional mean
+        (:func:`conditional_mean`); None where they are the measured inputs themselves.
+    input_error : (ndarray, ndarray) or None
+        With the conditional mean: frequencies [Hz] and covariance spectrum (m, 2, 2) of its error x − x̂
+        (:func:`error_spectrum`, per-sample units).
     """
 
     t: np.ndarray
@@ -65,10 +72,29 @@ class Segment:
     ke: int
     bus: str = ""
     dfreq_from_theta: bool = True
+    V_raw: np.ndarray | None = None
+    theta_raw: np.ndarray | None = None
+    input_error: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         self.omega0 = motor.omega0_of(self.f0)
         self.vd, self.vq, self.vdm, self.vqm = motor.dq_inputs(self.V, self.theta)
+
+    @property
+    def v_measured(self) -> np.ndarray:
+        """V as measured [pu] (``V`` itself unless that is the conditional mean)."""
+        return self.V if self.V_raw is None else self.V_raw
+
+    @property
+    def theta_measured(self) -> np.ndarray:
+        """θ as measured [rad] (``theta`` itself unless that is the conditional mean)."""
+        return self.theta if self.theta_raw is None else self.theta_raw
+
+    @property
+    def conditional_mean(self) -> bool:
+        """Whether V and θ are the conditional mean of the measured inputs (their error modelled by
+        ``input_error``)."""
+        return self.input_error is not None
 
     @property
     def n(self) -> int:
@@ -142,8 +168,67 @@ def driver_noise(dv: np.ndarray, dtheta: np.ndarray, fs: float) -> tuple[np.ndar
             _lowpass(np.gradient(dtheta, dt) / (2.0 * math.pi), fs, FREQ_LOWPASS_HZ))
 
 
+def conditional_mean(window: Window) -> tuple[Prepared, Prepared | None]:
+    """The window prepared as measured and, where V or θ carries white PMU noise, with V and θ replaced by their
+    conditional mean given the window.
+
+    Parameters
+    ----------
+    window : Window
+
+    Returns
+    -------
+    (Prepared, Prepared or None)
+        ``prepare(window)`` with the floors (``noise``), and ``prepare(window, input_smoother="wiener")`` (P and Q
+        as measured, no low-pass) where :func:`aslm_core.input_weighting.noisy_inputs` says V or θ is noisy, else
+        None.
+
+    Notes
+    -----
+    Why: a model driven by the measured x = x_true + n leaves in its output residual −G·n, whose power
+    |G(f)|²·S_n(f) the fit reduces by shrinking G (errors in variables).  Driven by x̂ = E[x | window] the residual
+    carries G_true·e with e = x − x̂ independent of x̂ (jointly Gaussian signal and noise): its power does not
+    depend on the fitted parameters (regression calibration, as the identifier's ``input_smoother="wiener"``,
+    docs/numerics.md).  Exact inputs are left as measured, so their segment is the one built without this step.
+    """
+    raw = prepare(window, floors=True)
+    if not noisy_inputs(raw.noise):
+        return raw, None
+    return raw, prepare(window, input_smoother="wiener")
+
+
+def error_spectrum(raw: Prepared, smooth: Prepared) -> tuple[np.ndarray, np.ndarray]:
+    """The covariance spectrum of the conditional mean's error x − x̂ the diagnosis models: the smoother's
+    (``smooth.input_error``), with each noisy input's white-noise variance where the smoother passes none of it.
+
+    Parameters
+    ----------
+    raw, smooth : Prepared
+        :func:`conditional_mean`'s two.
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        Frequencies [Hz] and the spectrum, shape (m, 2, 2), per-sample units [pu², pu·rad, rad²].
+
+    Notes
+    -----
+    Where its gain is zero (above a channel's cut-off, where the input's power sinks to its floor) the smoother
+    sets the signal to zero and its error spectrum says none is lost.  But P and Q respond to that signal with far
+    less noise than V shows it: on ANDES's clean loads with V/θ noise (confirm8 9701, 2–12 s) the residual of Q
+    stood above the modelled noise at 2–5 Hz in all three levels.  The lost signal's power lies below the floor
+    there, so the floor's variance bounds it: the white noise the measured input would have carried.
+    """
+    f, px = smooth.input_error
+    px = px.copy()
+    for c, name in enumerate(("v", "theta")):
+        var = raw.noise[f"noise_{name}"] ** 2 if white_floor(raw.noise, name) else 0.0
+        px[:, c, c] = np.where(px[:, c, c].real > 0.0, px[:, c, c], var)
+    return f, px
+
+
 def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float = 0.65,
-                 guard_s: float = 0.1) -> Segment:
+                 guard_s: float = 0.1, input_mean: bool = True) -> Segment:
     """Prepare a window and split it in time.
 
     Parameters
@@ -156,12 +241,18 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
         Fraction of the window (from its start) used for fitting [-]; the rest is held out.
     guard_s : float
         Samples at the very end left out of the held-out set [s] (room for time shifts).
+    input_mean : bool
+        Replace V and θ by their conditional mean where they carry white noise (:func:`conditional_mean`);
+        False: the measured inputs always.
 
     Returns
     -------
     Segment
+        Where V or θ carries white noise, V and θ (and Δf, dV/dt built from them) are their conditional mean
+        (:func:`conditional_mean`); a recorded f is used as measured.
     """
-    prep = prepare(window)
+    raw, smooth = conditional_mean(window) if input_mean else (prepare(window), None)
+    prep = raw if smooth is None else smooth
     n = prep.V.shape[0]
     dt = prep.dt
     fs = 1.0 / dt
@@ -177,5 +268,7 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
     ke = n - max(1, int(round(guard_s / dt)))
     if ks - k0 < 50 or ke - ks < 50:
         raise ValueError(f"window too short to split: {n} samples")
+    extra = {} if smooth is None else {
+        "V_raw": raw.V, "theta_raw": raw.theta, "input_error": error_spectrum(raw, smooth)}
     return Segment(t=prep.t, V=prep.V, theta=prep.theta, P=prep.P, Q=prep.Q, dfreq=df, dvdt=dvdt, dt=dt,
-                   f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus, dfreq_from_theta=from_theta)
+                   f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus, dfreq_from_theta=from_theta, **extra)

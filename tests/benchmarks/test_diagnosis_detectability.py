@@ -79,7 +79,8 @@ def test_the_v_theta_oracle_noise_matches_a_monte_carlo_through_fresh_noisy_wind
     for _ in range(300):
         w = Window(seg.t, seg.V + sv * rng.standard_normal(seg.n), seg.theta + st * rng.standard_normal(seg.n),
                    seg.P, seg.Q, f0=60.0)
-        s = make_segment(w, skip_s=config.skip_s, train_fraction=config.train_fraction)
+        # The measured inputs, whose white noise the oracle propagates (not their conditional mean, stop 32).
+        s = make_segment(w, skip_s=config.skip_s, train_fraction=config.train_fraction, input_mean=False)
         out = engine.output(Candidate(), s, ctx, plain)
         acc.append(dct_band(np.column_stack([out[0] - base[0], out[1] - base[1]])[seg.test], seg.fs, config.band_hz))
     c = np.array(acc)  # (draws, coefficients, channel)

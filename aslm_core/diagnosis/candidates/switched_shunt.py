@@ -544,23 +544,26 @@ class SwitchedShunt(Candidate):
         # The steps are read on V as measured: the 5 Hz low-pass the relay law reads through would spread a
         # step over ±0.1 s, ahead of the switching too (zero phase).  Against V's local slope: a steep ambient
         # swing crosses the plain statistic's threshold in held-out data the training scan never saw (stop 31).
+        # With conditional-mean inputs too: the smoother, a stationary signal's estimate, spreads the bank's steps.
+        vm = seg.v_measured
         v, d = self._last_d
-        if v is not seg.V:
-            d = detrended_step(seg.V)
-            self._last_d = (seg.V, d)
+        if v is not vm:
+            d = detrended_step(vm)
+            self._last_d = (vm, d)
         return d
 
     def _two(self, seg: Segment):
-        """h [pu], dmin [samples] ↦ :func:`two_state` on ``seg``'s V (the paths of the last V kept: the upper stage
+        """h [pu], dmin [samples] ↦ :func:`two_state` on ``seg``'s measured V (the paths of the last V kept: the upper stage
         asks for the same few at each of its evaluations, with h moved by its finite differences only)."""
         def path(h: float, dmin: int) -> np.ndarray:
+            vm = seg.v_measured
             v, paths = self._last_two
-            if v is not seg.V:
+            if v is not vm:
                 paths = {}
-                self._last_two = (seg.V, paths)
+                self._last_two = (vm, paths)
             k = (float(f"{h:.6g}"), dmin)
             if k not in paths:
-                paths[k] = two_state(seg.V, k[0], dmin, 1.0 / seg.dt)
+                paths[k] = two_state(vm, k[0], dmin, 1.0 / seg.dt)
             return paths[k]
         return path
 
@@ -568,9 +571,10 @@ class SwitchedShunt(Candidate):
         v = self._relay_v(seg)
         sd = max(float(np.std(v)), 1e-6)
         # Vc ∓ dv of the steps' form are medians of the measured V, which may lie outside the low-passed range.
-        h_max = max(STEP_SIGMAS[-1] * white_sigma(seg.V), 1e-9) * (1.0 + 1e-6)
-        return (np.array([float(seg.V.min()), -4.0 * sd, 0.0, 0.0, 0.0, -h_max]),
-                np.array([float(seg.V.max()), 4.0 * sd, 2.0, T_OP_MAX_S, 1.0,
+        vm = seg.v_measured
+        h_max = max(STEP_SIGMAS[-1] * white_sigma(vm), 1e-9) * (1.0 + 1e-6)
+        return (np.array([float(vm.min()), -4.0 * sd, 0.0, 0.0, 0.0, -h_max]),
+                np.array([float(vm.max()), 4.0 * sd, 2.0, T_OP_MAX_S, 1.0,
                           max(float(np.abs(self._steps(seg)).max()), 1e-9)]))
 
     def extra_columns(self, seg: Segment, d: np.ndarray, z: np.ndarray):
@@ -652,7 +656,8 @@ class SwitchedShunt(Candidate):
         # The third: the two-state path under a smooth background, for a V whose noise drowns the 20 ms steps;
         # h over multiples of V's white-noise scale, the least dwell over the relay delays.  Larger h and dwells
         # first: where the training samples' states tie, the path with fewer, better-supported switchings stays.
-        sig = white_sigma(seg.V) if white_share(seg.V) >= TWO_STATE_MIN_WHITE_SHARE else 0.0
+        vm = seg.v_measured
+        sig = white_sigma(vm) if white_share(vm) >= TWO_STATE_MIN_WHITE_SHARE else 0.0
         for q in STEP_SIGMAS[::-1]:
             for dwell in DWELL_S[::-1]:
                 if sig <= 0.0:
@@ -670,10 +675,11 @@ class SwitchedShunt(Candidate):
         median V read before the switchings in and out (the relay's thresholds lie beyond them), τ as given,
         t_op = 0 (scanned after), s0 the initial state."""
         k = np.flatnonzero(np.diff(s)) + 1
-        before = seg.V[np.maximum(k - STEP_SAMPLES - 1, 0)]
+        vm = seg.v_measured
+        before = vm[np.maximum(k - STEP_SAMPLES - 1, 0)]
         rising = np.diff(s)[k - 1] > 0
         if rising.all() or not rising.any():
-            vin = vout = float(np.median(seg.V))
+            vin = vout = float(np.median(vm))
         else:
             vin, vout = float(np.median(before[rising])), float(np.median(before[~rising]))
         return (0.5 * (vin + vout), 0.5 * (vout - vin), float(tau), 0.0, float(s[0]), float(dv_step))

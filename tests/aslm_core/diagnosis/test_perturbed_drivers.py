@@ -25,7 +25,8 @@ def _draw(n: int) -> tuple[np.ndarray, np.ndarray]:
 def test_a_draw_moves_the_drivers_as_a_noisy_window_would(window):
     seg = make_segment(window)
     ev, et = _draw(seg.n)
-    noisy = make_segment(replace(window, V=window.V + ev, theta=window.theta + et))
+    # The measured inputs (no conditional mean): the draw's change is the window's.
+    noisy = make_segment(replace(window, V=window.V + ev, theta=window.theta + et), input_mean=False)
     p = perturbed(seg, seg.V + ev, seg.theta + et)
     assert np.allclose(p.vd, noisy.vd) and np.allclose(p.vq, noisy.vq)
     # dV/dt is linear in V; Δf too but for its median, a constant.

@@ -81,7 +81,8 @@ def test_the_diagnosis_warmup_window_reaches_the_two_state_search():
     # scripts/setup compiles the diagnosis's kernels with one diagnosis of this window; were its V under the gate,
     # the two-state search would be left to compile in the first real V/θ diagnosis (12–13 s at confirm8).
     seg = make_segment(warmup_window())
-    assert ss.white_share(seg.V) >= ss.TWO_STATE_MIN_WHITE_SHARE
+    # Read on V as measured (the segment's V is its conditional mean since stop 32: the candidate reads v_measured).
+    assert ss.white_share(seg.v_measured) >= ss.TWO_STATE_MIN_WHITE_SHARE
 
 
 def _local_search_exhaustive(y, s, h, inv2s2, lam, dmin, t, k, pulse, e_step, moves):
