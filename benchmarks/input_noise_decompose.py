@@ -80,6 +80,9 @@ VARIANTS = {
     # runnable in a service that keeps per-bus spectra across periods.
     "pooled_spectrum_6": ("pooled_6", "own", "est", "oe", 1),
     "pooled_spectrum_30": ("pooled_30", "own", "est", "oe", 1),
+    # The same with the signal spectrum zero from FLOOR_FROM_HZ up (the floor's own premise: no signal there).
+    "pooled_spectrum_6_5hz": ("pooled5_6", "own", "est", "oe", 1),
+    "pooled_spectrum_30_5hz": ("pooled5_30", "own", "est", "oe", 1),
 }
 #: Window counts of the pooled-spectrum variants (6: a minute of 10 s windows; 30: five minutes).
 POOL_K = (6, 30)
@@ -202,12 +205,13 @@ def var_spectrum(x: np.ndarray, fs: float, max_order: int = 40, criterion: str =
 
 
 def pooled_estimate(lv: np.ndarray, lth: np.ndarray, n: int, k: int, noise_std: tuple[float, float], fs: float,
-                    rng: np.random.Generator) -> callable:
+                    rng: np.random.Generator, top_hz: float | None = None) -> callable:
     """The (V, θ) signal cross-spectrum from k consecutive noisy n-sample windows of the long realisation
     (white noise of ``noise_std`` [pu, rad] added, fresh draws): the windows' tapered periodogram matrices averaged,
     smoothed over :data:`aslm_core.noise.WIENER_SMOOTH_HZ`, minus the floor each channel's band above 5 Hz gives
     (:func:`aslm_core.noise.noise_floor`, the variances averaged over the k windows), negative eigenvalues clipped.
-    Per-sample units (white noise of variance σ² flat at σ²), as ``spectrum(freqs)`` (interpolated)."""
+    With ``top_hz`` [Hz] the spectrum is zero from there up.  Per-sample units (white noise of variance σ² flat at
+    σ²), as ``spectrum(freqs)`` (interpolated)."""
     if k * n > lv.size:
         raise ValueError(f"{k} windows of {n} samples need {k * n}, the realisation has {lv.size}")
     w, ww = noise._taper(n)
@@ -228,6 +232,8 @@ def pooled_estimate(lv: np.ndarray, lth: np.ndarray, n: int, k: int, noise_std: 
         for j in range(2):
             sm[:, i, j] = noise._moving_average(acc[:, i, j], width)
     s = clipped(sm - np.diag(floor))
+    if top_hz is not None:
+        s[f >= top_hz] = 0.0
 
     def spectrum(freqs: np.ndarray) -> np.ndarray:
         out = np.empty((freqs.size, 2, 2), complex)
@@ -258,7 +264,9 @@ def run_variant(prep, f0: float, d0: np.ndarray, skip_s: float, d_true: np.ndarr
         elif inputs == "fd_true":
             vt, own = wiener_given(x, fs, sigma, true_spec)
         elif inputs.startswith("pooled_"):
-            vt, own = wiener_given(x, fs, sigma, pooled[int(inputs[7:])])
+            vt, own = wiener_given(x, fs, sigma, pooled[int(inputs[7:]), None])
+        elif inputs.startswith("pooled5_"):
+            vt, own = wiener_given(x, fs, sigma, pooled[int(inputs[8:]), noise.FLOOR_FROM_HZ])
         elif inputs == "pgram_nocut":
             vt, own = wiener_given(x, fs, sigma, None)
         elif inputs == "pgram_tail":
@@ -382,8 +390,13 @@ def main(argv=None) -> dict:
             sn = np.repeat(np.asarray(nv), n)
             # The pooled spectra's own noise draws, apart from the windows' (their order unchanged).
             prng = np.random.default_rng([CONFIRM_SEED, 7, i, int(round(v_rel * 1e5))])
-            pooled = {k: pooled_estimate(lv, lth, n, k, (math.sqrt(nv[0]), math.sqrt(nv[1])), fs, prng)
-                      for k in POOL_K}
+            pooled = {}
+            for k in POOL_K:
+                state = prng.bit_generator.state  # the same draws with and without the 5 Hz top
+                for top in (None, noise.FLOOR_FROM_HZ):
+                    prng.bit_generator.state = state
+                    pooled[k, top] = pooled_estimate(lv, lth, n, k, (math.sqrt(nv[0]), math.sqrt(nv[1])), fs, prng,
+                                                     top)
             per_cls[cls] = (nv, linalg.cho_factor(prior + np.diag(sn), lower=True),
                             true_error_spectrum(lv, lth, fs, nv, n), pooled)
         for level in LEVELS:
