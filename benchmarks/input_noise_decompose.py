@@ -83,6 +83,13 @@ VARIANTS = {
     # The same with the signal spectrum zero from FLOOR_FROM_HZ up (the floor's own premise: no signal there).
     "pooled_spectrum_6_5hz": ("pooled5_6", "own", "est", "oe", 1),
     "pooled_spectrum_30_5hz": ("pooled5_30", "own", "est", "oe", 1),
+    # The same through aslm_core (noise.pooled_input_spectrum, wiener_smooth's ``spectrum``), the same draws.
+    "pooled_core_6": ("core_6", "own", "est", "oe", 1),
+    "pooled_core_30": ("core_30", "own", "est", "oe", 1),
+    # End to end: identify() as the default (gate and all), without and with ``input_spectrum`` (K = 6, 30).
+    "e2e_default": ("e2e", None),
+    "e2e_pooled_6": ("e2e", 6),
+    "e2e_pooled_30": ("e2e", 30),
 }
 #: Window counts of the pooled-spectrum variants (6: a minute of 10 s windows; 30: five minutes).
 POOL_K = (6, 30)
@@ -204,22 +211,29 @@ def var_spectrum(x: np.ndarray, fs: float, max_order: int = 40, criterion: str =
     return spectrum
 
 
-def pooled_estimate(lv: np.ndarray, lth: np.ndarray, n: int, k: int, noise_std: tuple[float, float], fs: float,
-                    rng: np.random.Generator, top_hz: float | None = None) -> callable:
-    """The (V, θ) signal cross-spectrum from k consecutive noisy n-sample windows of the long realisation
-    (white noise of ``noise_std`` [pu, rad] added, fresh draws): the windows' tapered periodogram matrices averaged,
+def noisy_windows(lv: np.ndarray, lth: np.ndarray, n: int, k: int, noise_std: tuple[float, float],
+                  rng: np.random.Generator) -> list[np.ndarray]:
+    """k consecutive n-sample (V, θ) windows of the long realisation with white noise of ``noise_std`` [pu, rad]."""
+    if k * n > lv.size:
+        raise ValueError(f"{k} windows of {n} samples need {k * n}, the realisation has {lv.size}")
+    out = []
+    for j in range(k):
+        x = np.stack([lv[j * n:(j + 1) * n], lth[j * n:(j + 1) * n]])
+        out.append(x + np.asarray(noise_std, float)[:, None] * rng.standard_normal(x.shape))
+    return out
+
+
+def pooled_estimate(wins: list[np.ndarray], fs: float, top_hz: float | None = None) -> callable:
+    """The (V, θ) signal cross-spectrum from noisy windows (:func:`noisy_windows`): the windows' tapered periodogram matrices averaged,
     smoothed over :data:`aslm_core.noise.WIENER_SMOOTH_HZ`, minus the floor each channel's band above 5 Hz gives
     (:func:`aslm_core.noise.noise_floor`, the variances averaged over the k windows), negative eigenvalues clipped.
     With ``top_hz`` [Hz] the spectrum is zero from there up.  Per-sample units (white noise of variance σ² flat at
     σ²), as ``spectrum(freqs)`` (interpolated)."""
-    if k * n > lv.size:
-        raise ValueError(f"{k} windows of {n} samples need {k * n}, the realisation has {lv.size}")
+    k, n = len(wins), wins[0].shape[1]
     w, ww = noise._taper(n)
     acc = np.zeros((n // 2 + 1, 2, 2), complex)
     floor = np.zeros(2)
-    for j in range(k):
-        x = np.stack([lv[j * n:(j + 1) * n], lth[j * n:(j + 1) * n]])
-        x = x + np.asarray(noise_std, float)[:, None] * rng.standard_normal(x.shape)
+    for x in wins:
         spec = np.fft.rfft(noise._detrend(x) * w, axis=1)
         acc += np.einsum("if,jf->fij", spec, spec.conj()) / ww
         floor += [noise.noise_floor(x[ch], fs)["sigma"] ** 2 for ch in range(2)]
@@ -265,6 +279,9 @@ def run_variant(prep, f0: float, d0: np.ndarray, skip_s: float, d_true: np.ndarr
             vt, own = wiener_given(x, fs, sigma, true_spec)
         elif inputs.startswith("pooled_"):
             vt, own = wiener_given(x, fs, sigma, pooled[int(inputs[7:]), None])
+        elif inputs.startswith("core_"):
+            vt, _, *own = noise.wiener_smooth(x, fs, sigma, return_cutoffs=True, return_error=True,
+                                              spectrum=pooled["core", int(inputs[5:])])
         elif inputs.startswith("pooled5_"):
             vt, own = wiener_given(x, fs, sigma, pooled[int(inputs[8:]), noise.FLOOR_FROM_HZ])
         elif inputs == "pgram_nocut":
@@ -392,11 +409,10 @@ def main(argv=None) -> dict:
             prng = np.random.default_rng([CONFIRM_SEED, 7, i, int(round(v_rel * 1e5))])
             pooled = {}
             for k in POOL_K:
-                state = prng.bit_generator.state  # the same draws with and without the 5 Hz top
+                wins = noisy_windows(lv, lth, n, k, (math.sqrt(nv[0]), math.sqrt(nv[1])), prng)
                 for top in (None, noise.FLOOR_FROM_HZ):
-                    prng.bit_generator.state = state
-                    pooled[k, top] = pooled_estimate(lv, lth, n, k, (math.sqrt(nv[0]), math.sqrt(nv[1])), fs, prng,
-                                                     top)
+                    pooled[k, top] = pooled_estimate(wins, fs, top)
+                pooled["core", k] = noise.pooled_input_spectrum(wins, fs)
             per_cls[cls] = (nv, linalg.cho_factor(prior + np.diag(sn), lower=True),
                             true_error_spectrum(lv, lth, fs, nv, n), pooled)
         for level in LEVELS:
@@ -424,6 +440,14 @@ def main(argv=None) -> dict:
                 cell["window"].append(i)
                 cell["oracle_gls"].append(oracle_gls[i][str(level)][cls][1])
                 for name, spec in VARIANTS.items():
+                    if spec[0] == "e2e":
+                        try:
+                            r = identify(w, config=DEFAULT,
+                                         input_spectrum=None if spec[1] is None else pooled["core", spec[1]])
+                            cell[name].append((r.d / c.truth.d).tolist())
+                        except WindowError:
+                            cell[name].append([math.nan] * 4)
+                        continue
                     d = run_variant(prep, w.f0, oe.d, oe.quality["skip_s"], c.truth.d, spec, vt, px_true, white_true,
                                     raw, true_spec, pooled)
                     cell[name].append((d / c.truth.d).tolist() if d is not None else [math.nan] * 4)
