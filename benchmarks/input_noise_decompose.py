@@ -17,7 +17,12 @@ ingredient at a time swapped from the default's estimate to the oracle's:
   ``oracle_full_band`` the same over every bin;
 * candidate estimates of the inputs, each with its own smoother's P_x: the Wiener smoother with the true spectrum
   (:func:`wiener_given`, not runnable: the ceiling), ``smooth_hz`` 0.25 and 1 Hz, and the signal spectrum of a VAR
-  model of the measured inputs (order by BIC or AIC; with or without today's cut-off rule).
+  model of the measured inputs (order by BIC or AIC; with or without today's cut-off rule);
+* the pooled spectrum (stop 32, the bus's previous windows): the inputs' cross-spectrum from K = 6 or 30 noisy 10 s
+  windows of the long realisation (the class's white noise, other draws; :func:`pooled_estimate`), floor subtracted,
+  clipped, with or without zero from 5 Hz up; ``pooled_core_*`` the same through
+  :func:`aslm_core.noise.pooled_input_spectrum` and ``wiener_smooth(spectrum=...)``; ``e2e_*`` end to end,
+  :func:`aslm_core.identify` (the gate and all) without and with its ``input_spectrum``.
 
 Per cell: σ of D/D_real over the RMS structural bound, the robust spread of each window's error over its own bound
 (1.4826·MAD) and the windows more than ``--z`` of their bound off in a or Tm (and in any parameter).
