@@ -28,7 +28,10 @@ minimum per window, median over windows); per level and class μ, σ, coverage o
 whose bound ``input_noise_bound.json`` holds (the first 100), σ over the RMS structural bound and the
 standardised spread (JSON ``input_noise_weighting``).
 
-    .venv/bin/python -m benchmarks.input_noise_bound --weighting [--n 300] [--reps 2] [--seed 41]
+    .venv/bin/python -m benchmarks.input_noise_bound --weighting [--n 300] [--reps 2] [--seed 41] [--pooled 6]
+
+``--pooled K`` adds the row ``spectral_pooled``: the default given the inputs' spectrum pooled over K previous noisy
+windows of the bus (:func:`pooled_spectrum`; JSON name suffix ``_pooled{K}``; docs/numerics.md, stop 32).
 
 The default's re-measurement runs ``--weighting --seed 45`` (:data:`FLIP_SEED`, fixed before that run; the stored
 bounds are seed 43's, so its table has no σ / bound column).
