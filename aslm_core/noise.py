@@ -320,8 +320,10 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         Also return the smoothed signals' error spectrum (after the cut-offs, whether or not they were asked).
     spectrum : (ndarray, ndarray), optional
         The signals' cross-spectrum known from elsewhere, frequencies [Hz] and shape (m, c, c) in per-sample
-        units (:func:`pooled_input_spectrum`): used instead of the window's own estimate and its cut-off rule;
-        a channel's cut-off is then where that spectrum ends.  Absent: the window's estimate.
+        units (:func:`pooled_input_spectrum`): used instead of the window's own estimate and its cut-off rule,
+        a channel's cut-off then where that spectrum ends, if every channel carries noise (σ > 0: an exact
+        channel must pass whole, which the given spectrum, zero in places, would not ensure).  Absent: the
+        window's estimate.
 
     Returns
     -------
@@ -354,6 +356,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     c, n = x.shape
     if c > 2:
         raise ValueError(f"wiener_smooth takes one or two channels, got {c}")
+    if spectrum is not None and np.any(var <= 0.0):
+        spectrum = None
     if n < 8 or not np.any(var > 0.0):
         freqs = np.fft.rfftfreq(n, 1.0 / fs)
         return _returned(x.copy(), np.full(c, 0.5 * fs), freqs, np.zeros((freqs.size, c, c), complex),

@@ -267,3 +267,8 @@ def test_pooled_input_spectrum_resolves_the_signal_above_one_windows_cut_off():
         e_own += np.mean((noise.wiener_smooth(x, fs, sig) - xc)[:, 100:-100] ** 2)
         e_given += np.mean((noise.wiener_smooth(x, fs, sig, spectrum=(f, s_k)) - xc)[:, 100:-100] ** 2)
     assert e_given < e_own, (e_given, e_own)
+    # An exact channel (σ = 0) passes whole: the given spectrum is then left aside.
+    x = noisy[:, :n].copy()
+    x[1] = clean[1, :n]
+    exact = np.array([sig[0], 0.0])
+    np.testing.assert_array_equal(noise.wiener_smooth(x, fs, exact, spectrum=(f, s_k)), noise.wiener_smooth(x, fs, exact))
