@@ -177,7 +177,8 @@ def _score_variances(problem: Problem) -> np.ndarray:
 
 
 def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None = None,
-             config: IdentifyConfig | None = None) -> IdentificationResult:
+             config: IdentifyConfig | None = None,
+             input_spectrum: tuple[np.ndarray, np.ndarray] | None = None) -> IdentificationResult:
     """Identify the composite ZIP (or exponential) + induction-motor load of one window.
 
     Parameters
@@ -188,6 +189,10 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
         A previous D = [a, b, H2, Tm] tried first (clipped into the feasible set).
     config : IdentifyConfig, optional
         Integrator, objective, static model, starts, preprocessing.
+    input_spectrum : (ndarray, ndarray), optional
+        V's and θ's signal cross-spectrum from the bus's previous windows, frequencies [Hz] and (m, 2, 2)
+        per-sample units (:func:`aslm_core.noise.pooled_input_spectrum`): the S-weighted refinement's Wiener
+        smoother uses it instead of the window's own estimate.  Absent: the window's own (the default).
 
     Returns
     -------
@@ -236,7 +241,7 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
     d_oe = np.array(final["d"])  # copied: the refinement's flags compare its answer with this one
     if config.input_weighting == "spectral" and config.disturbance in ("none", "gated"):
         w = input_weighting.weighted_fit(window, config, final["d"], final_problem.k0 * prep.dt, prep.noise,
-                                         EQUILIBRIUM_MARGIN)
+                                         EQUILIBRIUM_MARGIN, input_spectrum)
         if w is not None:
             # The own-fluctuation indicators (and their flags, tuned on output error's residual) come from the
             # output-error fit: the weighted fit's unfiltered residual carries the input noise's colour.

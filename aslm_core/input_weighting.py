@@ -382,7 +382,7 @@ def noisy_inputs(floors: dict[str, float]) -> bool:
 
 
 def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: dict[str, float],
-                 margin: float) -> dict | None:
+                 margin: float, input_spectrum: tuple[np.ndarray, np.ndarray] | None = None) -> dict | None:
     """The S-weighted refinement of an identification, or None where it does not apply or fails.
 
     Parameters
@@ -399,6 +399,9 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
         (:func:`noisy_inputs`).
     margin : float
         Equilibrium margin of the feasible set.
+    input_spectrum : (ndarray, ndarray), optional
+        The inputs' signal spectrum from the bus's previous windows (:func:`aslm_core.noise.pooled_input_spectrum`)
+        for the refinement's Wiener smoother instead of the window's own estimate.
 
     Returns
     -------
@@ -409,7 +412,7 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
     if not noisy_inputs(floors):
         return None
     prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
-                   floors=True, input_smoother="wiener")
+                   floors=True, input_smoother="wiener", input_spectrum=input_spectrum)
     if prep.input_error is None:
         return None
     out = refine(prep, window.f0, config, d0, skip_s, margin)

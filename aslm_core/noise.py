@@ -10,6 +10,7 @@ inputs, so input noise passes through it into the fit (errors in variables) unle
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from functools import lru_cache
 
 import numpy as np
@@ -224,8 +225,81 @@ def _extend(x: np.ndarray, pad: int, m: int) -> np.ndarray:
     return np.concatenate((2.0 * x0 - x[pad:0:-1], x, 2.0 * x1 - x[-2:-pad - 2:-1]))
 
 
+def pooled_input_spectrum(windows: Sequence[np.ndarray], fs: float, smooth_hz: float = WIENER_SMOOTH_HZ,
+                          top_hz: float = FLOOR_FROM_HZ) -> tuple[np.ndarray, np.ndarray]:
+    """The inputs' signal cross-spectrum from several noisy windows of the same bus, for :func:`wiener_smooth`.
+
+    Parameters
+    ----------
+    windows : sequence of ndarray, each shape (c, n)
+        Measured signals of K windows on the same uniform grid and length (e.g. V [pu] and θ [rad] of the
+        bus's previous windows), c ≤ 2, each carrying white measurement noise.
+    fs : float
+        Sample rate [Hz].
+    smooth_hz : float
+        Width of the moving average over the averaged periodogram matrix [Hz].
+    top_hz : float
+        The signal spectrum is zero from this frequency up [Hz]: the band the floor is measured in.
+
+    Returns
+    -------
+    freqs : ndarray, shape (n // 2 + 1,)
+        Frequencies [Hz].
+    s : ndarray, shape (n // 2 + 1, c, c)
+        The signal's cross-spectral matrix in per-sample units (white noise of variance σ² is flat at σ²)
+        [unit of x squared].
+
+    Notes
+    -----
+    The windows' tapered periodogram matrices are averaged and smoothed over ``smooth_hz``, and the white floor
+    (each channel's :func:`noise_floor` variance, averaged over the windows) is subtracted; negative eigenvalues
+    are clipped.  Averaging K windows cuts the periodogram's scatter by √K, so the signal is resolved down to
+    ~floor/√(K·bins) (bins: those in ``smooth_hz``) instead of one window's floor: :func:`wiener_smooth`'s own
+    estimate must cut the signal where its power reaches the floor and loses what lies beneath.  Above
+    ``top_hz`` the floor band's premise (no signal there) holds the spectrum at zero; without it the floor's
+    residual scatter opened the gain there.  Measurements: docs/numerics.md.
+    """
+    xs = [np.atleast_2d(np.asarray(w, dtype=np.float64)) for w in windows]
+    if not xs:
+        raise ValueError("pooled_input_spectrum needs at least one window")
+    c, n = xs[0].shape
+    if c > 2 or any(x.shape != (c, n) for x in xs):
+        raise ValueError(f"windows must share one shape (c, n) with c ≤ 2, got {[x.shape for x in xs]}")
+    taper, ww = _taper(n)
+    acc = np.zeros((n // 2 + 1, c, c), dtype=complex)
+    floor = np.zeros(c)
+    for x in xs:
+        spec = np.fft.rfft(_detrend(x) * taper, axis=1)
+        acc += np.einsum("if,jf->fij", spec, spec.conj()) / ww
+        floor += [noise_floor(xi, fs)["sigma"] ** 2 for xi in x]
+    acc /= len(xs)
+    floor /= len(xs)
+    freqs = np.fft.rfftfreq(n, 1.0 / fs)
+    width = max(1, int(round(smooth_hz * n / fs)))
+    sm = np.empty_like(acc)
+    for i in range(c):
+        for j in range(c):
+            sm[:, i, j] = _moving_average(acc[:, i, j], width)
+    lam, vec = np.linalg.eigh(sm - np.diag(floor))
+    s = (vec * np.maximum(lam, 0.0)[:, None, :]) @ vec.conj().transpose(0, 2, 1)
+    s[freqs >= top_hz] = 0.0
+    return freqs, s
+
+
+def _given_spectrum(spectrum: tuple[np.ndarray, np.ndarray], freqs: np.ndarray) -> np.ndarray:
+    """A signal spectrum (frequencies [Hz], (m, c, c)) interpolated onto ``freqs``, zero beyond its last one."""
+    f, s = spectrum
+    out = np.empty((freqs.size,) + s.shape[1:], dtype=complex)
+    for i in range(s.shape[1]):
+        for j in range(s.shape[2]):
+            out[:, i, j] = (np.interp(freqs, f, s[:, i, j].real, right=0.0)
+                            + 1j * np.interp(freqs, f, s[:, i, j].imag, right=0.0))
+    return out
+
+
 def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float = WIENER_SMOOTH_HZ,
-                  return_cutoffs: bool = False, return_error: bool = False) -> np.ndarray | tuple:
+                  return_cutoffs: bool = False, return_error: bool = False,
+                  spectrum: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | tuple:
     """Conditional mean of jointly stationary signals observed in white noise of known std: a non-causal
     multichannel Wiener smoother.
 
@@ -244,6 +318,12 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         Also return each channel's signal cut-off.
     return_error : bool
         Also return the smoothed signals' error spectrum (after the cut-offs, whether or not they were asked).
+    spectrum : (ndarray, ndarray), optional
+        The signals' cross-spectrum known from elsewhere, frequencies [Hz] and shape (m, c, c) in per-sample
+        units (:func:`pooled_input_spectrum`): used instead of the window's own estimate and its cut-off rule,
+        a channel's cut-off then where that spectrum ends, if every channel carries noise (σ > 0: an exact
+        channel must pass whole, which the given spectrum, zero in places, would not ensure).  Absent: the
+        window's estimate.
 
     Returns
     -------
@@ -276,6 +356,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     c, n = x.shape
     if c > 2:
         raise ValueError(f"wiener_smooth takes one or two channels, got {c}")
+    if spectrum is not None and np.any(var <= 0.0):
+        spectrum = None
     if n < 8 or not np.any(var > 0.0):
         freqs = np.fft.rfftfreq(n, 1.0 / fs)
         return _returned(x.copy(), np.full(c, 0.5 * fs), freqs, np.zeros((freqs.size, c, c), complex),
@@ -301,10 +383,19 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     for i in range(c):
         below = np.flatnonzero(p[i][k_min:] <= CUTOFF_FACTOR * r[i])
         ends.append(k_min + int(below[0]) if below.size else p[i].size)
+    if spectrum is not None:
+        given = _given_spectrum(spectrum, np.fft.rfftfreq(ne, 1.0 / fs)) * ne  # to |X_k|² units, as r
+        ends = []
+        for i in range(c):
+            on = np.flatnonzero(given[k_min:, i, i].real <= 0.0)
+            ends.append(k_min + int(on[0]) if on.size else given.shape[0])
     cutoffs = np.array(ends, dtype=np.float64) * fs / ne
     if c == 1:
-        s = np.maximum(p[0] - r[0], 0.0)
-        s[ends[0]:] = 0.0
+        if spectrum is not None:
+            s = np.maximum(given[:, 0, 0].real, 0.0)
+        else:
+            s = np.maximum(p[0] - r[0], 0.0)
+            s[ends[0]:] = 0.0
         out = (np.fft.irfft(s / (s + r[0]) * spec[0], n=ne) + line[0])[None, pad:pad + n]
         px = (s / (s + r[0]) * var[0]).astype(complex)[:, None, None]
         return _returned(out, cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px, return_cutoffs, return_error)
@@ -324,6 +415,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     sa[ends[0]:] = 0.0
     sb[min(ends):] = 0.0
     sd[ends[1]:] = 0.0
+    if spectrum is not None:
+        sa, sb, sd = given[:, 0, 0].real, given[:, 0, 1], given[:, 1, 1].real
     # gain = S·(S + R)⁻¹
     ta, td = sa + r[0], sd + r[1]
     det = ta * td - np.abs(sb) ** 2

@@ -117,7 +117,7 @@ def _step_shaped(floors: dict[str, float], channel: str) -> bool:
 
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,
             lowpass_hz: float | None = None, floors: bool = False, input_smoother: str = "none",
-            input_cutoff_hz: float = 3.0) -> Prepared:
+            input_cutoff_hz: float = 3.0, input_spectrum: tuple[np.ndarray, np.ndarray] | None = None) -> Prepared:
     """Check a window and bring it onto a clean uniform grid.
 
     Parameters
@@ -145,6 +145,9 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         backwards.  P and Q are not smoothed: only the inputs' noise is propagated by the model.
     input_cutoff_hz : float
         Cut-off of the ``zero_phase`` smoother [Hz].
+    input_spectrum : (ndarray, ndarray), optional
+        For the Wiener smoothers: V's and θ's signal cross-spectrum known from elsewhere, frequencies [Hz] and
+        (m, 2, 2) per-sample units (:func:`aslm_core.noise.pooled_input_spectrum`), instead of the window's own.
 
     Returns
     -------
@@ -222,7 +225,7 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     if wiener:
         (V, theta), cut, *input_error = noise.wiener_smooth(
             np.stack([V, theta]), 1.0 / dt, [white["noise_v"], white["noise_theta"]], return_cutoffs=True,
-            return_error=True)
+            return_error=True, spectrum=input_spectrum)
         if input_smoother == "wiener_lowpass" and lowpass_hz is None and cut.min() < 0.45 / dt:
             # Rounded to 0.1 Hz so the filter designs are cached.
             lowpass_hz = max(0.1, round(PREFILTER_FRACTION * float(cut.min()), 1))

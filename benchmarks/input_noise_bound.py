@@ -28,7 +28,10 @@ minimum per window, median over windows); per level and class μ, σ, coverage o
 whose bound ``input_noise_bound.json`` holds (the first 100), σ over the RMS structural bound and the
 standardised spread (JSON ``input_noise_weighting``).
 
-    .venv/bin/python -m benchmarks.input_noise_bound --weighting [--n 300] [--reps 2] [--seed 41]
+    .venv/bin/python -m benchmarks.input_noise_bound --weighting [--n 300] [--reps 2] [--seed 41] [--pooled 6]
+
+``--pooled K`` adds the row ``spectral_pooled``: the default given the inputs' spectrum pooled over K previous noisy
+windows of the bus (:func:`pooled_spectrum`; JSON name suffix ``_pooled{K}``; docs/numerics.md, stop 32).
 
 The default's re-measurement runs ``--weighting --seed 45`` (:data:`FLIP_SEED`, fixed before that run; the stored
 bounds are seed 43's, so its table has no σ / bound column).
@@ -49,7 +52,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import linalg  # noqa: E402
 
-from aslm_core import IdentifyConfig, WindowError, identify  # noqa: E402
+from aslm_core import IdentifyConfig, WindowError, identify, noise  # noqa: E402
 from aslm_core.information import (  # noqa: E402
     input_jacobian,
     input_noise_covariance,
@@ -298,27 +301,48 @@ WEIGHTING = {"none": IdentifyConfig(**common.OUTPUT_ERROR), "spectral": Identify
 FLIP_SEED = 45
 
 
-def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED) -> dict:
+def pooled_spectrum(case, k: int, v_rel: float, th: float, rng: np.random.Generator) -> tuple:
+    """:func:`aslm_core.noise.pooled_input_spectrum` of k noisy 10 s windows of a long clean realisation of the
+    case's load and network (:func:`long_inputs`, k·10 s), white noise of the class on V and θ: the bus's previous
+    windows as a service would keep them."""
+    n = case.clean.V.size
+    fs = 1.0 / float(np.median(np.diff(case.clean.t)))
+    lv, lth = long_inputs(case, k * n / fs)
+    std = np.array([v_rel * float(np.mean(case.clean.V)), th])[:, None]
+    wins = [np.stack([lv[j * n:(j + 1) * n], lth[j * n:(j + 1) * n]]) for j in range(k)]
+    return noise.pooled_input_spectrum([x + std * rng.standard_normal(x.shape) for x in wins], fs)
+
+
+def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0) -> dict:
     """``--weighting`` (module docstring): per level, class and estimator the per-window D/D_real, SE/D_real
-    and the minimum time [s], on the windows and draws of ``seed``."""
+    and the minimum time [s], on the windows and draws of ``seed``; with ``pooled_k`` also the default given the
+    inputs' spectrum pooled over that many previous windows (:func:`pooled_spectrum`, ``spectral_pooled``)."""
     cases = {level: common.cases(n, level=level, seed=seed) for level in LEVELS}
     rngs = {(level, k): np.random.default_rng([seed, level, k])  # as window_bounds
             for level in LEVELS for k in range(len(INPUT_NOISE))}
     identify(cases[2][0].window, config=WEIGHTING["spectral"])  # numba compilation outside the timings
+    names = list(WEIGHTING) + (["spectral_pooled"] if pooled_k else [])
     per = {(level, cls, name): {"ratio": [], "se": [], "t": []} for level in LEVELS for cls, _, _ in INPUT_NOISE
-           for name in WEIGHTING}
+           for name in names}
     t_all = time.perf_counter()
     for i in range(n):
+        # One history per window and class, shared by the levels (the long realisation is the level-1 case's, as in
+        # benchmarks.input_noise_decompose); its own draws, apart from the windows'.
+        spectra = ({cls: pooled_spectrum(cases[LEVELS[0]][i], pooled_k, v_rel, th,
+                                         np.random.default_rng([seed, 7, i, k]))
+                    for k, (cls, v_rel, th) in enumerate(INPUT_NOISE)} if pooled_k else {})
         for level in LEVELS:
             c = cases[level][i]
             for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
                 w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])
-                for name, cfg in WEIGHTING.items():
+                for name in names:
+                    cfg = WEIGHTING.get(name, WEIGHTING["spectral"])
                     best, r = math.inf, None
                     for _ in range(reps):
                         t0 = time.perf_counter()
                         try:
-                            r = identify(w, config=cfg)
+                            r = identify(w, config=cfg, input_spectrum=spectra.get(cls) if name == "spectral_pooled"
+                                         else None)
                         except WindowError:
                             r = None
                         best = min(best, time.perf_counter() - t0)
@@ -401,7 +425,7 @@ def weighting_targets(summ: dict) -> list[list]:
 def weighting_main(args) -> dict:
     """``--weighting``: run (or ``--report``), summarise against the stored bounds, print, write."""
     name = ("input_noise_weighting" + ("" if args.seed == CONFIRM_SEED else f"_seed{args.seed}")
-            + ("_quick" if args.quick else ""))
+            + (f"_pooled{args.pooled}" if args.pooled else "") + ("_quick" if args.quick else ""))
     bpath = common.RESULTS / "input_noise_bound.json"
     # The stored bounds are those of the confirmation seed's windows.
     bounds = ([{int(k): v for k, v in w.items()} for w in json.loads(bpath.read_text())["per_window_relative_variance"]]
@@ -415,7 +439,7 @@ def weighting_main(args) -> dict:
         load0 = list(os.getloadavg())
         out = {"machine": common.machine(), "n": n, "seed": args.seed, "reps": args.reps,
                "configs": {k: v.to_dict() for k, v in WEIGHTING.items()}, "load_avg_at_start": load0,
-               "per_window": weighting_run(n, args.reps, args.seed)}
+               "pooled_k": args.pooled, "per_window": weighting_run(n, args.reps, args.seed, args.pooled)}
         out["total_s"] = time.perf_counter() - t_all
         out["load_avg_at_end"] = list(os.getloadavg())
     out["summary"] = weighting_summary(out["per_window"], bounds)
@@ -437,6 +461,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--report", action="store_true", help="print the tables of the JSON written before; no run")
     ap.add_argument("--weighting", action="store_true", help="the S-weighted estimator against the default")
     ap.add_argument("--reps", type=int, default=2, help="--weighting: runs per identification (time: minimum)")
+    ap.add_argument("--pooled", type=int, default=0,
+                    help="--weighting: also the default given the inputs' spectrum pooled over this many previous windows")
     ap.add_argument("--seed", type=int, default=CONFIRM_SEED,
                     help="--weighting: seed of the windows (41 development, 43 confirmation; no bounds but for 43)")
     args = ap.parse_args(argv)

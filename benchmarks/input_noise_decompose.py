@@ -17,12 +17,17 @@ ingredient at a time swapped from the default's estimate to the oracle's:
   ``oracle_full_band`` the same over every bin;
 * candidate estimates of the inputs, each with its own smoother's P_x: the Wiener smoother with the true spectrum
   (:func:`wiener_given`, not runnable: the ceiling), ``smooth_hz`` 0.25 and 1 Hz, and the signal spectrum of a VAR
-  model of the measured inputs (order by BIC or AIC; with or without today's cut-off rule).
+  model of the measured inputs (order by BIC or AIC; with or without today's cut-off rule);
+* the pooled spectrum (stop 32, the bus's previous windows): the inputs' cross-spectrum from K = 6 or 30 noisy 10 s
+  windows of the long realisation (the class's white noise, other draws; :func:`pooled_estimate`), floor subtracted,
+  clipped, with or without zero from 5 Hz up; ``pooled_core_*`` the same through
+  :func:`aslm_core.noise.pooled_input_spectrum` and ``wiener_smooth(spectrum=...)``; ``e2e_*`` end to end,
+  :func:`aslm_core.identify` (the gate and all) without and with its ``input_spectrum``.
 
 Per cell: σ of D/D_real over the RMS structural bound, the robust spread of each window's error over its own bound
 (1.4826·MAD) and the windows more than ``--z`` of their bound off in a or Tm (and in any parameter).
 
-    .venv/bin/python -m benchmarks.input_noise_decompose [--n 100] [--z 3] [--variants default inputs ...]
+    .venv/bin/python -m benchmarks.input_noise_decompose [--n 100] [--z 3] [--variants default inputs ...] [--out NAME]
 """
 
 from __future__ import annotations
@@ -76,7 +81,23 @@ VARIANTS = {
     "wiener_var_bic_cut": ("var_bic_cut", "own", "est", "oe", 1),
     "wiener_var_aic_cut": ("var_aic_cut", "own", "est", "oe", 1),
     "oracle_full_band": ("oracle", "true", "true", "truth", 1, 0.5),
+    # The inputs' spectrum pooled over K noisy 10 s windows of the long realisation (the bus's previous windows):
+    # runnable in a service that keeps per-bus spectra across periods.
+    "pooled_spectrum_6": ("pooled_6", "own", "est", "oe", 1),
+    "pooled_spectrum_30": ("pooled_30", "own", "est", "oe", 1),
+    # The same with the signal spectrum zero from FLOOR_FROM_HZ up (the floor's own premise: no signal there).
+    "pooled_spectrum_6_5hz": ("pooled5_6", "own", "est", "oe", 1),
+    "pooled_spectrum_30_5hz": ("pooled5_30", "own", "est", "oe", 1),
+    # The same through aslm_core (noise.pooled_input_spectrum, wiener_smooth's ``spectrum``), the same draws.
+    "pooled_core_6": ("core_6", "own", "est", "oe", 1),
+    "pooled_core_30": ("core_30", "own", "est", "oe", 1),
+    # End to end: identify() as the default (gate and all), without and with ``input_spectrum`` (K = 6, 30).
+    "e2e_default": ("e2e", None),
+    "e2e_pooled_6": ("e2e", 6),
+    "e2e_pooled_30": ("e2e", 30),
 }
+#: Window counts of the pooled-spectrum variants (6: a minute of 10 s windows; 30: five minutes).
+POOL_K = (6, 30)
 
 
 def true_error_spectrum(v: np.ndarray, th: np.ndarray, fs: float, noise_var: tuple[float, float],
@@ -195,9 +216,57 @@ def var_spectrum(x: np.ndarray, fs: float, max_order: int = 40, criterion: str =
     return spectrum
 
 
+def noisy_windows(lv: np.ndarray, lth: np.ndarray, n: int, k: int, noise_std: tuple[float, float],
+                  rng: np.random.Generator) -> list[np.ndarray]:
+    """k consecutive n-sample (V, θ) windows of the long realisation with white noise of ``noise_std`` [pu, rad]."""
+    if k * n > lv.size:
+        raise ValueError(f"{k} windows of {n} samples need {k * n}, the realisation has {lv.size}")
+    out = []
+    for j in range(k):
+        x = np.stack([lv[j * n:(j + 1) * n], lth[j * n:(j + 1) * n]])
+        out.append(x + np.asarray(noise_std, float)[:, None] * rng.standard_normal(x.shape))
+    return out
+
+
+def pooled_estimate(wins: list[np.ndarray], fs: float, top_hz: float | None = None) -> callable:
+    """The (V, θ) signal cross-spectrum from noisy windows (:func:`noisy_windows`): the windows' tapered periodogram matrices averaged,
+    smoothed over :data:`aslm_core.noise.WIENER_SMOOTH_HZ`, minus the floor each channel's band above 5 Hz gives
+    (:func:`aslm_core.noise.noise_floor`, the variances averaged over the k windows), negative eigenvalues clipped.
+    With ``top_hz`` [Hz] the spectrum is zero from there up.  Per-sample units (white noise of variance σ² flat at
+    σ²), as ``spectrum(freqs)`` (interpolated)."""
+    k, n = len(wins), wins[0].shape[1]
+    w, ww = noise._taper(n)
+    acc = np.zeros((n // 2 + 1, 2, 2), complex)
+    floor = np.zeros(2)
+    for x in wins:
+        spec = np.fft.rfft(noise._detrend(x) * w, axis=1)
+        acc += np.einsum("if,jf->fij", spec, spec.conj()) / ww
+        floor += [noise.noise_floor(x[ch], fs)["sigma"] ** 2 for ch in range(2)]
+    acc /= k
+    floor /= k
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    width = max(1, int(round(noise.WIENER_SMOOTH_HZ * n / fs)))
+    sm = np.empty_like(acc)
+    for i in range(2):
+        for j in range(2):
+            sm[:, i, j] = noise._moving_average(acc[:, i, j], width)
+    s = clipped(sm - np.diag(floor))
+    if top_hz is not None:
+        s[f >= top_hz] = 0.0
+
+    def spectrum(freqs: np.ndarray) -> np.ndarray:
+        out = np.empty((freqs.size, 2, 2), complex)
+        for i in range(2):
+            for j in range(2):
+                out[:, i, j] = np.interp(freqs, f, s[:, i, j].real) + 1j * np.interp(freqs, f, s[:, i, j].imag)
+        return out
+
+    return spectrum
+
+
 def run_variant(prep, f0: float, d0: np.ndarray, skip_s: float, d_true: np.ndarray, spec: tuple,
                 oracle_vt: tuple[np.ndarray, np.ndarray], px_true: tuple, white_true: tuple[float, float],
-                raw=None, true_spec=None):
+                raw=None, true_spec=None, pooled=None):
     """D of the refinement with the ingredients of ``spec`` (:data:`VARIANTS`); None where it fails."""
     inputs, px, white, d_at, rounds = spec[:5]
     band = spec[5] if len(spec) > 5 else input_weighting.BAND_FRACTION
@@ -213,6 +282,13 @@ def run_variant(prep, f0: float, d0: np.ndarray, skip_s: float, d_true: np.ndarr
                                               return_error=True)
         elif inputs == "fd_true":
             vt, own = wiener_given(x, fs, sigma, true_spec)
+        elif inputs.startswith("pooled_"):
+            vt, own = wiener_given(x, fs, sigma, pooled[int(inputs[7:]), None])
+        elif inputs.startswith("core_"):
+            vt, _, *own = noise.wiener_smooth(x, fs, sigma, return_cutoffs=True, return_error=True,
+                                              spectrum=pooled["core", int(inputs[5:])])
+        elif inputs.startswith("pooled5_"):
+            vt, own = wiener_given(x, fs, sigma, pooled[int(inputs[8:]), noise.FLOOR_FROM_HZ])
         elif inputs == "pgram_nocut":
             vt, own = wiener_given(x, fs, sigma, None)
         elif inputs == "pgram_tail":
@@ -310,6 +386,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--z", type=float, default=3.0, help="|error| / own structural bound that counts as far off")
     ap.add_argument("--long-s", type=float, default=300.0, help="the bound's long clean realisation [s]")
     ap.add_argument("--variants", nargs="*", default=None, help="only these variants (default: all)")
+    ap.add_argument("--out", default="input_noise_decompose", help="name of the raw results in docs/results/")
     args = ap.parse_args(argv)
     if args.variants:
         for name in list(VARIANTS):
@@ -333,15 +410,23 @@ def main(argv=None) -> dict:
         for cls, v_rel, th in INPUT_NOISE[1:]:
             nv = ((v_rel * float(np.mean(clean.V))) ** 2, th**2)
             sn = np.repeat(np.asarray(nv), n)
+            # The pooled spectra's own noise draws, apart from the windows' (their order unchanged).
+            prng = np.random.default_rng([CONFIRM_SEED, 7, i, int(round(v_rel * 1e5))])
+            pooled = {}
+            for k in POOL_K:
+                wins = noisy_windows(lv, lth, n, k, (math.sqrt(nv[0]), math.sqrt(nv[1])), prng)
+                for top in (None, noise.FLOOR_FROM_HZ):
+                    pooled[k, top] = pooled_estimate(wins, fs, top)
+                pooled["core", k] = noise.pooled_input_spectrum(wins, fs)
             per_cls[cls] = (nv, linalg.cho_factor(prior + np.diag(sn), lower=True),
-                            true_error_spectrum(lv, lth, fs, nv, n))
+                            true_error_spectrum(lv, lth, fs, nv, n), pooled)
         for level in LEVELS:
             c = cases[level][i]
             for k, (cls, _v_rel, _th) in enumerate(INPUT_NOISE):
                 w = with_input_noise(c.window, c.clean, _v_rel, _th, rngs[level, k])  # the draws in order
                 if cls == "none":
                     continue
-                nv, cho, (px_true, true_spec) = per_cls[cls]
+                nv, cho, (px_true, true_spec), pooled = per_cls[cls]
                 try:
                     oe = identify(w, config=OE)
                     prep = prepare(w, max_gap_samples=DEFAULT.max_gap_samples,
@@ -360,8 +445,16 @@ def main(argv=None) -> dict:
                 cell["window"].append(i)
                 cell["oracle_gls"].append(oracle_gls[i][str(level)][cls][1])
                 for name, spec in VARIANTS.items():
+                    if spec[0] == "e2e":
+                        try:
+                            r = identify(w, config=DEFAULT,
+                                         input_spectrum=None if spec[1] is None else pooled["core", spec[1]])
+                            cell[name].append((r.d / c.truth.d).tolist())
+                        except WindowError:
+                            cell[name].append([math.nan] * 4)
+                        continue
                     d = run_variant(prep, w.f0, oe.d, oe.quality["skip_s"], c.truth.d, spec, vt, px_true, white_true,
-                                    raw, true_spec)
+                                    raw, true_spec, pooled)
                     cell[name].append((d / c.truth.d).tolist() if d is not None else [math.nan] * 4)
         if (i + 1) % 10 == 0:
             print(f"{i + 1} windows ({time.perf_counter() - t0:.0f} s)", flush=True)
@@ -385,7 +478,7 @@ def main(argv=None) -> dict:
            "variants": {k: list(v) for k, v in VARIANTS.items()}, "summary": summ,
            "total_s": time.perf_counter() - t0, "load_avg_at_end": list(os.getloadavg())}
     if not args.no_write:
-        common.write_json("input_noise_decompose", out)
+        common.write_json(args.out, out)
     return out
 
 

@@ -231,3 +231,44 @@ def test_exact_inputs_moved_by_the_loads_own_switching_are_not_smoothed():
         assert r.quality["floor_tilt_v"] < 5.0  # measured 4.0–4.4: the tilt alone took these inputs for noisy
         assert r.quality["lowpass_hz"] == 0.0 and r.quality["input_ratio_v"] == 1e6
         np.testing.assert_allclose(r.d, identify(c.window, config=OUTPUT_ERROR).d, rtol=1e-4)
+
+
+def test_pooled_input_spectrum_resolves_the_signal_above_one_windows_cut_off():
+    """K = 30 noisy windows of two coherent 1 Hz low-passed channels (true spectrum known, per-sample units):
+    above the single window's cut-off (up to the floor band) the pooled estimate is nearer the true spectrum
+    than one window's own (zero there by the cut-off rule) and than the same estimator on one window; and the
+    smoother given it leaves less error on five later windows than with its own estimate.  (Measured here: the
+    spectrum's summed absolute error 0.17 against 0.41 and 0.52, the five windows' mean square error 4 % lower;
+    the 0.6 margin was set after a first look at this seed's figures.)"""
+    rng = np.random.default_rng(32)
+    fs, n, k, later = 100.0, 1000, 30, 5
+    b, a = signal.butter(2, 1.0, fs=fs)
+    sig = np.array([0.2, 0.2])
+    w = signal.lfilter(b, a, rng.standard_normal((2, (k + later) * n + 2000)), axis=1)[:, 2000:]
+    clean = np.stack([w[0], 0.5 * w[0] + w[1]])
+    noisy = clean + sig[:, None] * rng.standard_normal(clean.shape)
+    wins = [noisy[:, j * n:(j + 1) * n] for j in range(k)]
+    f, s_k = noise.pooled_input_spectrum(wins, fs)
+    _, s_1 = noise.pooled_input_spectrum(wins[:1], fs)
+    h2 = np.abs(signal.freqz(b, a, worN=f, fs=fs)[1]) ** 2
+    true = np.stack([h2, 1.25 * h2])  # unit-variance white noise through H, and 0.5·that plus another
+    _, cut = noise.wiener_smooth(wins[0], fs, sig, return_cutoffs=True)
+    err_k = err_1 = err_cut = 0.0
+    for ch in range(2):
+        band = (f >= cut[ch]) & (f < noise.FLOOR_FROM_HZ)
+        assert band.sum() >= 5, cut
+        err_k += np.sum(np.abs(s_k[band, ch, ch].real - true[ch, band]))
+        err_1 += np.sum(np.abs(s_1[band, ch, ch].real - true[ch, band]))
+        err_cut += np.sum(true[ch, band])  # one window's own estimate: zero above its cut-off
+    assert err_k < 0.6 * err_cut and err_k < 0.6 * err_1, (err_k, err_cut, err_1)
+    e_own = e_given = 0.0
+    for j in range(k, k + later):
+        x, xc = noisy[:, j * n:(j + 1) * n], clean[:, j * n:(j + 1) * n]
+        e_own += np.mean((noise.wiener_smooth(x, fs, sig) - xc)[:, 100:-100] ** 2)
+        e_given += np.mean((noise.wiener_smooth(x, fs, sig, spectrum=(f, s_k)) - xc)[:, 100:-100] ** 2)
+    assert e_given < e_own, (e_given, e_own)
+    # An exact channel (σ = 0) passes whole: the given spectrum is then left aside.
+    x = noisy[:, :n].copy()
+    x[1] = clean[1, :n]
+    exact = np.array([sig[0], 0.0])
+    np.testing.assert_array_equal(noise.wiener_smooth(x, fs, exact, spectrum=(f, s_k)), noise.wiener_smooth(x, fs, exact))
