@@ -4,7 +4,7 @@
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm    # once, after tuning: the result
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm2   # the second confirmation (below)
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm3   # the third, once (docs/diagnosis.md)
-    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once (and so on to confirm10)
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once (and so on to confirm11)
 
 Each scenario of :mod:`aslm_sim.andes.effects` (a kind and a seed: the motor data, the effect's magnitude,
 the ambient noise) is simulated by ANDES for 22 s (10 ms step) and cut into two 10 s windows (2–12 s,
@@ -77,6 +77,9 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     # Tenth round (issue 12): confirm9 has been seen too; confirm10 was fixed here and committed before it was
     # simulated or diagnosed, its seeds disjoint from every seed above.
     "confirm10": {"clean": tuple(range(9901, 9911)), "effect": tuple(range(9901, 9905))},
+    # Eleventh round (issue 12): confirm10 has been seen too; confirm11 was fixed here and committed before it was
+    # simulated or diagnosed, its seeds disjoint from every seed above.
+    "confirm11": {"clean": tuple(range(10001, 10011)), "effect": tuple(range(10001, 10005))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
