@@ -129,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.self_test:
         recs += self_test_records(args.self_test, args.half_width, args.effects.split(","))
     (RESULTS / f"{args.out}.json").write_text(json.dumps({"argv": sys.argv[1:], "half_width_hz": args.half_width,
-                                                          "records": recs}, indent=1))
+                                                          "records": recs}))
     return 0
 
 
