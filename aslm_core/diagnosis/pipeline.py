@@ -25,7 +25,8 @@ Method (DESIGN §3)
 5. Verdict: the top significant candidate explains the mismatch when it removes at least
    ``explained_fraction`` of the held-out ambient-band residual above the noise expectation.  It is named
    (``explained``) only when a paired held-out test separates it from every rival — every other candidate
-   passing the score test and the penalty, unless its fit is implausible — with Holm's procedure over the
+   passing the score test and the penalty, unless its fit is implausible (or, for a broadband response such as
+   the droop, its held-out gain is carried by one narrow band: :func:`off_peak_gain`) — with Holm's procedure over the
    rivals, and the rival does not in turn beat it on the reverse paired test (non-nested models are compared
    both ways) by a material share of the named one's improvement (``reverse_margin``).  When the top one is
    not separated, its unseparated rivals are tried in its place (the gain only orders the tries): one
