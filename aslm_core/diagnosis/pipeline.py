@@ -25,7 +25,8 @@ Method (DESIGN §3)
 5. Verdict: the top significant candidate explains the mismatch when it removes at least
    ``explained_fraction`` of the held-out ambient-band residual above the noise expectation.  It is named
    (``explained``) only when a paired held-out test separates it from every rival — every other candidate
-   passing the score test and the penalty, unless its fit is implausible — with Holm's procedure over the
+   passing the score test and the penalty, unless its fit is implausible (or, for a broadband response such as
+   the droop, its held-out gain is carried by one narrow band: :func:`off_peak_gain`) — with Holm's procedure over the
    rivals, and the rival does not in turn beat it on the reverse paired test (non-nested models are compared
    both ways) by a material share of the named one's improvement (``reverse_margin``).  When the top one is
    not separated, its unseparated rivals are tried in its place (the gain only orders the tries): one
@@ -405,7 +406,7 @@ def _entry(analyses: list[_WindowAnalysis], name: str, zcrit: float) -> Candidat
         excess_reduction=PerChannel(*(_mean_or_none([getattr(c, f"excess_{ch}") for c in comps]) for ch in ("p", "q"))),
         penalised_gain=pg, score_z=z, dm_z=dmz, magnitude_z=float(min(mag_z, 1e6)), n_params=cand.n_params,
         significant=bool(math.isfinite(z) and z > zcrit and pg > 0 and mag_z >= cand.magnitude_z_min
-                         and cand.implausible(params, a0.seg, a0.ctx) is None),
+                         and _refuted(analyses, name, params) is None),
         signature=cand.signature, tested=True)
 
 
@@ -569,13 +570,13 @@ def _rivals(analyses: list[_WindowAnalysis], entries: list[CandidateEntry], best
     test.  Not a rival: a fit whose parameters are outside what its physics can be (``Candidate.implausible``,
     round 4 of issue 12): it fits something else, e.g. a "second motor" with a flywheel's inertia and no load
     torque standing in for a torque-speed law, and is no competing explanation.  ``extra``: rivals that are
-    always included (the plain motor outside the box, :func:`_outside_box`).
+    always included (the plain motor outside the box, :func:`_outside_box`).  Nor a broadband response whose
+    held-out gain is carried by one narrow band (:func:`_refuted`).
     """
-    a0 = analyses[0]
     look_alikes = LIBRARY[best.name].confusable
     return [e for e in entries if e is not best and e.tested and e.penalised_gain is not None
             and ((e.score_z > zcrit and e.penalised_gain > 0) or e.name in look_alikes)
-            and LIBRARY[e.name].implausible(e.parameters, a0.seg, a0.ctx) is None] + list(extra)
+            and _refuted(analyses, e.name, e.parameters) is None] + list(extra)
 
 
 def _look_alikes(a: str, b: str) -> bool:
@@ -697,6 +698,50 @@ def _challenger(analyses: list[_WindowAnalysis], entries: list[CandidateEntry], 
         for e in entries:
             e.separation_z, e.separated = saved[e.name]
     return None
+
+
+#: Coefficients each side of the peak that :func:`off_peak_gain` leaves out [-]: a line's DCT leaks into its
+#: neighbours, so the peak and one neighbour each side are the narrowest band the held-out part resolves it in.
+PEAK_HALF_BINS = 1
+
+
+def off_peak_gain(analyses: list[_WindowAnalysis], name: str) -> float:
+    """A candidate's held-out gain outside the narrow band where its correction peaks, summed over windows [-].
+
+    Per window and ambient-band DCT coefficient k of the held-out P and Q: g_k = (R_k² − (R_k − D_k)²)/v_k, R the
+    plain model's held-out residual, D the candidate's held-out correction (its model minus the plain one), v_k the
+    noise variance.  The peak is the k where D's weighted power D_k²/v_k (P and Q summed, three coefficients
+    averaged) is largest; coefficients within ``PEAK_HALF_BINS`` of it are left out.  Positive iff the held-out
+    data outside the peak bear out more than half of the fitted correction there (ΣR·D/v > ½ΣD²/v).
+    """
+    total = 0.0
+    for a in analyses:
+        te = a.seg.test
+        vp, vq, _ = a.noise.coefficients(te)
+        f1 = a.fits[name]
+        g = dd = 0.0
+        for y, m0, m1, v in ((a.seg.P, a.plain.model_p, f1.model_p, vp), (a.seg.Q, a.plain.model_q, f1.model_q, vq)):
+            c = dct_band(np.column_stack([(y - m0)[te], (m1 - m0)[te]]), a.noise.fs, a.noise.band_hz)
+            r, d = c[:, 0], c[:, 1]
+            g = g + (r * r - (r - d) ** 2) / v
+            dd = dd + d * d / v
+        k = int(np.argmax(np.convolve(dd, np.ones(3) / 3.0, mode="same")))
+        off = np.abs(np.arange(dd.size) - k) > PEAK_HALF_BINS
+        total += float(np.sum(g[off]))
+    return total
+
+
+def _refuted(analyses: list[_WindowAnalysis], name: str, params: dict[str, float]) -> str | None:
+    """Why a candidate's fit is no explanation whatever its held-out statistics (None: it may be one): its
+    parameters are implausible, or a broadband response's gain is carried by one narrow band."""
+    cand, a0 = LIBRARY[name], analyses[0]
+    reason = cand.implausible(params, a0.seg, a0.ctx)
+    if reason is None and cand.broadband and name in a0.fits:
+        off = off_peak_gain(analyses, name)
+        if off <= 0.0:
+            reason = (f"its held-out gain outside the band where its correction peaks is {off:.3g} ≤ 0: a response "
+                      "to V at every frequency carried by one narrow band (a load's own oscillation moving V)")
+    return reason
 
 
 def _explained_fraction(analyses: list[_WindowAnalysis], name: str) -> float:

@@ -147,6 +147,10 @@ class Candidate:
         The candidate changes or extends the induction motor itself (its circuit, rotor, torque law, or a
         second group), so its fit re-places D: a motor-form cause whose D stays on the plain fit's bound has
         not undone what pinned it (``DiagnosisConfig.bound_rule``).
+    broadband : bool
+        The candidate is a linear response to V at every frequency (a droop), so a real one improves the held-out
+        fit wherever V moves: its held-out gain outside the narrow band where its correction peaks must be positive,
+        else it is refuted like an implausible fit (:func:`aslm_core.diagnosis.pipeline.off_peak_gain`).
     """
 
     name = "plain"
@@ -161,6 +165,7 @@ class Candidate:
     scanned: tuple[str, ...] = ()
     confusable: tuple[str, ...] = ()
     motor_form = False
+    broadband = False
     max_nfev = 40  # upper-stage function evaluations per start (each iteration adds a Jacobian)
 
     @property

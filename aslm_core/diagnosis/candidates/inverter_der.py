@@ -18,6 +18,11 @@ rises is what a load's own Q switching looks like through the network (its step 
 Q and the lagged V move against each other), not a droop.  Kp has no such constraint: a volt-watt DER gives
 Kp > 0, a power-electronic load whose controller restores its power after a voltage change Kp < 0.
 
+Breadth: a droop responds to V at every frequency, so a real one improves the held-out fit across V's ambient band;
+a load's own oscillation at one frequency moves V through the network at that frequency only, and a lagged droop
+reproduces a response to one sinusoid at any gain and phase.  The candidate declares ``broadband``: its held-out gain
+outside the narrow band where its correction peaks must be positive (:func:`aslm_core.diagnosis.pipeline.off_peak_gain`).
+
 Signature: a residual coherent with V but lagging it (phase −atan(2πfT)), strongest in Q; with T → 0 it
 is indistinguishable from ZIP's linear term, so only lags of ~0.1 s and more are detectable.
 """
@@ -45,6 +50,7 @@ class InverterDER(Candidate):
     # A small, fast motor group and a relay-switched bank also add a lagged, V-driven Q response: on the
     # independent (ANDES) development data both were named as a droop before this rule.
     confusable = ("second_motor", "switched_shunt")
+    broadband = True
 
     def bounds(self, seg: Segment, ctx: Context):
         return np.array([0.02]), np.array([10.0])
