@@ -41,6 +41,9 @@ class FleetRow(BaseModel):
     dynamic: dict[str, float | None] | None = Field(description="D of the last successful result")
     stderr: dict[str, float | None] | None = Field(description="Standard errors of D")
     static: dict[str, float | None] | None = Field(description="Static part (ZIP or exponential)")
+    static_local: dict[str, float | None] | None = Field(
+        default=None, description="What ambient data identify of the static part (as in the parameters' "
+                                  "static_local): V0, P0, Q0 [pu], dPdV, dQdV [pu/pu], kpv, kqv [-], each with *_se")
     fit: dict[str, float | None] | None = Field(description="Fit degrees {fd_p, fd_q}")
     flags: list[str] = Field(description="Quality flags of the last successful result")
     verdict: str | None = Field(description="Latest diagnosis verdict: explained, ambiguous, consistent, unexplained, failed")
@@ -95,7 +98,8 @@ def fleet_rows(latest: LatestResults, buses: list[str], now: float, period_s: fl
             "reason": res.reason if res else None, "period": res.period if res else None, "age_s": age,
             "ok_period": ok.period if ok else None,
             "dynamic": par.dynamic if par else None, "stderr": par.stderr if par else None,
-            "static": par.static if par else None, "fit": par.fit if par else None,
+            "static": par.static if par else None, "static_local": par.static_local if par else None,
+            "fit": par.fit if par else None,
             "flags": par.flags if par else [],
             "verdict": ver.verdict if ver else None, "cause": ver.cause if ver else None,
             "diagnosis_period": ver.period if ver else None,

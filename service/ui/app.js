@@ -49,6 +49,33 @@
   }
   const utc = (t) => (t === null || t === undefined ? "–" : new Date(t * 1000).toISOString().slice(0, 19).replace("T", " ") + "Z");
   const staticText = (st) => (st ? Object.entries(st).map(([k, v]) => `${k} ${fmt(v)}`).join("  ") : "–");
+  // The static part as ambient data identify it: P0, Q0 at the window's mean voltage V0 and their local voltage
+  // exponents kpv, kqv.  The Z/I/P split is shown beside it only where the window separates it: with V moving by
+  // tenths of a percent [1, V, V²] are nearly collinear and the split's coefficients are noise (the identifier's
+  // flag static_split_unidentifiable), while P0 and dP/dV are not (docs/numerics.md).
+  const SPLIT_FLAG = "static_split_unidentifiable";
+  const hasLocal = (loc) => Boolean(loc) && loc.P0 !== undefined && loc.P0 !== null;
+  const localText = (loc) => `P0 ${fmt(loc.P0)} kpv ${fmt(loc.kpv)} · Q0 ${fmt(loc.Q0)} kqv ${fmt(loc.kqv)}`;
+  const withSe = (v, se) => `${fmt(v)} ± ${fmt(se)}`;
+  function staticCell(st, loc, flags) {
+    if (!hasLocal(loc)) return staticText(st);  // results stored before static_local existed
+    const split = flags.includes(SPLIT_FLAG);
+    return el("span", { class: "static", dataset: { split: split ? "unidentifiable" : "identifiable" },
+      title: (split ? "Z/I/P split not identifiable from this window: " : "") + staticText(st) },
+    localText(loc), split ? "" : el("span", { class: "se" }, `  ${staticText(st)}`));
+  }
+  function staticRows(par) {
+    if (!par || !hasLocal(par.static_local)) return [["static", staticText(par && par.static)]];
+    const loc = par.static_local, se = par.static_stderr || {};
+    const split = par.flags.includes(SPLIT_FLAG);
+    return [
+      [`static P at V0 = ${fmt(loc.V0)} pu`, `P0 ${withSe(loc.P0, loc.P0_se)} · dP/dV ${withSe(loc.dPdV, loc.dPdV_se)} · kpv ${withSe(loc.kpv, loc.kpv_se)}`],
+      [`static Q at V0`, `Q0 ${withSe(loc.Q0, loc.Q0_se)} · dQ/dV ${withSe(loc.dQdV, loc.dQdV_se)} · kqv ${withSe(loc.kqv, loc.kqv_se)}`],
+      ["static split", el("span", { id: "static-split", dataset: { split: split ? "unidentifiable" : "identifiable" } },
+        Object.entries(par.static).map(([k, v]) => `${k} ${withSe(v, se[k])}`).join("  "),
+        split ? el("span", { class: "muted" }, " — not identifiable from this window (static_split_unidentifiable)") : "")],
+    ];
+  }
 
   function showError(err) {
     const box = $("#error");
@@ -74,7 +101,9 @@
       label: `${k} [${UNITS[k]}]`, sort: k,
       cell: (r) => (r.dynamic ? [fmt(r.dynamic[k]), el("span", { class: "se" }, ` ±${fmt(r.stderr && r.stderr[k])}`)] : "–"),
     })),
-    { label: "static", cls: "txt", cell: (r) => staticText(r.static) },
+    { label: "static at V0", cls: "txt static-col", cell: (r) => staticCell(r.static, r.static_local, r.flags),
+      title: "P0, Q0: static power at the mean voltage V0 [pu]; kpv, kqv: local voltage exponents (V0/P0)·dP/dV [-]; " +
+        "the Z/I/P split is shown only where the window identifies it" },
     { label: "fd P", sort: "fd_p", cell: (r) => fmt(r.fit && r.fit.fd_p) },
     { label: "fd Q", sort: "fd_q", cell: (r) => fmt(r.fit && r.fit.fd_q) },
     { label: "flags", sort: "flags", cls: "flags", cell: (r) => r.flags.join(" ") },
@@ -99,7 +128,7 @@
     const f = ui.fleet;
     let typing = null;
     const head = el("tr", {}, COLUMNS.map((c) => el("th", {
-      class: c.cls || "", dataset: { sort: c.sort || "" },
+      class: c.cls || "", dataset: { sort: c.sort || "" }, ...(c.title ? { title: c.title } : {}),
       onclick: () => {
         if (!c.sort) return;
         f.desc = f.sort === c.sort ? !f.desc : false;
@@ -256,7 +285,7 @@
       ["age", ago(Date.now() / 1000 - latest.completed_at)],
       ["frames", latest.n_frames + (latest.warm_start ? " · warm start" : "")],
       ...PARAMS.map((k) => [`${k} [${UNITS[k]}]`, par ? `${fmt(par.dynamic[k])} ± ${fmt((par.stderr || {})[k])}` : "–"]),
-      ["static", staticText(par && par.static)],
+      ...staticRows(par),
       ["fit P / Q", par ? `${fmt(par.fit.fd_p)} / ${fmt(par.fit.fd_q)}` : "–"],
       ["flags", par && par.flags.length ? par.flags.join(" ") : "none"],
       ["values from", lastOk ? utc(lastOk.period) : "–"],

@@ -44,7 +44,8 @@ def result(bus: str, period: float, status: str = "ok", a: float = 40.0, complet
     params = None if status != "ok" else {
         "dynamic": {"a": a, "b": 10.0, "H2": 1.0, "Tm": 0.3}, "static": {"Pz": 0.1, "Pi": 0.2, "Pp": 0.5},
         "objective": 0.1, "fit": {"fd_p": 0.9, "fd_q": 0.8}, "flags": ["at_bound:H2"] if a > 60 else [],
-        "stderr": {k: stderr for k in ("a", "b", "H2", "Tm")}, "elapsed_s": 0.002}
+        "stderr": {k: stderr for k in ("a", "b", "H2", "Tm")}, "elapsed_s": 0.002,
+        "static_local": {"V0": 1.0, "P0": 0.8, "P0_se": 0.01, "kpv": 0.75, "kpv_se": 0.05}}
     return BusResult(bus=bus, period=period, period_s=10.0, status=status,
                      reason=None if status == "ok" else "coverage",
                      completed_at=time.time() if completed_at is None else completed_at, parameters=params)
@@ -117,6 +118,9 @@ def test_fleet_rows_carry_the_last_known_values_state_and_verdict(dash):
     assert rows["b1"]["dynamic"]["a"] == 40.0 and rows["b1"]["ok_period"] == 1000.0 and rows["b1"]["period"] == 1010.0
     assert rows["b1"]["stderr"]["a"] == 2.0 and rows["b1"]["fit"] == {"fd_p": 0.9, "fd_q": 0.8}
     assert rows["b2"]["flags"] == ["at_bound:H2"] and rows["b2"]["static"]["Pp"] == 0.5
+    # What ambient data identify of the static part travels with the row (the dashboard shows it, not the split).
+    assert rows["b2"]["static_local"]["P0"] == 0.8 and rows["b2"]["static_local"]["kpv_se"] == 0.05
+    assert rows["new"]["static_local"] is None
     assert (rows["b2"]["verdict"], rows["b2"]["cause"]) == ("explained", "second_motor")
     assert rows["new"]["dynamic"] is None and rows["new"]["age_s"] is None
     assert rows["old"]["age_s"] == pytest.approx(3 * view.period_s, abs=5.0)

@@ -5,8 +5,10 @@ Screenshots of each page are saved in the test's temporary folder (the path is p
 
 from __future__ import annotations
 
+import re
 import time
 
+import httpx
 import pytest
 from browser_helpers import CANVAS_INK, headless_chromium, missing, wait_js
 from service_helpers import client_session, free_port, periods, settings_for, wait_for
@@ -19,6 +21,28 @@ pytestmark = [pytest.mark.slow, pytest.mark.skipif(missing() is not None, reason
 
 N_BUSES = 6
 PERIOD_S = 12.0
+
+
+def static_cells_match(driver, url: str) -> bool:
+    """Whether every row's static cell shows its bus's static_local from ``GET /fleet`` (to the digits shown)
+    and hides the Z/I/P split exactly where the flags say it is unidentifiable (False while the page and the API
+    show different periods)."""
+    api = {r["bus"]: r for r in httpx.get(f"{url}/fleet", timeout=5).json()["rows"]}
+    cells = driver.execute_script("""
+        return [...document.querySelectorAll('#fleet tbody tr')].map(tr => {
+            const s = tr.querySelector('td.static-col span.static');
+            return [tr.dataset.bus, s ? s.firstChild.textContent : '', s ? s.dataset.split : '', s ? s.textContent : '']; });""")
+    for bus, text, split, whole in cells:
+        loc, flags = api[bus]["static_local"], api[bus]["flags"]
+        shown = {k: float(v) for k, v in re.findall(r"(P0|kpv|Q0|kqv) (\S+)", text)}
+        if set(shown) != {"P0", "kpv", "Q0", "kqv"}:
+            return False
+        if any(shown[k] != pytest.approx(loc[k], rel=6e-3) for k in shown):
+            return False
+        hidden = "static_split_unidentifiable" in flags
+        if split != ("unidentifiable" if hidden else "identifiable") or (hidden and "Pz" in whole):
+            return False
+    return bool(cells)
 
 
 def test_fleet_table_and_bus_page_in_chromium(tmp_path):
@@ -49,6 +73,9 @@ def test_fleet_table_and_bus_page_in_chromium(tmp_path):
                 for shown, k in zip(d, ("a", "b", "H2", "Tm"), strict=True):
                     assert float(shown) == pytest.approx(truth[bus]["dynamic"][k], rel=0.15), (bus, k, shown)
             assert "state-ok" in driver.find_element("css selector", "#fleet tbody tr").get_attribute("class")
+            # The static column shows what ambient data identify, P0, kpv, Q0, kqv at V0, as the REST rows have
+            # them, and leaves the Z/I/P split out of the cell where the identifier flags it unidentifiable.
+            assert wait_for(lambda: static_cells_match(driver, svc.url), 20, 1.0)
             driver.save_screenshot(str(tmp_path / "fleet.png"))
 
             # Sorting by a column happens on the server and shows in the page.
@@ -66,6 +93,9 @@ def test_fleet_table_and_bus_page_in_chromium(tmp_path):
             wait_js(driver, "return document.querySelector('#bus-name')?.textContent === arguments[0]"
                     .replace("arguments[0]", f"'{bus}'"), 10)
             wait_js(driver, "return +document.querySelector('#chart-a').dataset.points >= 1", 30)
+            split = wait_js(driver, "return document.querySelector('#static-split')?.dataset.split", 10)
+            flags = httpx.get(f"{svc.url}/buses/{bus}/parameters/latest", timeout=5).json()["parameters"]["flags"]
+            assert split == ("unidentifiable" if "static_split_unidentifiable" in flags else "identifiable")
             assert driver.execute_script(CANVAS_INK, "#chart-a") > 200
             wait_js(driver, "return +document.querySelector('#chart-P').dataset.points > 100", 60)
             assert driver.execute_script(CANVAS_INK, "#chart-P") > 200
