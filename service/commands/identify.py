@@ -71,7 +71,10 @@ def run(args: argparse.Namespace) -> int:
 def _human(path: str, result) -> str:
     d, s, se = result.dynamic, result.static, result.stderr
     dyn = "  ".join(f"{k}={v:.4g}±{se.get(k, float('nan')):.2g}" for k, v in d.items())
-    sta = "  ".join(f"{k}={v:.4g}" for k, v in s.items())
+    sse = result.static_stderr
+    sta = "  ".join(f"{k}={v:.4g}±{sse.get(k, float('nan')):.2g}" for k, v in s.items())
+    if "static_split_unidentifiable" in result.flags:  # its coefficients are noise; P0 and dP/dV above are not
+        sta += "  (not identifiable from this window)"
     flags = ", ".join(result.flags) or "none"
     loc = result.static_local
     at_v0 = "  ".join(f"{k}={loc[k]:.4g}±{loc[k + '_se']:.2g}" for k in ("P0", "dPdV", "Q0", "dQdV") if k in loc)
@@ -92,7 +95,7 @@ def _human(path: str, result) -> str:
         warn += (f"\n  warning: the window's two halves give D {q['halves_z']:.2g} combined standard errors apart: "
                  f"the answer depends on which half the window saw")
     return (
-        f"{path}\n  dynamic: {dyn}\n  static:  {sta}\n  static at V0={loc.get('V0', float('nan')):.4g}: {at_v0}\n"
+        f"{path}\n  dynamic: {dyn}\n  static at V0={loc.get('V0', float('nan')):.4g}: {at_v0}\n  static split: {sta}\n"
         f"  objective={result.objective:.4g}  FD(P)={result.fit['fd_p']:.4f}  FD(Q)={result.fit['fd_q']:.4f}"
         f"  flags: {flags}  ({result.elapsed_s * 1e3:.1f} ms)" + warn
     )

@@ -70,6 +70,10 @@ def test_human_output_shows_the_identifiable_static_part_and_the_disturbance_fla
     proc = run_cli("identify", str(d / "bus.npz"))
     assert proc.returncode == 0, proc.stderr
     assert "static at V0=" in proc.stdout and "dPdV=" in proc.stdout and "static_split_unidentifiable" in proc.stdout
+    # The identifiable part first; the split after it, with its standard errors and said to be unidentifiable.
+    split = proc.stdout.split("static split: ")[1].splitlines()[0]
+    assert proc.stdout.index("static at V0=") < proc.stdout.index("static split: ")
+    assert "Pz=" in split and "±" in split and split.endswith("(not identifiable from this window)")
     out = json.loads(run_cli("identify", "--json", "--disturbance", "ar", str(d / "bus.npz")).stdout)
     assert out["config"]["disturbance"] == "ar" and "ar_order_p" in out["quality"]
     iv = json.loads(run_cli("identify", "--json", "--disturbance", "ar_iv", str(d / "bus.npz")).stdout)
