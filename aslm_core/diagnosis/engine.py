@@ -19,17 +19,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import optimize, stats
 
-from aslm_core.diagnosis.candidates.base import Candidate, Context, Prediction
+from aslm_core.diagnosis.candidates.base import BOUND_TOL, Candidate, Context, Prediction
 from aslm_core.diagnosis.noise import NoiseModel, dct_band, n_band
 from aslm_core.diagnosis.projection import Projector
 from aslm_core.diagnosis.segment import Segment
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 
 _FAIL = 1e8  # residual value of a failed simulation (much larger than any weighted residual)
-#: A fitted D this close to a bound of its box, as a share of the box's width, sits on the bound: a converged
-#: fit reaches a binding bound to rounding (1e-12 on the out-of-box ANDES windows), one stopped at its
-#: evaluation cap only nearly.
-BOUND_TOL = 1e-3
 
 
 @dataclass

@@ -16,6 +16,11 @@ import numpy as np
 from aslm_core import motor, static
 from aslm_core.diagnosis.segment import Segment
 
+#: A fitted parameter this close to a bound of its box, as a share of the box's width, sits on the bound: a
+#: converged fit reaches a binding bound to rounding (1e-12 on the out-of-box ANDES windows), one stopped at its
+#: evaluation cap only nearly.
+BOUND_TOL = 1e-3
+
 
 @dataclass
 class Context:

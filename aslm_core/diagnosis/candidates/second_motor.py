@@ -8,7 +8,8 @@ Two transformed third-order motors (eq. 4–5) driven by the same voltage, each 
 
 (the second motor's V²/X'2 joins the static Qz like the first one's).  D2 has the units of D: a2 [1/s],
 b2 [1/s], H22 [s], Tm2 [pu], with a2·V² > 2·b2·Tm2; its box is the paper's with a2 ≥ 1, H22 ≥ 0.05 and b2 ≤ 90
-(a smaller group has proportionally smaller a and H2 on the system base).  Four nonlinear parameters, fitted in the
+(a smaller group has proportionally smaller a and H2 on the system base).  A fit with H22 on the top of its box
+is implausible for that reason: a part of the load with the largest inertia the whole load's motor may have.  Four nonlinear parameters, fitted in the
 upper stage together with D from a few starts that split the load torque between a faster and a slower
 group.
 
@@ -20,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aslm_core.diagnosis.candidates.base import Candidate, Context, simulate_motor
+from aslm_core.diagnosis.candidates.base import BOUND_TOL, Candidate, Context, simulate_motor
 from aslm_core.diagnosis.segment import Segment
 from aslm_core.params import dynamic_bounds
 
@@ -75,10 +76,18 @@ class SecondMotor(Candidate):
         return lo, np.maximum(hi, lo + 1e-6)
 
     def implausible(self, params: dict[str, float], seg: Segment, ctx: Context) -> str | None:
-        ratio = params.get("H22", 0.0) / max(params.get("Tm2", 0.0), 1e-12)
+        h22 = params.get("H22", 0.0)
+        ratio = h22 / max(params.get("Tm2", 0.0), 1e-12)
         if ratio > MAX_H_PER_TORQUE_S:
             return (f"H22/Tm2 = {ratio:.3g} s > {MAX_H_PER_TORQUE_S:g} s: an inertia with almost no load torque, "
                     "not a motor group")
+        # H22 is on the system base, so it scales with the group's rating: a part of the load cannot have the
+        # inertia the box allows the whole load's aggregate motor.  A fit pinned on that edge asks for a process
+        # slower than any motor group (on ANDES, thermostatic cycling; docs/diagnosis.md, "Stop 33").
+        lo, hi = self.bounds(seg, ctx)
+        if hi[2] - h22 <= BOUND_TOL * (hi[2] - lo[2]):
+            return (f"H22 = {h22:.3g} s on the top of its box ({hi[2]:g} s, the aggregate motor's largest inertia): "
+                    "a part of the load with more inertia than a whole load's motor can have is no motor group")
         return None
 
     def motor_power(self, seg: Segment, d: np.ndarray, z: np.ndarray):

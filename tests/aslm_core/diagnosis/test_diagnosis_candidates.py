@@ -157,3 +157,20 @@ def test_implausible_frequency_sensitivity_is_never_significant():
     p0 = float(np.mean(seg.P))
     assert cand.implausible({"Kpf": 3.0 * p0 / seg.f0, "Kqf": -1.0 * p0 / seg.f0}, seg, None) is None
     assert "sensitivity" in cand.implausible({"Kpf": 12.0 * p0 / seg.f0, "Kqf": 0.0}, seg, None)
+
+
+def test_a_second_motor_with_the_whole_loads_largest_inertia_is_implausible():
+    # H22 is on the system base and scales with the group's rating: a second group pinned on the top of the
+    # aggregate motor's box is no motor group (stop 33: ANDES thermostatic cycling fitted there, no real second
+    # motor or double cage of confirm11 did).
+    from aslm_core.diagnosis.candidates import LIBRARY
+    from aslm_core.diagnosis.segment import make_segment
+
+    cand = LIBRARY["second_motor"]
+    seg = make_segment(_case(11).window)
+    lo, hi = cand.bounds(seg, None)
+    inside = {"a2": 20.0, "b2": 30.0, "H22": 0.9 * hi[2], "Tm2": 0.3}
+    assert cand.implausible(inside, seg, None) is None
+    top = {**inside, "H22": float(hi[2])}
+    assert "top of its box" in cand.implausible(top, seg, None)
+    assert "top of its box" in cand.implausible({**inside, "H22": float(hi[2]) - 1e-4 * (hi[2] - lo[2])}, seg, None)
