@@ -4,7 +4,7 @@
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm    # once, after tuning: the result
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm2   # the second confirmation (below)
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm3   # the third, once (docs/diagnosis.md)
-    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once (and so on to confirm12)
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once (and so on to confirm13)
 
 Each scenario of :mod:`aslm_sim.andes.effects` (a kind and a seed: the motor data, the effect's magnitude,
 the ambient noise) is simulated by ANDES for 22 s (10 ms step) and cut into two 10 s windows (2–12 s,
@@ -83,6 +83,9 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     # Twelfth round (issue 12): confirm11 has been seen too; confirm12 was fixed here and committed before it was
     # simulated or diagnosed, its seeds disjoint from every seed above.
     "confirm12": {"clean": tuple(range(10101, 10111)), "effect": tuple(range(10101, 10105))},
+    # Thirteenth round (issue 12): confirm12 has been seen too; confirm13 was fixed here and committed before it was
+    # simulated or diagnosed, its seeds disjoint from every seed above.
+    "confirm13": {"clean": tuple(range(10201, 10211)), "effect": tuple(range(10201, 10205))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
