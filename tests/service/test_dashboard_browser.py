@@ -34,9 +34,10 @@ def static_cells_match(driver, url: str) -> bool:
             return [tr.dataset.bus, s ? s.firstChild.textContent : '', s ? s.dataset.split : '', s ? s.textContent : '']; });""")
     for bus, text, split, whole in cells:
         loc, flags = api[bus]["static_local"], api[bus]["flags"]
-        shown = {k: float(v) for k, v in re.findall(r"(P0|kpv|Q0|kqv) (\S+)", text)}
+        shown = dict(re.findall(r"(P0|kpv|Q0|kqv) (-?\d[\d.e+-]*)", text))  # "–" (no value) does not match
         if set(shown) != {"P0", "kpv", "Q0", "kqv"}:
             return False
+        shown = {k: float(v) for k, v in shown.items()}
         if any(shown[k] != pytest.approx(loc[k], rel=6e-3) for k in shown):
             return False
         hidden = "static_split_unidentifiable" in flags

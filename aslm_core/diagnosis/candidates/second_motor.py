@@ -9,9 +9,9 @@ Two transformed third-order motors (eq. 4–5) driven by the same voltage, each 
 (the second motor's V²/X'2 joins the static Qz like the first one's).  D2 has the units of D: a2 [1/s],
 b2 [1/s], H22 [s], Tm2 [pu], with a2·V² > 2·b2·Tm2; its box is the paper's with a2 ≥ 1, H22 ≥ 0.05 and b2 ≤ 90
 (a smaller group has proportionally smaller a and H2 on the system base).  A fit with H22 on the top of its box
-is implausible for that reason: a part of the load with the largest inertia the whole load's motor may have.  Four nonlinear parameters, fitted in the
-upper stage together with D from a few starts that split the load torque between a faster and a slower
-group.
+is implausible for that reason: a part of the load with the largest inertia the whole load's motor may have.  Four
+nonlinear parameters, fitted in the upper stage together with D from a few starts that split the load torque between
+a faster and a slower group.
 
 Signature: the residual of a single-motor fit is coherent with V and dV/dt with a frequency response that
 no single (a, b, H2) reproduces — typically a second resonance/lag in the 0.2–3 Hz band, on P and Q.
