@@ -299,6 +299,10 @@
       ["window", `${s.window_s} s at ${s.frame_rate} frames/s, late allowance ${s.late_s} s`],
       ["diagnosis", s.diagnose_every ? `every ${s.diagnose_every} periods` : "off"],
       ["identifier", `${s.objective}, ${s.n_starts} starts (warm +${s.n_starts_warm}), low-pass ${s.lowpass_hz == null ? "adaptive" : s.lowpass_hz + " Hz"}`],
+      // What the workers' identifier did on the newest window (its IdentifyConfig travels with the result): the
+      // noisy-input and own-fluctuation estimators are the library's defaults, not service settings.
+      ["estimator", par && par.config ? el("span", { id: "estimator" },
+        `inputs ${par.config.input_smoother}, weighting ${par.config.input_weighting}, disturbance ${par.config.disturbance}`) : "–"],
       ["workers", `${s.workers} (${s.executor}), ${health.workers_replaced} replaced`],
       ["frames", `${health.frames_received} received, ${health.frames_dropped} dropped`],
     ]);

@@ -95,8 +95,13 @@ def test_fleet_table_and_bus_page_in_chromium(tmp_path):
                     .replace("arguments[0]", f"'{bus}'"), 10)
             wait_js(driver, "return +document.querySelector('#chart-a').dataset.points >= 1", 30)
             split = wait_js(driver, "return document.querySelector('#static-split')?.dataset.split", 10)
-            flags = httpx.get(f"{svc.url}/buses/{bus}/parameters/latest", timeout=5).json()["parameters"]["flags"]
-            assert split == ("unidentifiable" if "static_split_unidentifiable" in flags else "identifiable")
+            latest = httpx.get(f"{svc.url}/buses/{bus}/parameters/latest", timeout=5).json()["parameters"]
+            assert split == ("unidentifiable" if "static_split_unidentifiable" in latest["flags"] else "identifiable")
+            # The estimator the workers ran is named as the result records it (the library's default here).
+            estimator = wait_js(driver, "return document.querySelector('#estimator')?.textContent", 10)
+            assert estimator == (f"inputs {latest['config']['input_smoother']}, weighting "
+                                 f"{latest['config']['input_weighting']}, disturbance {latest['config']['disturbance']}")
+            assert "weighting spectral" in estimator and "disturbance gated" in estimator
             assert driver.execute_script(CANVAS_INK, "#chart-a") > 200
             wait_js(driver, "return +document.querySelector('#chart-P').dataset.points > 100", 60)
             assert driver.execute_script(CANVAS_INK, "#chart-P") > 200
