@@ -17,6 +17,7 @@ from collections import Counter
 from pathlib import Path
 
 from aslm_core.diagnosis.candidates.base import BOUND_TOL
+from aslm_core.diagnosis.candidates.second_motor import H22_MIN
 from aslm_core.params import dynamic_bounds
 
 RESULTS = Path(__file__).resolve().parent.parent / "docs" / "results"
@@ -25,7 +26,7 @@ RESULTS = Path(__file__).resolve().parent.parent / "docs" / "results"
 def on_top(runs: list[str]) -> Counter:
     """(run, kind, verdict, input noise) → [tested on the top, of them z > 3, of them significant]."""
     lo, hi = dynamic_bounds(1.0)
-    edge = hi[2] - BOUND_TOL * (hi[2] - 0.05)  # the second motor's H22 box is [0.05 s, the aggregate's top]
+    edge = hi[2] - BOUND_TOL * (hi[2] - H22_MIN)  # the second motor's H22 box: [H22_MIN, the aggregate's top]
     out: Counter = Counter()
     for run in runs:
         for r in json.loads((RESULTS / f"diagnosis_independent_{run}.json").read_text())["records"]:
