@@ -89,16 +89,17 @@ class Whitened:
         A(q) of P and of Q.
     """
 
-    def __init__(self, problem, polys: tuple[np.ndarray, np.ndarray]) -> None:
+    def __init__(self, problem, polys: tuple[np.ndarray, np.ndarray], mix: float = 0.0) -> None:
         self.pb = problem
         self.polys = polys
+        self.mix = mix
         self.skip = max(len(a) for a in polys) - 1
         self.evaluations = 0
 
     def residuals(self, d: np.ndarray):
         """Whitened, projected residuals and Jacobians of P and Q (lists), or None when the simulation fails."""
         self.evaluations += 1
-        zs = whitened_columns(self.pb, self.polys, d, self.skip)
+        zs = whitened_columns(self.pb, self.polys, d, self.skip, self.mix)
         if zs is None:
             return None
         es, js = [], []
@@ -120,7 +121,8 @@ class Whitened:
         return [l / max(float(e @ e), 1e-300) for e in es]
 
 
-def whitened_columns(pb, polys: tuple[np.ndarray, np.ndarray], d: np.ndarray, skip: int) -> list[np.ndarray] | None:
+def whitened_columns(pb, polys: tuple[np.ndarray, np.ndarray], d: np.ndarray, skip: int,
+                     mix: float = 0.0) -> list[np.ndarray] | None:
     """Per channel, the AR-filtered columns [residual, ∂residual/∂D (4), static basis] over the regression samples.
 
     Parameters
@@ -132,6 +134,9 @@ def whitened_columns(pb, polys: tuple[np.ndarray, np.ndarray], d: np.ndarray, sk
         D = [a, b, H2, Tm].
     skip : int
         Leading filtered samples dropped (the filter's start-up).
+    mix : float
+        The second channel is Q − mix·P (model and measurement alike) [-]: with mix the own fluctuation's ΔQ/ΔP
+        it carries none of it (:func:`coupling`).  Its static part stays in the span of the same regressors.
 
     Returns
     -------
@@ -143,12 +148,28 @@ def whitened_columns(pb, polys: tuple[np.ndarray, np.ndarray], d: np.ndarray, sk
     if not ok:
         return None
     out = []
+    cols = []
     for c in range(2):
         meas = pb.p_meas if c == 0 else pb.q_meas
         model, grad = (pb._p, pb._dp) if c == 0 else (pb._q, pb._dq)
-        z = np.column_stack([meas - model[pb.k0:], -grad[pb.k0:], pb.basis])
+        cols.append(np.column_stack([meas - model[pb.k0:], -grad[pb.k0:]]))
+    if mix:
+        cols[1] = cols[1] - mix * cols[0]
+    for c in range(2):
+        z = np.column_stack([cols[c], pb.basis])
         out.append(signal.lfilter(polys[c], [1.0], z, axis=0)[skip:])
     return out
+
+
+def coupling(rp: np.ndarray, rq: np.ndarray) -> float:
+    """ΔQ/ΔP of what P and Q share in their residuals (least squares of rq on rp) [-].
+
+    The load's own fluctuation moves P and Q together (small loads switching at their power factors); with the
+    second channel taken as Q − k·P it leaves that channel, whose disturbance is then the white floor, free of
+    the loop through the network.  Without own fluctuation the residuals are independent floors and k ≈ 0.
+    """
+    den = float(rp @ rp)
+    return float(rp @ rq) / den if den > 0.0 else 0.0
 
 
 def _cost(es: list[np.ndarray]) -> float:
@@ -158,7 +179,7 @@ def _cost(es: list[np.ndarray]) -> float:
 
 
 def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin: float = 1e-3,
-        reestimate: int = 2, max_order: int = AR_MAX_ORDER) -> dict:
+        reestimate: int = 2, max_order: int = AR_MAX_ORDER, couple: bool = False) -> dict:
     """Prediction-error fit of D from an output-error optimum d0, the AR noise models re-estimated at the end.
 
     The AR polynomials come from the output-error residuals at the current D; the fit then minimises the
@@ -171,15 +192,16 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
     (4×4 covariance of D from the whitened Jacobian, inverse Fisher information) and ``resid`` (the
     whitened residuals of P and Q).
     """
-    return passes(problem, d0, lambda pb, polys, d: Whitened(pb, polys), max_iter=max_iter, xtol=xtol,
-                  margin=margin, reestimate=reestimate, max_order=max_order)
+    return passes(problem, d0, lambda pb, polys, d, mix: Whitened(pb, polys, mix), max_iter=max_iter, xtol=xtol,
+                  margin=margin, reestimate=reestimate, max_order=max_order, couple=couple)
 
 
 def passes(problem, d0: np.ndarray, make, *, max_iter: int, xtol: float, margin: float, reestimate: int,
-           max_order: int, finish=None) -> dict:
+           max_order: int, finish=None, couple: bool = False) -> dict:
     """``reestimate`` passes of: AR models from the output-error residual at D, then a fit of D with them.
 
-    ``make(problem, polys, d)`` builds the pass's criterion (as :class:`Whitened`; None: stop);
+    ``make(problem, polys, d, mix)`` builds the pass's criterion (as :class:`Whitened`; None: stop); with
+    ``couple`` its second channel is Q − mix·P, mix from the pass's residuals (:func:`coupling`), else mix = 0;
     ``finish(criterion, state)`` may add entries to the pass's result.  Returns the last pass's result (as
     :func:`fit`) with the iterations and evaluations of all passes.
     """
@@ -192,8 +214,9 @@ def passes(problem, d0: np.ndarray, make, *, max_iter: int, xtol: float, margin:
         evals += 1
         if r is None:
             break
-        polys = (ar_whitener(r[0], max_order), ar_whitener(r[1], max_order))
-        wp = make(problem, polys, d)
+        mix = coupling(r[0], r[1]) if couple else 0.0
+        polys = (ar_whitener(r[0], max_order), ar_whitener(r[1] - mix * r[0], max_order))
+        wp = make(problem, polys, d, mix)
         if wp is None:
             break
         state = constrained_lm(wp, d, max_iter, xtol, margin)
@@ -201,6 +224,7 @@ def passes(problem, d0: np.ndarray, make, *, max_iter: int, xtol: float, margin:
         evals += wp.evaluations
         d = state["d"]
         state["polys"] = polys
+        state["mix"] = mix
         if finish is not None:
             finish(wp, state)
     if not state:

@@ -336,10 +336,12 @@ def _disturbance_fit(kind: str, problem: Problem, final: dict, best: dict,
     and its ``quality`` entries (AR orders; for the IV its instruments' strength and over-identification).
     """
     if kind == "ar":
-        pem = disturbance.fit(problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order)
+        pem = disturbance.fit(problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order,
+                              couple=config.couple_channels)
     else:
         pem = instrumental.fit(problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order,
-                               se_smooth_hz=SE_SMOOTH_HZ if config.stderr_method == "spectral" else None)
+                               se_smooth_hz=SE_SMOOTH_HZ if config.stderr_method == "spectral" else None,
+                               couple=config.couple_channels)
     problem.evaluations += pem["evaluations"]
     if not math.isfinite(pem["cost"]):
         return final, None, {}

@@ -79,7 +79,7 @@ def cramer_rao(jac: np.ndarray, nuisance: np.ndarray | None, cov: np.ndarray) ->
 
 
 def disturbance_covariance(own_cov: np.ndarray, own_gain: tuple[float, float], white_var: tuple[float, float],
-                           cross: bool = True) -> np.ndarray:
+                           cross: bool = True, coherence: float = 1.0) -> np.ndarray:
     """Covariance of the stacked [P; Q] disturbance: one own process in both channels plus white floors.
 
     Parameters
@@ -93,14 +93,16 @@ def disturbance_covariance(own_cov: np.ndarray, own_gain: tuple[float, float], w
     cross : bool
         Keep the P–Q cross-covariance (the true process).  False gives each channel its own spectrum only:
         the bound for estimators that model the channels separately.
+    coherence : float
+        Correlation of the own process's P and Q parts (1: one process in both) [-].
 
     Returns
     -------
     ndarray, shape (2l, 2l)
-        Σ = g·gᵀ ⊗ own_cov + diag(white_var) ⊗ I.
+        Σ = G ⊗ own_cov + diag(white_var) ⊗ I, G = g·gᵀ with its off-diagonal × ``coherence`` (0 without ``cross``).
     """
     g = np.asarray(own_gain, dtype=np.float64)
-    mix = np.outer(g, g) if cross else np.diag(g * g)
+    mix = np.outer(g, g) * (np.array([[1.0, coherence], [coherence, 1.0]]) if cross else np.eye(2))
     return np.kron(mix, own_cov) + np.kron(np.diag(np.asarray(white_var, dtype=np.float64)), np.eye(own_cov.shape[0]))
 
 

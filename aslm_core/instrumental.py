@@ -101,14 +101,15 @@ class Instrumented(_Weighted):
     """
 
     def __init__(self, problem, polys: tuple[np.ndarray, np.ndarray], d_ref: np.ndarray, lags: int = IV_LAGS,
-                 first: int = FIRST_LAG) -> None:
+                 first: int = FIRST_LAG, mix: float = 0.0) -> None:
         self.pb = problem
         self.polys = polys
+        self.mix = mix
         self.lags = lags
         self.top = first + lags - 1  # rows before the first with every lag
         self.skip = max(len(a) for a in polys) - 1
         self.evaluations = 1
-        zs = disturbance.whitened_columns(problem, polys, d_ref, self.skip)
+        zs = disturbance.whitened_columns(problem, polys, d_ref, self.skip, mix)
         if zs is None:
             raise ValueError("the instruments' reference D cannot be simulated")
         self.bases = [_orthonormal(instruments(zf, lags, first)) for zf in zs]
@@ -143,7 +144,7 @@ class Instrumented(_Weighted):
     def residuals(self, d: np.ndarray):
         """Residuals and Jacobians of P and Q in the instrument space, the static part projected out there."""
         self.evaluations += 1
-        zs = disturbance.whitened_columns(self.pb, self.polys, d, self.skip)
+        zs = disturbance.whitened_columns(self.pb, self.polys, d, self.skip, self.mix)
         if zs is None:
             return None
         es, js = [], []
@@ -175,7 +176,7 @@ class Instrumented(_Weighted):
             Hansen's statistic [-] (χ² with instruments − parameters degrees of freedom when they are valid).
         """
 
-        zs = disturbance.whitened_columns(self.pb, self.polys, d, self.skip)
+        zs = disturbance.whitened_columns(self.pb, self.polys, d, self.skip, self.mix)
         if zs is None:
             return None
         xs, eps = [], []
@@ -281,7 +282,7 @@ def _off(x: np.ndarray, basis_cols: np.ndarray) -> np.ndarray:
 
 def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin: float = 1e-3,
         reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS,
-        first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None) -> dict:
+        first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None, couple: bool = False) -> dict:
     """IV prediction-error fit of D from an output-error optimum d0; AR models and instruments renewed per pass.
 
     ``first_lag``: the shortest instrument lag [samples]; ``se_smooth_hz``: the covariance of D and the
@@ -296,9 +297,9 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
     ``overid_p`` (its χ² upper-tail probability) [-], both robust with ``se_smooth_hz``, and ``overid_white`` (Sargan's
     white-innovation statistic over its degrees of freedom) [-].
     """
-    def make(pb, polys, d):
+    def make(pb, polys, d, mix):
         try:
-            return Instrumented(pb, polys, d, lags, first_lag)
+            return Instrumented(pb, polys, d, lags, first_lag, mix)
         except ValueError:
             return None
 
@@ -306,7 +307,7 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
         _overid_and_covariance(wp, state, se_smooth_hz)
 
     return disturbance.passes(problem, d0, make, max_iter=max_iter, xtol=xtol, margin=margin,
-                              reestimate=reestimate, max_order=max_order, finish=finish)
+                              reestimate=reestimate, max_order=max_order, finish=finish, couple=couple)
 
 
 def covariance_scale(overid: float) -> float:

@@ -119,6 +119,7 @@ class IdentifyConfig:
     coarse_to_fine: bool = True
     disturbance: Disturbance = "gated"
     ar_max_order: int = 30
+    couple_channels: bool = False
     stderr_method: StderrMethod = "spectral"
     input_weighting: InputWeighting = "spectral"
 

@@ -7,6 +7,7 @@ cases of a call run in one numba kernel (parallel over cases).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -89,6 +90,7 @@ def make_cases(
     input_noise: bool = True,
     own_sigma: float | Sequence[float] = 0.0,
     own_shape: str = "lowpass",
+    own_q_coherence: float = 1.0,
     truths: Sequence[LoadTruth] | None = None,
     networks: Sequence[dict] | None = None,
 ) -> list[SyntheticCase]:
@@ -121,6 +123,10 @@ def make_cases(
         versions for the same seed.
     own_shape : str
         Shape of the own process, one of :data:`aslm_sim.own.OWN_SHAPES`.
+    own_q_coherence : float
+        Correlation ρ of the own ΔQ with the own ΔP [-]: ΔQ = 0.33·(ρ·x + √(1 − ρ²)·x₂)·σ·P with x₂ a second,
+        independent process of the same shape (a load whose small loads switch at different power factors).
+        1 (default): ΔQ = 0.33·ΔP, the same cases as before.
     truths : sequence of LoadTruth, optional
         The load of each case instead of a random draw (e.g. one bus over successive windows, or a load
         that changes between them); the excitation and noise still come from (seed, i).
@@ -154,14 +160,14 @@ def make_cases(
                  networks[c0:c0 + _CHUNK] if networks is not None else None)
         cases.extend(_make_chunk(children[c0:c0 + _CHUNK], c0, sos, gain, m, k, h, n_skip, n_samp, n_int,
                                  level, snr_db, seed, fs, f0, input_noise, sig_own[c0:c0 + _CHUNK], own_shape,
-                                 fixed))
+                                 fixed, own_q_coherence))
     return cases
 
 
 def _make_chunk(children: list, c0: int, sos: np.ndarray, gain: float, m: int, k: int, h: float,
                 n_skip: int, n_samp: int, n_int: int, level: int | None, snr_db: float | None, seed: int,
                 fs: float, f0: float, input_noise: bool, sig_own: np.ndarray,
-                own_shape: str, fixed: tuple = (None, None)) -> list[SyntheticCase]:
+                own_shape: str, fixed: tuple = (None, None), own_q_coherence: float = 1.0) -> list[SyntheticCase]:
     """Simulate and post-process one chunk of :func:`make_cases` (cases c0, c0 + 1, ...).
 
     ``fixed``: the chunk's truths and networks, each a sequence or None (drawn).
@@ -182,10 +188,14 @@ def _make_chunk(children: list, c0: int, sos: np.ndarray, gain: float, m: int, k
         forcing[i, 0, 1:] = net["sigma_P"] * net["P_N"] * gain * signal.sosfilt(sos, w[0])
         forcing[i, 1, 1:] = net["sigma_Q"] * net["P_N"] * gain * signal.sosfilt(sos, w[1])
         if sig_own[i] > 0.0:
-            own = sig_own[i] * tr.power(1.0)[0] * own_process(np.random.default_rng(s_own), own_shape, n_int,
-                                                               fs * m, sos, gain)
-            forcing[i, 2, 1:] = own
-            forcing[i, 3, 1:] = OWN_Q_PER_P * own
+            scale = sig_own[i] * tr.power(1.0)[0]
+            x = own_process(np.random.default_rng(s_own), own_shape, n_int, fs * m, sos, gain)
+            forcing[i, 2, 1:] = scale * x
+            if own_q_coherence < 1.0:
+                # A child of the own seed: the ΔP process (and every case with ρ = 1) stays as it was.
+                x2 = own_process(np.random.default_rng(s_own.spawn(1)[0]), own_shape, n_int, fs * m, sos, gain)
+                x = own_q_coherence * x + math.sqrt(1.0 - own_q_coherence**2) * x2
+            forcing[i, 3, 1:] = OWN_Q_PER_P * scale * x
         truths.append(tr)
         nets.append(net)
         rows.append(p)

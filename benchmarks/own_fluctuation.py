@@ -42,8 +42,10 @@ SEED = 43
 #: Seeds of the confirmation runs, fixed before any run on them (243: the gated estimator's flag
 #: ``iv_error_may_exceed_20pct``, 2026-11-24, with ``--candidates "output error" gated``; 245: the IV's standard
 #: errors scaled by its reduced χ², 2026-11-25, ``--n 100 --candidates "gated, spectral weighting" --tag cover``;
-#: 246: stop 28's tail flags, 2026-11-25, the same command with ``--tag flags``).
-CONFIRM_SEEDS = (143, 243, 245, 246)
+#: 246: stop 28's tail flags, 2026-11-25, the same command with ``--tag flags``; 247: the coupled channels
+#: (``couple_channels``), 2026-12-02, ``--candidates "gated, spectral weighting" "gated, spectral weighting, coupled
+#: channels" --noise-shapes lowpass switching --tag coupled`` at ``--coherence`` 1, 0.9 and 0.7).
+CONFIRM_SEEDS = (143, 243, 245, 246, 247)
 LEVEL = 2
 #: Target std(own ΔP) / std(clean P) of the windows.
 RATIOS = (0.0, 0.5, 0.9)
@@ -61,18 +63,21 @@ CANDIDATES = {
     "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1", input_weighting="none"),
     "gated": IdentifyConfig(disturbance="gated", input_weighting="none"),
     "gated, spectral weighting": IdentifyConfig(disturbance="gated", input_weighting="spectral"),
+    "gated, spectral weighting, coupled channels": IdentifyConfig(disturbance="gated", input_weighting="spectral",
+                                                                  couple_channels=True),
 }
 
 
-def own_cases(n: int, ratio: float, shape: str, base: list, seed: int = SEED) -> list:
+def own_cases(n: int, ratio: float, shape: str, base: list, seed: int = SEED, coherence: float = 1.0) -> list:
     """The n cases of ``base`` (made with ``seed``) again, with an own fluctuation at std ratio ``ratio`` to the
-    clean P."""
+    clean P (its ΔQ correlated with its ΔP by ``coherence``: :func:`aslm_sim.cases.make_cases`)."""
     if ratio <= 0.0:
         return base
     # own std = k·p_v with k = r/√(1 − r²) gives own/total = r when the two are uncorrelated.
     k = ratio / math.sqrt(1.0 - ratio * ratio)
     sig = [k * float(np.std(c.clean.P)) / c.truth.power(1.0)[0] for c in base]
-    return make_cases(n, level=LEVEL, seed=seed, input_noise=False, own_sigma=sig, own_shape=shape)
+    return make_cases(n, level=LEVEL, seed=seed, input_noise=False, own_sigma=sig, own_shape=shape,
+                      own_q_coherence=coherence)
 
 
 def bench_window(i: int, ratio: float, shape: str, noise: int, seed: int = SEED):
@@ -162,10 +167,13 @@ def main(argv=None) -> dict:
                     help="shapes that also get noisy V/θ at the two PMU classes (default: the first shape)")
     ap.add_argument("--seed", type=int, default=SEED, help="seed of the cases (43: development)")
     ap.add_argument("--candidates", nargs="+", default=list(CANDIDATES), choices=list(CANDIDATES))
+    ap.add_argument("--coherence", type=float, default=1.0,
+                    help="correlation of the own ΔQ with the own ΔP (1: ΔQ = 0.33·ΔP, the bench as it was)")
     ap.add_argument("--tag", default="", help="name suffix of the JSON")
     ap.add_argument("--gate", action="store_true", help="print the gated composite from the JSON (no identification)")
     args = ap.parse_args(argv)
-    name = "own_fluctuation" + (f"_{args.tag}" if args.tag else "") + ("" if args.seed == SEED else f"_seed{args.seed}")
+    name = ("own_fluctuation" + (f"_{args.tag}" if args.tag else "") + ("" if args.seed == SEED else f"_seed{args.seed}")
+            + ("" if args.coherence == 1.0 else f"_coh{args.coherence:g}"))
     if args.gate:
         recorded = common.read_json(name)
         if any(k.startswith("gated") for k in recorded["candidates"]):
@@ -177,6 +185,7 @@ def main(argv=None) -> dict:
     n = args.n or (8 if args.quick else 50)
     t_all = time.perf_counter()
     out = {"machine": common.machine(), "n_per_ratio": n, "seed": args.seed, "level": LEVEL, "quick": args.quick,
+           "coherence": args.coherence,
            "candidates": {k: CANDIDATES[k].to_dict() for k in names}, "runs": []}
     base = make_cases(n, level=LEVEL, seed=args.seed, input_noise=False)
     _one(base[0].window, names)  # numba compilation / cache load outside the timings
@@ -185,7 +194,7 @@ def main(argv=None) -> dict:
         for ratio in RATIOS:
             if ratio == 0.0 and si > 0:
                 continue  # no own fluctuation: the shape does not matter
-            cs = own_cases(n, ratio, shape, base, args.seed)
+            cs = own_cases(n, ratio, shape, base, args.seed, args.coherence)
             achieved = [float(np.std(c.states["P_own"]) / np.std(c.clean.P)) if ratio > 0 else 0.0 for c in cs]
             label = f"{ratio:g} {shape} (achieved {np.median(achieved):.2f})" if ratio > 0 else "0"
             for k, (cls, v_rel, th) in enumerate(INPUT_NOISE if shape in noisy or ratio == 0.0 else INPUT_NOISE[:1]):

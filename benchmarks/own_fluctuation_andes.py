@@ -52,15 +52,18 @@ SNR_DB = 22.0
 RATIOS = (0.0, 0.5, 0.9)
 SHAPES = ("lowpass", "switching", "pink", "ramp")
 #: Own-process seeds of the confirmation runs, fixed before them (the development windows are seed 1's; 21: the
-#: gated estimator's flag ``iv_error_may_exceed_20pct``, 2026-11-24, ``--candidates "output error" gated``).
-CONFIRM_OWN_SEEDS = (11, 21)
+#: gated estimator's flag ``iv_error_may_exceed_20pct``, 2026-11-24, ``--candidates "output error" gated``; 31: the
+#: coupled channels, 2026-12-02, ``--candidates default "default, coupled channels" --tag coupled``).
+CONFIRM_OWN_SEEDS = (11, 21, 31)
 #: Each with the options it was measured with, not the defaults (which became the S-weighted, gated estimator).
 CANDIDATES = {"output error": IdentifyConfig(**common.OUTPUT_ERROR),
               "AR disturbance (PEM)": IdentifyConfig(disturbance="ar", input_weighting="none"),
               "AR disturbance (IV)": IdentifyConfig(disturbance="ar_iv", input_weighting="none"),
               "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1",
                                                                input_weighting="none"),
-              "gated": IdentifyConfig(disturbance="gated", input_weighting="none")}
+              "gated": IdentifyConfig(disturbance="gated", input_weighting="none"),
+              "default": IdentifyConfig(),
+              "default, coupled channels": IdentifyConfig(couple_channels=True)}
 F0 = 60.0
 
 
