@@ -347,6 +347,8 @@ def _disturbance_fit(kind: str, problem: Problem, final: dict, best: dict,
         return final, None, {}
     it = final["iterations"] if final is not best else 0
     extra = {"ar_order_p": float(len(pem["polys"][0]) - 1), "ar_order_q": float(len(pem["polys"][1]) - 1)}
+    if config.couple_channels:
+        extra["own_q_per_p"] = float(pem.get("mix", 0.0))
     if "strength" in pem:
         extra.update(iv_strength_p=pem["strength"][0], iv_strength_q=pem["strength"][1],
                      iv_overid=pem["overid"], iv_overid_p=pem["overid_p"], iv_overid_white=pem["overid_white"])

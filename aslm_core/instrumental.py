@@ -344,8 +344,9 @@ def _overid_and_covariance(wp: Instrumented | Stacked, state: dict, se_smooth_hz
 
 def fit_pooled(pool, problems: list, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin: float = 1e-3,
                reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS,
-               first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None) -> dict:
-    """IV prediction-error fit of one D from several windows: per window its AR models and instruments.
+               first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None, couple: bool = False) -> dict:
+    """IV prediction-error fit of one D from several windows: per window its AR models and instruments (and with
+    ``couple`` its second channel Q − k·P, k per window: :func:`aslm_core.disturbance.coupling`).
 
     Parameters
     ----------
@@ -369,9 +370,10 @@ def fit_pooled(pool, problems: list, d0: np.ndarray, max_iter: int = 40, xtol: f
             r = pb.residuals(d, jacobian=False)
             if r is None:
                 break
-            polys = (disturbance.ar_whitener(r[0], max_order), disturbance.ar_whitener(r[1], max_order))
+            mix = disturbance.coupling(r[0], r[1]) if couple else 0.0
+            polys = (disturbance.ar_whitener(r[0], max_order), disturbance.ar_whitener(r[1] - mix * r[0], max_order))
             try:
-                parts.append(Instrumented(pb, polys, d, lags, first_lag))
+                parts.append(Instrumented(pb, polys, d, lags, first_lag, mix))
             except ValueError:
                 break
         if len(parts) < len(problems):

@@ -83,6 +83,13 @@ class IdentifyConfig:
         See docs/numerics.md.
     ar_max_order : int
         Longest AR noise model tried [samples].
+    couple_channels : bool
+        ``ar`` and ``ar_iv`` (and the gated estimator where the IV answers): the second channel is Q − k·P
+        instead of Q, k the least-squares ratio of the Q residual to the P residual at each pass's start
+        (reported as ``quality["own_q_per_p"]``).  A load's own switching moves P and Q together, so the
+        combination carries little of it, and what it carries is not fed back through the network: the
+        disturbance left there is the white floor.  The default (one default for the Python API, the CLI and
+        the service); False gives the channels as measured.  See docs/numerics.md, "P and Q together".
     coarse_to_fine : bool
         RK4 only: random starts descend first on a coarse grid (every m-th sample, m·dt ≤ 40 ms, the
         half-step inputs taken from the measured sample in between), then polish on the full grid.
@@ -119,7 +126,7 @@ class IdentifyConfig:
     coarse_to_fine: bool = True
     disturbance: Disturbance = "gated"
     ar_max_order: int = 30
-    couple_channels: bool = False
+    couple_channels: bool = True
     stderr_method: StderrMethod = "spectral"
     input_weighting: InputWeighting = "spectral"
 

@@ -86,6 +86,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--seeds", nargs="+", type=int, default=list(DEV_SEEDS))
     ap.add_argument("--shapes", nargs="+", default=list(SHAPES), choices=SHAPES)
     ap.add_argument("--k", type=int, default=16, help="windows per pool")
+    ap.add_argument("--tag", default="", help="name suffix of the JSON")
     args = ap.parse_args(argv)
     t_all = time.perf_counter()
     grid = andes_own.grid_recording(tf=TF, tstep=TSTEP, seed=SEED, fs=FS)
@@ -106,7 +107,8 @@ def main(argv=None) -> dict:
                            "bias μ−1 [%]", "±1.96 SE cover [%]", "iv_instruments_rejected", "fits"], table))
     if not args.no_write:
         confirm = set(args.seeds) <= set(CONFIRM_SEEDS)
-        common.write_json("own_fluctuation_pooled" + ("_confirm" if confirm else "") + ("_quick" if args.quick else ""), out)
+        common.write_json("own_fluctuation_pooled" + (f"_{args.tag}" if args.tag else "") + ("_confirm" if confirm else "")
+                          + ("_quick" if args.quick else ""), out)
     return out
 
 

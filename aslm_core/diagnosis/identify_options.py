@@ -16,7 +16,8 @@ PINNED: dict = {
     "integrator": "rk4", "objective": "paper", "static": "zip", "skip_s": 1.0, "transient_tau": 5.0,
     "skip_max_s": 3.0, "n_starts": 3, "lowpass_hz": None, "input_smoother": "wiener_lowpass",
     "input_cutoff_hz": 3.0, "max_iter": 60, "seed": 0, "max_gap_samples": 5, "min_duration_s": 5.0,
-    "coarse_to_fine": True, "disturbance": "none", "ar_max_order": 30, "stderr_method": "spectral",
+    "coarse_to_fine": True, "disturbance": "none", "ar_max_order": 30, "couple_channels": False,
+    "stderr_method": "spectral",
     "input_weighting": "none",
 }
 

@@ -302,7 +302,8 @@
       // What the workers' identifier did on the newest window (its IdentifyConfig travels with the result): the
       // noisy-input and own-fluctuation estimators are the library's defaults, not service settings.
       ["estimator", par && par.config ? el("span", { id: "estimator" },
-        `inputs ${par.config.input_smoother}, weighting ${par.config.input_weighting}, disturbance ${par.config.disturbance}`) : "–"],
+        `inputs ${par.config.input_smoother}, weighting ${par.config.input_weighting}, disturbance ${par.config.disturbance}` +
+        (par.config.couple_channels ? " on P and Q − k·P" : "")) : "–"],
       ["workers", `${s.workers} (${s.executor}), ${health.workers_replaced} replaced`],
       ["frames", `${health.frames_received} received, ${health.frames_dropped} dropped`],
     ]);

@@ -100,8 +100,9 @@ def test_fleet_table_and_bus_page_in_chromium(tmp_path):
             # The estimator the workers ran is named as the result records it (the library's default here).
             estimator = wait_js(driver, "return document.querySelector('#estimator')?.textContent", 10)
             assert estimator == (f"inputs {latest['config']['input_smoother']}, weighting "
-                                 f"{latest['config']['input_weighting']}, disturbance {latest['config']['disturbance']}")
-            assert "weighting spectral" in estimator and "disturbance gated" in estimator
+                                 f"{latest['config']['input_weighting']}, disturbance {latest['config']['disturbance']}"
+                                 + (" on P and Q − k·P" if latest["config"]["couple_channels"] else ""))
+            assert "weighting spectral" in estimator and "disturbance gated on P and Q − k·P" in estimator
             assert driver.execute_script(CANVAS_INK, "#chart-a") > 200
             wait_js(driver, "return +document.querySelector('#chart-P').dataset.points > 100", 60)
             assert driver.execute_script(CANVAS_INK, "#chart-P") > 200
