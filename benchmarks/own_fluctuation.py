@@ -29,6 +29,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
 import math  # noqa: E402
 import time  # noqa: E402
 from concurrent.futures import ThreadPoolExecutor  # noqa: E402
+from dataclasses import replace  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -62,10 +63,14 @@ CANDIDATES = {
                                                        input_weighting="none"),
     "AR disturbance (IV), white SEs": IdentifyConfig(disturbance="ar_iv", stderr_method="ar1", input_weighting="none"),
     "gated": IdentifyConfig(disturbance="gated", input_weighting="none"),
+    # The default of stops 26–33 (the channels as measured); the default since stop 34 is the coupled one below.
     "gated, spectral weighting": IdentifyConfig(disturbance="gated", input_weighting="spectral"),
     "gated, spectral weighting, coupled channels": IdentifyConfig(disturbance="gated", input_weighting="spectral",
                                                                   couple_channels=True),
 }
+# Every candidate but the last was measured with the channels as measured (couple_channels did not exist before
+# stop 34): pinned, so that its name keeps meaning what its rows in docs/ measured.
+CANDIDATES = {k: v if k.endswith("coupled channels") else replace(v, couple_channels=False) for k, v in CANDIDATES.items()}
 
 
 def own_cases(n: int, ratio: float, shape: str, base: list, seed: int = SEED, coherence: float = 1.0) -> list:

@@ -34,6 +34,7 @@ RATIO = 0.9
 DEV_SEEDS = (1, 2, 3, 4, 5, 6)
 #: Own seeds of the confirmation pools, fixed before any run on them.
 CONFIRM_SEEDS = tuple(range(11, 21))
+#: The single-window IV (since stop 34 coupled, as the pooled one: ``couple_channels`` is the default).
 IV = IdentifyConfig(disturbance="ar_iv")
 
 

@@ -13,13 +13,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from aslm_core import identify
+from aslm_core import IdentifyConfig, identify
 from aslm_core.identify import HALVES_Z_MAX, IV_SE_MAX, WEIGHTED_SHIFT_Z_MAX
 from aslm_sim.cases import make_cases
-from benchmarks.own_fluctuation import CANDIDATES, LEVEL
+from benchmarks.own_fluctuation import LEVEL
 from benchmarks.own_fluctuation import bench_window as own_bench_window
 
-DEFAULT = CANDIDATES["gated, spectral weighting"]  # the library default
+DEFAULT = IdentifyConfig()  # the library default
 NEW_FLAGS = ("input_noise_correction_large", "error_may_exceed_20pct", "halves_disagree")
 
 
