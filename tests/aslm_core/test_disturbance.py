@@ -92,7 +92,7 @@ def switching_windows():
 def test_the_coupled_second_channel_recovers_d_where_the_loop_biased_every_fit(switching_windows):
     cases = switching_windows
     uncoupled = IdentifyConfig(disturbance="ar_iv", couple_channels=False)
-    coupled = IdentifyConfig(disturbance="ar_iv", couple_channels=True)
+    coupled = IdentifyConfig()  # the default: the gate opens on these windows and the coupled IV answers
     err = {k: [] for k in ("oe", "iv", "coupled")}
     inside = []
     for c in cases:
@@ -104,6 +104,7 @@ def test_the_coupled_second_channel_recovers_d_where_the_loop_biased_every_fit(s
         z = np.abs(r.d - tr) / np.array([r.stderr[k] for k in ("a", "b", "H2", "Tm")])
         inside.append(bool(np.all(z < 3.5)))
         # The own fluctuation's ΔQ/ΔP (0.33 on this bench) is read from the residuals.
+        assert r.quality["gated_ar_iv"] == 1.0
         assert r.quality["own_q_per_p"] == pytest.approx(0.33, abs=0.02)
     assert sum(e > 0.1 for e in err["oe"]) >= 5 and sum(e > 0.1 for e in err["iv"]) >= 5
     assert np.mean(inside) >= 0.75
