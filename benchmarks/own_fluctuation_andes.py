@@ -72,7 +72,7 @@ CANDIDATES = {k: v if k.endswith("coupled channels") else replace(v, couple_chan
 F0 = 60.0
 
 
-def _bound(w: dict, truth: np.ndarray, own_cov: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+def _bound(w: dict, truth: np.ndarray, own_cov: np.ndarray | None, coherence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Relative CRB variances of D on one window: with the P–Q cross-covariance, and per channel only."""
     win = Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=F0)
     jac, nuis = model_jacobian(win, truth)
@@ -83,7 +83,8 @@ def _bound(w: dict, truth: np.ndarray, own_cov: np.ndarray | None) -> tuple[np.n
         own = w["own_var"] * own_cov[-l:, -l:]
     out = []
     for cross in (True, False):
-        cov = disturbance_covariance(own, (1.0, OWN_Q_PER_P), (w["noise_std_p"] ** 2, w["noise_std_q"] ** 2), cross=cross)
+        cov = disturbance_covariance(own, (1.0, OWN_Q_PER_P), (w["noise_std_p"] ** 2, w["noise_std_q"] ** 2), cross=cross,
+                                     coherence=coherence)
         out.append(np.diag(cramer_rao(jac, nuis, cov)) / truth**2)
     return out[0], out[1]
 
@@ -155,6 +156,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--shapes", nargs="+", default=list(SHAPES), choices=SHAPES)
     ap.add_argument("--own-seed", type=int, default=SEED, help="seed of the own process and the P/Q noise")
     ap.add_argument("--candidates", nargs="+", default=list(CANDIDATES), choices=list(CANDIDATES))
+    ap.add_argument("--coherence", type=float, default=1.0,
+                    help="correlation of the own ΔQ with the own ΔP (1: ΔQ = 0.33·ΔP, the bench as it was)")
     ap.add_argument("--tag", default="", help="name suffix of the JSON")
     ap.add_argument("--gate", action="store_true",
                     help="print the gated composite from the run of record's JSON (no identification)")
@@ -176,18 +179,18 @@ def main(argv=None) -> dict:
     out = {"machine": common.machine(), "n_per_level": n, "seed": SEED, "own_seed": args.own_seed, "snr_db": SNR_DB,
            "truth": truth,
            "windows": {"length_s": LENGTH_S, "start_s": START_S, "stride_s": STRIDE_S, "tf": TF, "tstep": TSTEP},
-           "candidates": {k: CANDIDATES[k].to_dict() for k in names}, "runs": []}
+           "candidates": {k: CANDIDATES[k].to_dict() for k in names}, "coherence": args.coherence, "runs": []}
     l_reg = int(round(LENGTH_S * FS)) + 1 - int(round(FS))
     table = []
     for si, shape in enumerate(args.shapes):
-        own = andes_own.own_recording(shape, tf=TF, tstep=TSTEP, seed=args.own_seed)
+        own = andes_own.own_recording(shape, tf=TF, tstep=TSTEP, seed=args.own_seed, coherence=args.coherence)
         own_cov = window_covariance(shape, l_reg, FS, 600, seed=SEED + 100)
         for ri, ratio in enumerate(RATIOS):
             if ratio == 0.0 and si > 0:
                 continue  # no own fluctuation: the shape does not matter
             ws = windows(grid, own, ratio, n, np.random.default_rng([args.own_seed, ri, SHAPES.index(shape)]))
             results = [_identify_all(w, names) for w in ws]
-            bounds = np.array([_bound(w, truth, own_cov) for w in ws]).transpose(1, 0, 2)
+            bounds = np.array([_bound(w, truth, own_cov, args.coherence) for w in ws]).transpose(1, 0, 2)
             per = stats(truth, results, bounds, names)
             achieved = [w["own_ratio"] for w in ws]
             label = shape if ratio > 0 else "–"
@@ -200,7 +203,9 @@ def main(argv=None) -> dict:
     if "output error" in names and any(k.startswith("gated") for k in names):
         out["confirm"] = print_confirm(out)
     if not args.no_write:
-        name = "own_fluctuation_andes" + (f"_{args.tag}" if args.tag else "") + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
+        name = ("own_fluctuation_andes" + (f"_{args.tag}" if args.tag else "")
+                + ("" if args.own_seed == SEED else f"_own{args.own_seed}")
+                + ("" if args.coherence == 1.0 else f"_coh{args.coherence:g}"))
         common.write_json(name + ("_quick" if args.quick else ""), out)
     return out
 

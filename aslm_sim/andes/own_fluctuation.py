@@ -45,7 +45,8 @@ _CHANNELS = ("V", "theta", "P", "Q", "dp_own", "dq_own")
 STEP_RUN_S = 60.0
 
 
-def run(*, tf: float, tstep: float, grid_amp: float, own: np.ndarray | None, seed: int, tol: float = 1e-8) -> dict:
+def run(*, tf: float, tstep: float, grid_amp: float, own: np.ndarray | None, seed: int, tol: float = 1e-8,
+        own_q: np.ndarray | None = None) -> dict:
     """One ANDES time-domain run of the 14-bus case with grid-side ambient and/or bus 9's own fluctuation.
 
     Parameters
@@ -56,11 +57,13 @@ def run(*, tf: float, tstep: float, grid_amp: float, own: np.ndarray | None, see
         Relative std of the other loads' constant-power noise (0: no grid-side excitation) [-].
     own : ndarray or None
         Bus 9's own ΔP at every step (at least round(tf/tstep) + 2 values) [pu, system base]; None for none.
-        ΔQ = 0.33·ΔP.
+        ΔQ = 0.33·ΔP unless ``own_q`` is given.
     seed : int
         The grid noise is drawn from ``default_rng(seed)`` (as the cross-check).
     tol : float
         ANDES's Newton tolerance.
+    own_q : ndarray or None
+        Bus 9's own ΔQ at every step [pu, system base], instead of 0.33·ΔP.
 
     Returns
     -------
@@ -93,7 +96,7 @@ def run(*, tf: float, tstep: float, grid_amp: float, own: np.ndarray | None, see
     grid_p = np.stack([ac.lowpass_noise(n, tstep, 2.0, rng) for _ in others], axis=1)
     grid_q = np.stack([ac.lowpass_noise(n, tstep, 2.0, rng) for _ in others], axis=1)
     dp = np.zeros(n) if own is None else np.asarray(own, dtype=np.float64)[:n]
-    dq = OWN_Q_PER_P * dp
+    dq = OWN_Q_PER_P * dp if own_q is None else np.asarray(own_q, dtype=np.float64)[:n]
     # ANDES's PQ in TDS is p2p·Ppf + p2i·Ipeq·v + p2z·Req·v²: the own ΔP enters through Ppf / p2p.
     p2p, q2q = ac.ZIP_SHARES["p2p"], ac.ZIP_SHARES["q2q"]
 
@@ -125,10 +128,11 @@ def run(*, tf: float, tstep: float, grid_amp: float, own: np.ndarray | None, see
     return {**out, "truth": truth, "tds_s": t_run, "andes_version": andes.__version__}
 
 
-def own_input(shape: str, n: int, tstep: float, seed: int) -> np.ndarray:
-    """Bus 9's own ΔP on ANDES's step grid: the unit own process (from ``default_rng([seed, 7])``) × OWN_RUN_STD [pu]."""
+def own_input(shape: str, n: int, tstep: float, seed: int, stream: int = 7) -> np.ndarray:
+    """Bus 9's own ΔP on ANDES's step grid: the unit own process (from ``default_rng([seed, stream])``) × OWN_RUN_STD
+    [pu].  ``stream`` 8 draws the second, independent process of a partly coherent ΔQ (:func:`own_recording`)."""
     sos, gain = forcing_filter(1.0 / tstep)
-    return OWN_RUN_STD * own_process(np.random.default_rng([seed, 7]), shape, n, 1.0 / tstep, sos, gain)
+    return OWN_RUN_STD * own_process(np.random.default_rng([seed, stream]), shape, n, 1.0 / tstep, sos, gain)
 
 
 def _cached(name: str, make) -> dict:
@@ -177,6 +181,21 @@ def step_response(*, tstep: float, tf: float = STEP_RUN_S) -> dict:
     return _cached(f"step_tf{tf:g}_dt{tstep:g}", make)
 
 
+def step_response_q(*, tstep: float, tf: float = STEP_RUN_S) -> dict:
+    """Bus 9's response to a step of its own ΔQ alone (ΔP = 0), per pu of ΔQ, from ANDES (cached); keys as
+    :func:`step_response`.  With it a ΔQ that only partly follows ΔP is superposed (:func:`own_recording`)."""
+    def make() -> dict:
+        n = int(round(tf / tstep)) + 2
+        k_s = int(round(1.0 / tstep))
+        step = np.where(np.arange(n) >= k_s, OWN_RUN_STD, 0.0)
+        sim = run(tf=tf, tstep=tstep, grid_amp=0.0, own=np.zeros(n), own_q=step, seed=0)
+        rec = _on_grid(sim, 1.0 / tstep)
+        out = {c: (rec[c][k_s:] - rec[c][k_s - 1]) / OWN_RUN_STD for c in ("V", "theta", "P", "Q")}
+        return {**out, "t": rec["t"][k_s:] - rec["t"][k_s], "tds_s": rec["tds_s"]}
+
+    return _cached(f"stepq_tf{tf:g}_dt{tstep:g}", make)
+
+
 def respond(step: dict, own: np.ndarray) -> dict:
     """Bus 9's V, θ, P, Q deviations caused by an own ΔP sequence on the step grid (linear superposition).
 
@@ -196,17 +215,25 @@ def respond(step: dict, own: np.ndarray) -> dict:
     return out
 
 
-def own_recording(shape: str, *, tf: float, tstep: float, seed: int, step_tf: float = STEP_RUN_S) -> dict:
+def own_recording(shape: str, *, tf: float, tstep: float, seed: int, step_tf: float = STEP_RUN_S,
+                  coherence: float = 1.0) -> dict:
     """Bus 9 driven by its own process alone (at :data:`OWN_RUN_STD`), on ANDES's step grid from t = 0.
 
     Made from ANDES's :func:`step_response` by superposition (one ANDES run serves every shape and length);
     :func:`superposition_error` measures it against a direct ANDES run.  ``step_tf``: length of the step run
-    [s].  Keys as :func:`run`.
+    [s].  ``coherence`` ρ < 1: ΔQ = 0.33·(ρ·x + √(1 − ρ²)·x₂), x₂ a second own process of the shape (stream 8), its
+    part beyond 0.33·ΔP superposed with :func:`step_response_q`.  Keys as :func:`run`.
     """
     n = int(round(tf / tstep)) + 1
     own = own_input(shape, n + 1, tstep, seed)[:n]
     rec = respond(step_response(tstep=tstep, tf=step_tf), own)
-    return {**rec, "t": np.arange(n) * tstep, "dp_own": own, "dq_own": OWN_Q_PER_P * own}
+    dq = OWN_Q_PER_P * own
+    if coherence < 1.0:
+        x2 = own_input(shape, n + 1, tstep, seed, stream=8)[:n]
+        dq = OWN_Q_PER_P * (coherence * own + math.sqrt(1.0 - coherence**2) * x2)
+        extra = respond(step_response_q(tstep=tstep, tf=step_tf), dq - OWN_Q_PER_P * own)
+        rec = {c: rec[c] + extra[c] for c in rec}
+    return {**rec, "t": np.arange(n) * tstep, "dp_own": own, "dq_own": dq}
 
 
 def cut_windows(grid: dict, own: dict | None, ratio: float, *, length_s: float, start_s: float, stride_s: float,

@@ -50,3 +50,23 @@ def test_step_response_settles_and_the_load_step_lowers_the_voltage(recordings):
     assert step["P"][0] > 0.5  # the step itself appears in the bus's P at once
     assert step["V"][-1] < 0.0
     assert np.all(np.isfinite(step["theta"]))
+
+
+def test_a_partly_coherent_own_dq_is_superposed_from_the_q_step(monkeypatch):
+    """ΔQ = 0.33·(ρ·x + √(1 − ρ²)·x₂): the response is the coupled step's to x plus the Q step's to the rest (stub
+    steps here: the composition, not ANDES, is under test)."""
+    n = 400
+    t = np.arange(n) * 0.01
+    step_c = {c: np.full(n, v) for c, v in zip(("V", "theta", "P", "Q"), (-0.1, -0.01, 1.0, 0.33), strict=True)}
+    step_q = {c: np.full(n, v) for c, v in zip(("V", "theta", "P", "Q"), (-0.3, 0.0, 0.0, 1.0), strict=True)}
+    step_c["t"] = step_q["t"] = t
+    monkeypatch.setattr(andes_own, "step_response", lambda **kw: step_c)
+    monkeypatch.setattr(andes_own, "step_response_q", lambda **kw: step_q)
+    full = andes_own.own_recording("lowpass", tf=(n - 1) * 0.01, tstep=0.01, seed=4)
+    half = andes_own.own_recording("lowpass", tf=(n - 1) * 0.01, tstep=0.01, seed=4, coherence=0.5)
+    np.testing.assert_array_equal(full["dp_own"], half["dp_own"])
+    extra = half["dq_own"] - andes_own.OWN_Q_PER_P * half["dp_own"]
+    # Steps held flat (and the input taken from 0 before t = 0), so each response is the step's value times the input.
+    np.testing.assert_allclose(half["V"], -0.1 * full["dp_own"] - 0.3 * extra, atol=1e-12)
+    np.testing.assert_allclose(half["Q"] - full["Q"], extra, atol=1e-12)
+    assert 0.2 < np.corrcoef(half["dp_own"], half["dq_own"])[0, 1] < 0.8

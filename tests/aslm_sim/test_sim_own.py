@@ -90,3 +90,14 @@ def test_excitation_share_is_small_when_the_own_fluctuation_dominates(pair):
         true_ratio = np.std(b.states["P_own"]) / np.std(b.clean.P)
         assert rb.quality["own_ratio_p"] == pytest.approx(true_ratio, abs=0.15)
         assert "unexplained_fluctuation" in rb.flags and "unexplained_fluctuation" not in ra.flags
+
+
+def test_own_q_coherence_sets_the_correlation_of_the_own_dq_with_dp_and_keeps_dp(pair):
+    _, on = pair
+    partly = make_cases(3, level=2, seed=5, input_noise=False, own_sigma=0.01, own_q_coherence=0.5)
+    for full, half in zip(on, partly, strict=True):
+        np.testing.assert_array_equal(full.states["P_own"], half.states["P_own"])
+        # ρ = 1 is ΔQ = 0.33·ΔP exactly, as before the knob.
+        np.testing.assert_allclose(full.states["Q_own"], OWN_Q_PER_P * full.states["P_own"], rtol=1e-12)
+        r = np.corrcoef(half.states["P_own"], half.states["Q_own"])[0, 1]
+        assert 0.2 < r < 0.8  # 0.5 in expectation; a 10 s window of a 2 Hz process scatters
