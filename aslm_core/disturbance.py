@@ -86,7 +86,9 @@ class Whitened:
     problem : aslm_core.problem.Problem
         The output-error problem (inputs, regression samples, bounds, buffers).
     polys : tuple of ndarray
-        A(q) of P and of Q.
+        A(q) of P and of Q (of Q − mix·P with ``mix``).
+    mix : float
+        The second channel is Q − mix·P [-] (:func:`whitened_columns`).
     """
 
     def __init__(self, problem, polys: tuple[np.ndarray, np.ndarray], mix: float = 0.0) -> None:

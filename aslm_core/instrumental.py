@@ -98,6 +98,8 @@ class Instrumented(_Weighted):
         Number of instrument lags.
     first : int
         Shortest instrument lag [samples].
+    mix : float
+        The second channel is Q − mix·P [-] (:func:`aslm_core.disturbance.whitened_columns`).
     """
 
     def __init__(self, problem, polys: tuple[np.ndarray, np.ndarray], d_ref: np.ndarray, lags: int = IV_LAGS,

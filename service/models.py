@@ -33,7 +33,7 @@ class Identified(BaseModel):
         description="SNR [dB], excitation, margins; noise floors noise_v|theta|p|q; static_cond; "
                     "excitation_share_p|q (the share of the ambient P/Q variance V and θ explain) [-], "
                     "own_std_p|q (the load's own fluctuation: the residual's coloured part) [pu], own_ratio_p|q [-]; "
-                    "where the AR/IV fit answered, own_q_per_p (ΔQ/ΔP of the own fluctuation, k of its second "
+                    "where the AR/IV fit ran, own_q_per_p (ΔQ/ΔP of the own fluctuation, k of its second "
                     "channel Q − k·P) [-]")
     flags: list[str] = Field(default_factory=list,
                              description="Quality flags, e.g. at_bound:H2, static_split_unidentifiable")
