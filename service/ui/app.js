@@ -205,6 +205,17 @@
               .map((h) => el("th", { class: "txt" }, h)))), el("tbody")))));
   }
 
+  // Why a window is uncertain: how much of P and Q the voltage explains, and the load's own fluctuation (issue 20).
+  function excitationText(par) {
+    const q = (par && par.quality) || {};
+    if (q.excitation_share_p == null) return "–";
+    const pct = (x) => `${Math.round(100 * x)} %`;
+    let text = `V and θ explain ${pct(q.excitation_share_p)} of P's and ${pct(q.excitation_share_q)} of Q's ambient ` +
+      `variance; own fluctuation ${fmt(q.own_ratio_p)} of P's ambient std`;
+    if (q.own_q_per_p != null) text += `, its ΔQ/ΔP ${fmt(q.own_q_per_p)}`;
+    return el("span", { id: "excitation" }, text);
+  }
+
   function kv(target, pairs) {
     $(target).replaceChildren(...pairs.flatMap(([k, v]) => [el("dt", {}, k), el("dd", {}, v)]));
   }
@@ -287,6 +298,7 @@
       ...PARAMS.map((k) => [`${k} [${UNITS[k]}]`, par ? `${fmt(par.dynamic[k])} ± ${fmt((par.stderr || {})[k])}` : "–"]),
       ...staticRows(par),
       ["fit P / Q", par ? `${fmt(par.fit.fd_p)} / ${fmt(par.fit.fd_q)}` : "–"],
+      ["excitation", excitationText(par)],
       ["flags", par && par.flags.length ? par.flags.join(" ") : "none"],
       ["values from", lastOk ? utc(lastOk.period) : "–"],
       ["diagnosis", d ? el("span", { class: `verdict ${d.verdict}` }, d.verdict + (d.cause ? ` (${d.cause})` : "")) : "none yet"],

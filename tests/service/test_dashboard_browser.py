@@ -97,6 +97,15 @@ def test_fleet_table_and_bus_page_in_chromium(tmp_path):
             split = wait_js(driver, "return document.querySelector('#static-split')?.dataset.split", 10)
             latest = httpx.get(f"{svc.url}/buses/{bus}/parameters/latest", timeout=5).json()["parameters"]
             assert split == ("unidentifiable" if "static_split_unidentifiable" in latest["flags"] else "identifiable")
+            # The excitation indicator: how much of P and Q the voltage explains, as the result's quality has it.
+            excitation = wait_js(driver, "return document.querySelector('#excitation')?.textContent", 10)
+            ok = [r["parameters"] for r in httpx.get(f"{svc.url}/buses/{bus}/parameters?limit=50", timeout=5).json()
+                  if r["status"] == "ok"]
+            assert excitation.startswith("V and θ explain ") and "of P's ambient std" in excitation
+            pct_p, pct_q = (int(x.split(" %")[0]) for x in excitation.split("explain ")[1].split(" of P's and "))
+            # The page shows its newest ok result's quality; results keep coming, so one of the bus's recent ones.
+            assert (pct_p, pct_q) in {(round(100 * q["excitation_share_p"]), round(100 * q["excitation_share_q"]))
+                                      for q in (p["quality"] for p in ok)}
             # The estimator the workers ran is named as the result records it (the library's default here).
             estimator = wait_js(driver, "return document.querySelector('#estimator')?.textContent", 10)
             assert estimator == (f"inputs {latest['config']['input_smoother']}, weighting "
