@@ -88,7 +88,15 @@ class SynchroPmu:
                        set_timestamp=False)
         self.pmu.set_configuration(cfg)
         self.pmu.set_header("ASLM test peer")
+        self.pmu.acceptor = self._acceptor  # run() starts its listener thread on this
         self.pmu.run()
+
+    def _acceptor(self) -> None:
+        """The package's accept loop, ended quietly when :meth:`close` shuts the listening socket."""
+        try:
+            Pmu.acceptor(self.pmu)
+        except OSError:
+            pass
 
     def send(self, frame) -> None:
         self.pmu.send(frame)
@@ -97,7 +105,18 @@ class SynchroPmu:
         return len(self.pmu.client_buffers)
 
     def close(self) -> None:
-        """Stop the connection handlers (each polls its socket without sleeping) and the listener."""
+        """Stop the listener, then the connection handlers (each polls its socket without sleeping).
+
+        The listener first: closing the socket alone leaves the thread blocked in accept() on it, still
+        accepting, and each connection it accepts forks a handler that spins once its peer goes (a handler
+        forked while another thread is inside ``subprocess.Popen`` also holds that child's exec pipe open,
+        which hung a later test).  shutdown() wakes the accept with an error.
+        """
+        try:
+            self.pmu.socket.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self.pmu.listener.join(5)
         for p in self.pmu.clients:
             p.terminate()
             p.join(5)
