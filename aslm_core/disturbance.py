@@ -149,18 +149,14 @@ def whitened_columns(pb, polys: tuple[np.ndarray, np.ndarray], d: np.ndarray, sk
                                pb.q_meas, pb._dp)
     if not ok:
         return None
-    out = []
-    cols = []
+    zs = []
     for c in range(2):
         meas = pb.p_meas if c == 0 else pb.q_meas
         model, grad = (pb._p, pb._dp) if c == 0 else (pb._q, pb._dq)
-        cols.append(np.column_stack([meas - model[pb.k0:], -grad[pb.k0:]]))
+        zs.append(np.column_stack([meas - model[pb.k0:], -grad[pb.k0:], pb.basis]))
     if mix:
-        cols[1] = cols[1] - mix * cols[0]
-    for c in range(2):
-        z = np.column_stack([cols[c], pb.basis])
-        out.append(signal.lfilter(polys[c], [1.0], z, axis=0)[skip:])
-    return out
+        zs[1][:, :5] -= mix * zs[0][:, :5]  # residual and gradient only: the static basis is both channels'
+    return [signal.lfilter(a, [1.0], z, axis=0)[skip:] for a, z in zip(polys, zs, strict=True)]
 
 
 def coupling(rp: np.ndarray, rq: np.ndarray) -> float:
