@@ -72,21 +72,28 @@ CANDIDATES = {k: v if k.endswith("coupled channels") else replace(v, couple_chan
 F0 = 60.0
 
 
-def _bound(w: dict, truth: np.ndarray, own_cov: np.ndarray | None, coherence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """Relative CRB variances of D on one window: with the P–Q cross-covariance, and per channel only."""
-    win = Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=F0)
+def relative_bounds(win: Window, truth: np.ndarray, own: np.ndarray | None, white: tuple[float, float],
+                    coherence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Relative CRB variances var(D_i)/D_i² on one window: with the P–Q cross-covariance, and per channel only.
+
+    ``own``: the own ΔP's covariance over the regression samples [pu²] (None: no own process); ``white``: the white
+    noise variances of P and Q [pu²]; ``coherence``: the own ΔQ's correlation with its ΔP.
+    """
     jac, nuis = model_jacobian(win, truth)
     l = jac.shape[0] // 2
-    if own_cov is None or w["own_var"] == 0.0:
-        own = np.zeros((l, l))
-    else:
-        own = w["own_var"] * own_cov[-l:, -l:]
+    own = np.zeros((l, l)) if own is None else own[-l:, -l:]
     out = []
     for cross in (True, False):
-        cov = disturbance_covariance(own, (1.0, OWN_Q_PER_P), (w["noise_std_p"] ** 2, w["noise_std_q"] ** 2), cross=cross,
-                                     coherence=coherence)
+        cov = disturbance_covariance(own, (1.0, OWN_Q_PER_P), white, cross=cross, coherence=coherence)
         out.append(np.diag(cramer_rao(jac, nuis, cov)) / truth**2)
     return out[0], out[1]
+
+
+def _bound(w: dict, truth: np.ndarray, own_cov: np.ndarray | None, coherence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`relative_bounds` of one bench window."""
+    win = Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=F0)
+    own = None if own_cov is None or w["own_var"] == 0.0 else w["own_var"] * own_cov
+    return relative_bounds(win, truth, own, (w["noise_std_p"] ** 2, w["noise_std_q"] ** 2), coherence)
 
 
 def stats(truth: np.ndarray, results: list[dict], bounds: np.ndarray, names: list[str]) -> dict:

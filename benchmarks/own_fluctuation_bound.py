@@ -45,11 +45,12 @@ import numpy as np  # noqa: E402
 from scipy import special  # noqa: E402
 
 from aslm_core import IdentifyConfig  # noqa: E402
-from aslm_core.information import cramer_rao, disturbance_covariance, model_jacobian  # noqa: E402
+from aslm_core.information import model_jacobian  # noqa: E402
 from aslm_sim.cases import make_cases  # noqa: E402
-from aslm_sim.own import OWN_Q_PER_P, window_covariance  # noqa: E402
+from aslm_sim.own import window_covariance  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.own_fluctuation import LEVEL, RATIOS, own_cases  # noqa: E402
+from benchmarks.own_fluctuation_andes import relative_bounds  # noqa: E402
 from benchmarks.own_gate import WARNING_FLAGS, window_records  # noqa: E402
 
 #: The bench's confirmation seed of the default (stop 26's re-measurement, ``own_fluctuation_default_seed243``).
@@ -64,22 +65,11 @@ CANDIDATES = {"default": IdentifyConfig(), "uncoupled": IdentifyConfig(couple_ch
 
 
 def window_bound(case, cov: np.ndarray | None, coherence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """Relative bound variances var(D_i)/D_i² of one case's window: with the P–Q cross-covariance, and per
-    channel only.  ``cov``: the shape's unit covariance over the regression samples (None: no own process)."""
-    d = case.truth.d
-    jac, nuis = model_jacobian(case.window, d)
-    l = jac.shape[0] // 2
-    if cov is None:
-        own = np.zeros((l, l))
-    else:
-        own_var = float(np.var(case.states["P_own"][-l:]))
-        own = own_var * cov
+    """Relative bound variances var(D_i)/D_i² of one case's window (:func:`own_fluctuation_andes.relative_bounds`).
+    ``cov``: the shape's unit covariance over the regression samples (None: no own process)."""
+    own = None if cov is None else float(np.var(case.states["P_own"][-cov.shape[0]:])) * cov
     white = (float(np.var(case.window.P - case.clean.P)), float(np.var(case.window.Q - case.clean.Q)))
-    out = []
-    for cross in (True, False):
-        sigma = disturbance_covariance(own, (1.0, OWN_Q_PER_P), white, cross=cross, coherence=coherence)
-        out.append(np.diag(cramer_rao(jac, nuis, sigma)) / d**2)
-    return out[0], out[1]
+    return relative_bounds(case.window, case.truth.d, own, white, coherence)
 
 
 def mixture_median(var: np.ndarray) -> float:
