@@ -25,7 +25,7 @@ and RMSE / bound (bound = RMS of the per-window relative bound), and the median 
 that the bound allows.
 
     .venv/bin/python -m benchmarks.own_fluctuation_bound [--seed 243] [--n 50] [--shapes lowpass switching pink]
-        [--candidates default uncoupled] [--coherence 1]
+        [--candidates default uncoupled PEM IV] [--coherence 1]
 
 Results: ``docs/results/own_fluctuation_bound[_TAG]_seed<seed>.json``.
 """
@@ -61,7 +61,11 @@ COV_WINDOWS = 600
 #: ``default`` is the library's (since stop 34 with the coupled second channel); ``uncoupled`` is the default of stops
 #: 26–33 (the channels as measured).
 CANDIDATES = {"default": IdentifyConfig(), "uncoupled": IdentifyConfig(couple_channels=False),
-              "output error": IdentifyConfig(**common.OUTPUT_ERROR)}
+              "output error": IdentifyConfig(**common.OUTPUT_ERROR),
+              # The gated default's two branches alone (stop 35: which is nearer the bound when ΔQ follows ΔP
+              # only in part, --coherence < 1).
+              "PEM": IdentifyConfig(disturbance="ar", input_weighting="none"),
+              "IV": IdentifyConfig(disturbance="ar_iv", input_weighting="none")}
 
 
 def window_bound(case, cov: np.ndarray | None, coherence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
