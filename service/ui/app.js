@@ -221,7 +221,8 @@
   }
 
   // One uPlot per container, created on the first data and then only fed (setData keeps zoom and DOM).
-  function draw(id, series, data) {
+  // ``pad``: half the x span shown around a single point [s] (uPlot 1.6 gives one time point 10^8 s, ~3 years).
+  function draw(id, series, data, pad = 60) {
     const box = document.getElementById(id);
     if (!box) return;
     box.dataset.points = String(data[0].length);
@@ -233,6 +234,8 @@
         width: Math.max(300, box.clientWidth), height: 200, scales: { x: { time: true } },
         tzDate: (ts) => uPlot.tzDate(new Date(ts * 1e3), "Etc/UTC"),  // UTC like every other time shown
         series: [{}, ...series.map((s) => ({ points: { show: true, size: 4 }, spanGaps: false, ...s }))],
+        // The x span drawn, for the browser test (uPlot applies scales after this call returns).
+        hooks: { setScale: [(u, key) => { if (key === "x") box.dataset.xspan = String(u.scales.x.max - u.scales.x.min); }] },
       };
       const band = series.findIndex((s) => s.bandTop);
       if (band >= 0) opts.bands = [{ series: [band + 1, band + 3], fill: "rgba(21,101,192,0.15)" }];
@@ -241,6 +244,7 @@
     } else {
       chart.setData(data);
     }
+    if (data[0].length === 1) chart.setScale("x", { min: data[0][0] - pad, max: data[0][0] + pad });
   }
 
   function drawHistory(results) {
@@ -255,7 +259,7 @@
         { label: "+2 SE", stroke: "rgba(21,101,192,0.3)", points: { show: false }, bandTop: true },
         { label: k, stroke: "#1565c0", width: 2 },
         { label: "−2 SE", stroke: "rgba(21,101,192,0.3)", points: { show: false } },
-      ], [x, hi, v, lo]);
+      ], [x, hi, v, lo], ok.length ? ok[0].period_s : 60);
     }
   }
 

@@ -94,6 +94,11 @@ def test_fleet_table_and_bus_page_in_chromium(tmp_path):
             wait_js(driver, "return document.querySelector('#bus-name')?.textContent === arguments[0]"
                     .replace("arguments[0]", f"'{bus}'"), 10)
             wait_js(driver, "return +document.querySelector('#chart-a').dataset.points >= 1", 30)
+            # The history's time axis spans the periods shown (a lone point: one period each side), not the
+            # ~3 years uPlot gives a single time point by itself.
+            pts, xspan = wait_js(driver, "const c = document.querySelector('#chart-a').dataset; "
+                                 "return c.xspan && [+c.points, +c.xspan];", 10)
+            assert xspan == 2 * PERIOD_S if pts == 1 else 0 < xspan < 3600, (pts, xspan)
             split = wait_js(driver, "return document.querySelector('#static-split')?.dataset.split", 10)
             latest = httpx.get(f"{svc.url}/buses/{bus}/parameters/latest", timeout=5).json()["parameters"]
             assert split == ("unidentifiable" if "static_split_unidentifiable" in latest["flags"] else "identifiable")
