@@ -220,6 +220,15 @@
     $(target).replaceChildren(...pairs.flatMap(([k, v]) => [el("dt", {}, k), el("dd", {}, v)]));
   }
 
+  // Decimals that tell ticks ``splits`` apart: those of their step (0.0005 → 4, 2.5 → 1, 10 → 0).
+  function tickDecimals(splits) {
+    const step = splits.length > 1 ? Math.abs(splits[1] - splits[0]) : 0;
+    if (!(step > 0)) return 3;
+    let d = Math.max(0, Math.ceil(-Math.log10(step) - 1e-9));
+    while (d < 12 && Math.abs(step * 10 ** d - Math.round(step * 10 ** d)) > 1e-6 * step * 10 ** d) d++;
+    return d;
+  }
+
   // One uPlot per container, created on the first data and then only fed (setData keeps zoom and DOM).
   // ``pad``: half the x span shown around a single point [s] (uPlot 1.6 gives one time point 10^8 s, ~3 years).
   function draw(id, series, data, pad = 60) {
@@ -234,6 +243,9 @@
         width: Math.max(300, box.clientWidth), height: 200, scales: { x: { time: true } },
         tzDate: (ts) => uPlot.tzDate(new Date(ts * 1e3), "Etc/UTC"),  // UTC like every other time shown
         series: [{}, ...series.map((s) => ({ points: { show: true, size: 4 }, spanGaps: false, ...s }))],
+        // y ticks with as many decimals as their step needs (uPlot's default keeps 3, so a narrow band of Tm
+        // showed 0.672 twice).
+        axes: [{}, { values: (u, splits) => splits.map((v) => v.toFixed(tickDecimals(splits))) }],
         // The x span drawn, for the browser test (uPlot applies scales after this call returns).
         hooks: { setScale: [(u, key) => { if (key === "x") box.dataset.xspan = String(u.scales.x.max - u.scales.x.min); }] },
       };
