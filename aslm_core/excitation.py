@@ -11,6 +11,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
+from aslm_core.noise import FLOOR_FROM_HZ, periodogram
+
 # Equivalent noise bandwidth of the preprocessing's 2nd-order Butterworth low-pass, × its cut-off:
 # (π/4)/sin(π/4).
 _LOWPASS_ENBW = (math.pi / 4.0) / math.sin(math.pi / 4.0)
@@ -60,3 +64,52 @@ def split(var_meas: float, var_resid: float, white_var: float) -> tuple[float, f
     amb = max(var_meas - white_var, 1e-300)
     own_var = min(max(var_resid - white_var, 0.0), amb)
     return 1.0 - own_var / amb, math.sqrt(own_var), math.sqrt(own_var / amb)
+
+
+def own_median_hz(resid: np.ndarray, fs: float, noise_std: float, lowpass_hz: float = 0.0,
+                  top_hz: float = FLOOR_FROM_HZ) -> float:
+    """Frequency below which half of the own fluctuation's variance lies, up to ``top_hz`` [Hz].
+
+    The own fluctuation's spectrum as one number (issue 20's excitation indicator): the residual's periodogram
+    less the white floor (flat at 2σ²/fs, shaped by the 2nd-order Butterworth low-pass where one was applied),
+    accumulated from the lowest frequency; where that first reaches half its total.  Not clipped bin by bin:
+    clipping would keep the floor's positive scatter, so that a residual without own fluctuation would read
+    about half the band instead of nothing.  Step-like
+    switching and slow ramps put it low (0.1–0.3 Hz), a 2 Hz band-limited process near 1 Hz.  Over the band
+    the ambient V and θ excite the identified model, so it is read where ``own_ratio`` is sizeable.
+
+    Parameters
+    ----------
+    resid : ndarray
+        The fit's residual of one channel over the regression samples [pu].
+    fs : float
+        Sample rate [Hz].
+    noise_std : float
+        White-noise std of the raw channel (``quality["noise_p"]``) [pu].
+    lowpass_hz : float
+        Cut-off of the causal low-pass applied to the channel (0: none) [Hz].
+    top_hz : float
+        Upper end of the band read [Hz] (the white floor is estimated above it).
+
+    Returns
+    -------
+    float
+        [Hz]; NaN when nothing is left above the floor.
+    """
+    f, pxx = periodogram(resid, fs)
+    floor = 2.0 * noise_std * noise_std / fs
+    if lowpass_hz > 0.0:
+        floor = floor / (1.0 + (f / lowpass_hz) ** 4)
+    band = (f > 0.0) & (f <= top_hz)
+    own = pxx[band] - (floor[band] if np.ndim(floor) else floor)
+    total = float(own.sum())
+    if not total > 0.0:
+        return math.nan
+    cum = np.cumsum(own)
+    i = int(np.argmax(cum >= 0.5 * total))
+    fb = f[band]
+    df = float(f[1] - f[0])
+    # Bin k holds the power from fb[k] − df/2 to fb[k] + df/2; linear within the bin where the half is crossed
+    # (own[i] > 0 there: the sum rose past it).
+    before = float(cum[i - 1]) if i > 0 else 0.0
+    return float(fb[i] - 0.5 * df + df * (0.5 * total - before) / own[i])

@@ -246,7 +246,7 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
             # The own-fluctuation indicators (and their flags, tuned on output error's residual) come from the
             # output-error fit: the weighted fit's unfiltered residual carries the input noise's colour.
             base = _result(final_problem, window, best, runs, prep, config, t_start, final=final)
-            extra = {k: base.quality[k] for k in EXCITATION_KEYS}
+            extra = {k: base.quality[k] for k in EXCITATION_KEYS if k in base.quality}
             it = final["iterations"] if final is not best else 0
             final_problem, prep, cov_d = w["problem"], w["problem"].prep, w["cov"]
             final = {"d": w["d"], "cost": w["objective"], "iterations": w["iterations"] + it}
@@ -391,7 +391,8 @@ def _descend(problem: Problem, start: np.ndarray, config: IdentifyConfig, known:
 
 #: The ``quality`` entries of :func:`_static_and_excitation` that describe the window's excitation (a caller's
 #: ``extra_quality`` may supply them from another fit of the same window).
-EXCITATION_KEYS = ("excitation_share_p", "excitation_share_q", "own_std_p", "own_std_q", "own_ratio_p", "own_ratio_q")
+EXCITATION_KEYS = ("excitation_share_p", "excitation_share_q", "own_std_p", "own_std_q", "own_ratio_p", "own_ratio_q",
+                   "own_median_hz_p", "own_median_hz_q")
 
 
 def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prepared,
@@ -422,7 +423,10 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     flags = list(prep.flags)
     static_local, static_se, extra = _static_and_excitation(problem, prep, beta, (rr_p, rr_q), (rho_p, rho_q),
                                                             (ss_p, ss_q), cov_d)
-    extra.update({k: v for k, v in (extra_quality or {}).items() if k in EXCITATION_KEYS})
+    carried = {k: v for k, v in (extra_quality or {}).items() if k in EXCITATION_KEYS}
+    if carried:  # another fit's indicators replace this one's, keys it lacks included
+        extra = {k: v for k, v in extra.items() if k not in EXCITATION_KEYS}
+        extra.update(carried)
     if static.split_unidentifiable(static_se, math.hypot(float(pb.p_meas.mean()), float(pb.q_meas.mean())),
                                    config.static):
         flags.append("static_split_unidentifiable")
@@ -499,7 +503,8 @@ def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, r
     G = −R⁻¹Qᵀ·∂m/∂D to the regression's own (Tm shifts P0 one for one).  Returns ``static_local``,
     ``static_stderr`` (see :func:`aslm_core.static.local_part`) and the ``quality`` entries
     ``static_cond``, ``excitation_share_p|q``, ``own_std_p|q`` [pu], ``own_ratio_p|q``
-    (:func:`aslm_core.excitation.split`).  ``rr``, ``ss``: residual and centred measured sums of squares per
+    (:func:`aslm_core.excitation.split`), ``own_median_hz_p|q`` [Hz] (:func:`aslm_core.excitation.own_median_hz`;
+    absent where nothing is above the floor).  ``rr``, ``ss``: residual and centred measured sums of squares per
     channel (the residual has zero mean: the constant is a static regressor).
     """
     pb = problem
@@ -515,10 +520,16 @@ def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, r
                                              pb.config.static)
     extra = {"static_cond": cond}
     fs = 1.0 / prep.dt
-    for c, name in ((0, "p"), (1, "q")):
-        white = excitation.white_variance(prep.noise.get(f"noise_{name}", 0.0), fs, prep.lowpass_hz)
+    for c, name, meas, model in ((0, "p", pb.p_meas, pb._p), (1, "q", pb.q_meas, pb._q)):
+        noise = prep.noise.get(f"noise_{name}", 0.0)
+        white = excitation.white_variance(noise, fs, prep.lowpass_hz)
         share, own_std, own_ratio = excitation.split(ss[c] / pb.l, rr[c] / pb.l, white)
+        resid = meas - model[pb.k0:]
+        resid = resid - pb.basis @ (pb.basis.T @ resid)
         extra.update({f"excitation_share_{name}": share, f"own_std_{name}": own_std, f"own_ratio_{name}": own_ratio})
+        median_hz = excitation.own_median_hz(resid, fs, noise, prep.lowpass_hz)
+        if math.isfinite(median_hz):  # absent, not NaN, where nothing is above the floor (JSON has no NaN)
+            extra[f"own_median_hz_{name}"] = median_hz
     return local, coef_se, extra
 
 

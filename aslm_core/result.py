@@ -158,8 +158,9 @@ class IdentificationResult:
         ``noise_theta`` [rad], ``lowpass_hz`` the causal low-pass applied (0: none) [Hz], ``static_cond``
         (condition number of the static regressors, unit-norm columns), ``excitation_share_p``, ``_q``
         (the model's share of the measured ambient variance, white floor removed) [-], ``own_std_p``,
-        ``_q`` (std of the residual's coloured part: the load's own fluctuation) [pu] and ``own_ratio_p``,
-        ``_q`` (that std over the measured ambient std) [-], ``input_ratio_v``, ``input_ratio_theta`` (the
+        ``_q`` (std of the residual's coloured part: the load's own fluctuation) [pu], ``own_ratio_p``,
+        ``_q`` (that std over the measured ambient std) [-] and ``own_median_hz_p``, ``_q`` (its spectrum as one
+        number: half of its variance lies below this frequency; absent when none is left) [Hz], ``input_ratio_v``, ``input_ratio_theta`` (the
         inputs' ambient std over their white PMU noise std) [-], ``rk4_substeps`` (RK4 steps per sample);
         with a disturbance model ``ar_order_p``, ``_q`` (the AR orders) and, for ``ar_iv``, ``iv_strength_p``, ``_q`` (the smallest share of D's whitened information that the
         instruments keep: 1 = all, near 0 = a weak instrument and large standard errors) [-], ``iv_overid``

@@ -32,7 +32,8 @@ class Identified(BaseModel):
         default_factory=dict,
         description="SNR [dB], excitation, margins; noise floors noise_v|theta|p|q; static_cond; "
                     "excitation_share_p|q (the share of the ambient P/Q variance V and θ explain) [-], "
-                    "own_std_p|q (the load's own fluctuation: the residual's coloured part) [pu], own_ratio_p|q [-]; "
+                    "own_std_p|q (the load's own fluctuation: the residual's coloured part) [pu], own_ratio_p|q [-], "
+                    "own_median_hz_p|q (half of the own fluctuation's variance lies below it; absent: none left) [Hz]; "
                     "where the AR/IV fit ran, own_q_per_p (ΔQ/ΔP of the own fluctuation, k of its second "
                     "channel Q − k·P) [-]")
     flags: list[str] = Field(default_factory=list,

@@ -213,6 +213,7 @@
     let text = `V and θ explain ${pct(q.excitation_share_p)} of P's and ${pct(q.excitation_share_q)} of Q's ambient ` +
       `variance; own fluctuation ${fmt(q.own_ratio_p)} of P's ambient std`;
     if (q.own_q_per_p != null) text += `, its ΔQ/ΔP ${fmt(q.own_q_per_p)}`;
+    if (q.own_median_hz_p != null && q.own_ratio_p >= 0.3) text += `, half of it below ${fmt(q.own_median_hz_p)} Hz`;
     return el("span", { id: "excitation" }, text);
   }
 

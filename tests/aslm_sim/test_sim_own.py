@@ -101,3 +101,13 @@ def test_own_q_coherence_sets_the_correlation_of_the_own_dq_with_dp_and_keeps_dp
         np.testing.assert_allclose(full.states["Q_own"], OWN_Q_PER_P * full.states["P_own"], rtol=1e-12)
         r = np.corrcoef(half.states["P_own"], half.states["Q_own"])[0, 1]
         assert 0.2 < r < 0.8  # 0.5 in expectation; a 10 s window of a 2 Hz process scatters
+
+
+def test_the_own_spectrum_indicator_reads_switching_slower_than_a_2hz_process():
+    # Issue 20's excitation indicator: the own fluctuation's spectrum in the result's quality.  Step-like
+    # switching (1 s dwell) has most of its variance below 0.5 Hz, the 2 Hz low-passed process near 1 Hz.
+    med = {}
+    for shape in ("switching", "lowpass"):
+        cs = make_cases(6, level=2, seed=5, input_noise=False, own_sigma=0.01, own_shape=shape)
+        med[shape] = float(np.median([identify(c.window).quality["own_median_hz_p"] for c in cs]))
+    assert med["switching"] < 0.6 and 0.8 < med["lowpass"] < 1.6, med
