@@ -74,9 +74,8 @@ def own_median_hz(resid: np.ndarray, fs: float, noise_std: float, lowpass_hz: fl
     less the white floor (flat at 2σ²/fs, shaped by the 2nd-order Butterworth low-pass where one was applied),
     accumulated from the lowest frequency; where that first reaches half its total.  Not clipped bin by bin:
     clipping would keep the floor's positive scatter, so that a residual without own fluctuation would read
-    about half the band instead of nothing.  Step-like
-    switching and slow ramps put it low (0.1–0.3 Hz), a 2 Hz band-limited process near 1 Hz.  Over the band
-    the ambient V and θ excite the identified model, so it is read where ``own_ratio`` is sizeable.
+    about half the band instead of nothing.  Step-like switching reads low, a 2 Hz band-limited process near
+    1 Hz (docs/numerics.md, "Excitation indicators"); it means something where ``own_ratio`` is sizeable.
 
     Parameters
     ----------
