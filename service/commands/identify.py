@@ -89,6 +89,8 @@ def _human(path: str, result) -> str:
     if q.get("gated_ar_iv") == 1.0:
         warn += (f"\n  estimator: instrumental variables with an AR model of the load's own fluctuation, which is "
                  f"{q['own_ratio_p']:.2g} of P's ambient std (output error is not consistent above 0.3)")
+        if "own_median_hz_p" in q:
+            warn += f", half of its variance below {q['own_median_hz_p']:.2g} Hz"
     if "iv_error_may_exceed_20pct" in result.flags or "error_may_exceed_20pct" in result.flags:
         warn += "\n  warning: a standard error is above 6 % of its parameter: an error above 20 % is not a rare draw"
     if "input_noise_correction_large" in result.flags:

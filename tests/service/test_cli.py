@@ -109,6 +109,7 @@ def test_identify_says_in_words_when_the_loads_own_fluctuation_chose_the_estimat
     assert main(["identify", *(str(tmp_path / f"own{i}.npz") for i in range(3))]) == 0
     out = capsys.readouterr().out
     assert "estimator: instrumental variables" in out and "of P's ambient std" in out
+    assert "half of its variance below " in out  # the own fluctuation's spectrum (lowpass 2 Hz here: near 1 Hz)
     assert ("iv_error_may_exceed_20pct" in out) == ("an error above 20 % is not a rare draw" in out)
 
 
