@@ -16,7 +16,12 @@ correlation to 0.
 
     .venv/bin/python -m benchmarks.own_loop [--seed 243] [--n 30] [--shape switching] [--ratio 0.9] [--coherence 0.7]
 
-Results: ``docs/results/own_loop_<shape>_seed<seed>_coh<coherence>.json``.
+With ``--andes`` the same comparison on the independent bench (:mod:`benchmarks.own_fluctuation_andes`: its
+windows of own seed ``--own-seed``, and with the loop cut the own ΔP and ΔQ added to the grid-side run's P and Q
+alone, :func:`aslm_sim.andes.own_fluctuation.cut_windows` with ``loop=False``); no score check there.
+
+Results: ``docs/results/own_loop_<shape>_seed<seed>_coh<coherence>.json``, with ``--andes``
+``own_loop_andes_<shape>_own<own seed>_coh<coherence>.json``.
 """
 
 from __future__ import annotations
@@ -86,26 +91,15 @@ def score_correlations(case, lags: dict[str, tuple[int, ...]]) -> dict[str, list
     return out
 
 
-def main(argv=None) -> dict:
-    ap = common.parser(__doc__.splitlines()[0])
-    ap.add_argument("--seed", type=int, default=243, help="seed of the bench's cases (243: development)")
-    ap.add_argument("--n", type=int, default=30)
-    ap.add_argument("--shape", default="switching")
-    ap.add_argument("--ratio", type=float, default=0.9)
-    ap.add_argument("--coherence", type=float, default=0.7)
-    args = ap.parse_args(argv)
-    base = make_cases(args.n, level=LEVEL, seed=args.seed, input_noise=False)
-    cs = own_cases(args.n, args.ratio, args.shape, base, args.seed, args.coherence)
-    out = {"machine": common.machine(), "seed": args.seed, "n": args.n, "shape": args.shape, "ratio": args.ratio,
-           "coherence": args.coherence, "candidates": {k: v.to_dict() for k, v in CANDIDATES.items()}, "fits": {}}
+def _fit_rows(pairs, truth_of, out: dict) -> list[list]:
+    """Each candidate on the (closed, cut) window pairs; per loop and candidate the errors into ``out["fits"]``."""
     rows = []
-    for loop in ("closed", "cut"):
+    for li, loop in enumerate(("closed", "cut")):
         for name, cfg in CANDIDATES.items():
             errs = []
-            for b, c in zip(base, cs, strict=True):
-                w = c.window if loop == "closed" else open_loop_window(b, c)
+            for i, pair in enumerate(pairs):
                 try:
-                    errs.append(identify(w, config=cfg).d / c.truth.d - 1.0)
+                    errs.append(identify(pair[li], config=cfg).d / truth_of(i) - 1.0)
                 except WindowError:
                     errs.append(np.full(4, np.nan))
             e = 100.0 * np.array(errs)
@@ -115,6 +109,54 @@ def main(argv=None) -> dict:
                                                     "bias_pct": bias.tolist(), "off_20": off}
             rows.append([loop, name, " / ".join(f"{x:.1f}" for x in med), " / ".join(f"{x:+.1f}" for x in bias), off])
             print(f"loop {loop}, {name}: done", flush=True)
+    return rows
+
+
+def andes(args) -> dict:
+    """The closed and cut loop on the ANDES own bench's windows."""
+    from aslm_core import Window
+    from aslm_sim.andes import own_fluctuation as andes_own
+    from benchmarks import own_fluctuation_andes as bench
+
+    grid = andes_own.grid_recording(tf=bench.TF, tstep=bench.TSTEP, seed=bench.SEED, fs=bench.FS)
+    truth = np.asarray(grid["truth"], dtype=np.float64)
+    own = andes_own.own_recording(args.shape, tf=bench.TF, tstep=bench.TSTEP, seed=args.own_seed,
+                                  coherence=args.coherence)
+    ri, si = bench.RATIOS.index(args.ratio), bench.SHAPES.index(args.shape)
+    cut = {loop: andes_own.cut_windows(grid, own, args.ratio, length_s=bench.LENGTH_S, start_s=bench.START_S,
+                                       stride_s=bench.STRIDE_S, n=args.n, snr_db=bench.SNR_DB,
+                                       rng=np.random.default_rng([args.own_seed, ri, si]), loop=loop)
+           for loop in (True, False)}
+    pairs = [tuple(Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=bench.F0, bus="andes-ieee14-bus9")
+                   for w in (a, b)) for a, b in zip(cut[True], cut[False], strict=True)]
+    out = {"machine": common.machine(), "bench": "andes", "own_seed": args.own_seed, "n": args.n, "shape": args.shape,
+           "ratio": args.ratio, "coherence": args.coherence, "truth": truth.tolist(),
+           "candidates": {k: v.to_dict() for k, v in CANDIDATES.items()}, "fits": {}}
+    rows = _fit_rows(pairs, lambda i: truth, out)
+    print(common.md_table(["loop", "fit", "median |err| a / b / H2 / Tm [%]", "bias [%]", "off > 20 %"], rows))
+    if not args.no_write:
+        common.write_json(f"own_loop_andes_{args.shape}_own{args.own_seed}_coh{args.coherence:g}", out)
+    return out
+
+
+def main(argv=None) -> dict:
+    ap = common.parser(__doc__.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=243, help="seed of the bench's cases (243: development)")
+    ap.add_argument("--n", type=int, default=30)
+    ap.add_argument("--shape", default="switching")
+    ap.add_argument("--ratio", type=float, default=0.9)
+    ap.add_argument("--coherence", type=float, default=0.7)
+    ap.add_argument("--andes", action="store_true", help="the ANDES own bench's windows instead (--n default 50)")
+    ap.add_argument("--own-seed", type=int, default=1, help="with --andes: the own process's seed (1: development)")
+    args = ap.parse_args(argv)
+    if args.andes:
+        return andes(args)
+    base = make_cases(args.n, level=LEVEL, seed=args.seed, input_noise=False)
+    cs = own_cases(args.n, args.ratio, args.shape, base, args.seed, args.coherence)
+    out = {"machine": common.machine(), "seed": args.seed, "n": args.n, "shape": args.shape, "ratio": args.ratio,
+           "coherence": args.coherence, "candidates": {k: v.to_dict() for k, v in CANDIDATES.items()}, "fits": {}}
+    pairs = [(c.window, open_loop_window(b, c)) for b, c in zip(base, cs, strict=True)]
+    rows = _fit_rows(pairs, lambda i: cs[i].truth.d, out)
     print(common.md_table(["loop", "fit", "median |err| a / b / H2 / Tm [%]", "bias [%]", "off > 20 %"], rows))
     per = [score_correlations(c, INNOVATION_LAGS) for c in cs]
     out["score_correlation"] = {k: np.mean([p[k] for p in per], axis=0).tolist() for k in INNOVATION_LAGS}

@@ -237,8 +237,11 @@ def own_recording(shape: str, *, tf: float, tstep: float, seed: int, step_tf: fl
 
 
 def cut_windows(grid: dict, own: dict | None, ratio: float, *, length_s: float, start_s: float, stride_s: float,
-                n: int, snr_db: float, rng: np.random.Generator) -> list[dict]:
+                n: int, snr_db: float, rng: np.random.Generator, loop: bool = True) -> list[dict]:
     """Windows of the superposed recording with std(own ΔP) / std(grid-driven P) at k = r/√(1 − r²) each.
+
+    ``loop`` False cuts the loop through the network: only the own ΔP and ΔQ themselves are added to P and Q,
+    so V and θ (and the load's response to them) carry none of the own process.
 
     Parameters
     ----------
@@ -274,8 +277,12 @@ def cut_windows(grid: dict, own: dict | None, ratio: float, *, length_s: float, 
         scale = 0.0
         if own is not None and ratio > 0.0:
             scale = k_target * float(np.std(grid["P"][sl])) / float(np.std(own["dp_own"][sl]))
-            for c in ("V", "theta", "P", "Q"):
-                w[c] += scale * (own[c][sl] - own[c][0])
+            if loop:
+                for c in ("V", "theta", "P", "Q"):
+                    w[c] += scale * (own[c][sl] - own[c][0])
+            else:
+                w["P"] += scale * own["dp_own"][sl]
+                w["Q"] += scale * own["dq_own"][sl]
         dp = scale * own["dp_own"][sl] if own is not None else np.zeros(m)
         for c in ("P", "Q"):
             w[f"noise_std_{c.lower()}"] = float(np.std(w[c])) * 10 ** (-snr_db / 20)
