@@ -45,6 +45,21 @@ def test_own_windows_have_the_requested_ratio_and_move_the_voltage(recordings):
         assert np.corrcoef(dv, w["dp_own"])[0, 1] < -0.5  # more load, lower voltage
 
 
+def test_windows_with_the_loop_cut_keep_the_grid_side_inputs_and_add_the_own_powers_alone(recordings):
+    grid, own = recordings
+    kw = dict(length_s=4.0, start_s=2.0, stride_s=2.0, n=3, snr_db=60.0)
+    closed = andes_own.cut_windows(grid, own, 0.5, rng=np.random.default_rng(0), **kw)
+    cut = andes_own.cut_windows(grid, own, 0.5, rng=np.random.default_rng(0), loop=False, **kw)
+    for i, (wc, wo) in enumerate(zip(closed, cut, strict=True)):
+        sl = slice(200 + 200 * i, 601 + 200 * i)
+        np.testing.assert_array_equal(wo["V"], grid["V"][sl])  # V and θ carry none of the own process
+        np.testing.assert_array_equal(wo["theta"], grid["theta"][sl])
+        assert wo["k"] == wc["k"] and np.array_equal(wo["dp_own"], wc["dp_own"])  # the same own ΔP, same scale
+        # P is the grid-side run's plus the own ΔP (and the 60 dB noise); closed, P also has the load's response.
+        assert np.std(wo["P"] - grid["P"][sl] - wo["dp_own"]) < 0.01 * np.std(wo["dp_own"])
+        assert np.std(wc["P"] - grid["P"][sl] - wc["dp_own"]) > np.std(wo["P"] - grid["P"][sl] - wo["dp_own"])
+
+
 def test_step_response_settles_and_the_load_step_lowers_the_voltage(recordings):
     step = andes_own.step_response(tstep=0.01, tf=8.0)
     assert step["P"][0] > 0.5  # the step itself appears in the bus's P at once
