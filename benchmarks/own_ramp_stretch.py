@@ -1,0 +1,70 @@
+"""The ANDES own bench's ramp stretch: what sets its failing windows apart.
+
+On own seed 31 the coupled default is off by more than 20 % on 27 of the 50 ramp windows at own/total 0.9 (3 at 0.5),
+most of them starting 40–110 s (docs/numerics.md, "P and Q together").  The bench scales the own run per window
+(``cut_windows``: k so that std(own ΔP) / std(grid P) hits the ratio), so a window where the ramp is nearly flat gets
+a large k, and with it k × everything the own run has accumulated by then: the network's settled response to the own
+level reached so far, a frequency offset that turns θ.  Per window: k, the share of the window's own ΔP a straight
+line explains, and what the scaled own run adds to V and θ (its std over the grid-side run's) and its frequency offset
+(the slope of the added θ), for the windows off by more than 20 % in the run of record and for the others.
+
+    .venv/bin/python -m benchmarks.own_ramp_stretch [--own-seed 31] [--ratio 0.9]
+
+Reads ``docs/results/own_fluctuation_andes_coupled_own<seed>.json`` (the run of record, for the errors); writes
+``docs/results/own_ramp_stretch_own<seed>_r<ratio>.json``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aslm_sim.andes import own_fluctuation as andes_own
+from benchmarks import common
+from benchmarks import own_fluctuation_andes as bench
+
+CANDIDATE = "default, coupled channels"
+
+
+def main(argv=None) -> dict:
+    ap = common.parser(__doc__.splitlines()[0])
+    ap.add_argument("--own-seed", type=int, default=31)
+    ap.add_argument("--ratio", type=float, default=0.9)
+    args = ap.parse_args(argv)
+    recorded = common.read_json(f"own_fluctuation_andes_coupled_own{args.own_seed}")
+    run = next(r for r in recorded["runs"] if r["shape"] == "ramp" and r["ratio"] == args.ratio)
+    err = 100.0 * np.abs(np.array(run["errors"][CANDIDATE], dtype=float)).max(axis=1)
+    grid = andes_own.grid_recording(tf=bench.TF, tstep=bench.TSTEP, seed=bench.SEED, fs=bench.FS)
+    own = andes_own.own_recording("ramp", tf=bench.TF, tstep=bench.TSTEP, seed=args.own_seed)
+    ws = bench.windows(grid, own, args.ratio, err.size, np.random.default_rng(
+        [args.own_seed, bench.RATIOS.index(args.ratio), bench.SHAPES.index("ramp")]))
+    per = []
+    for i, w in enumerate(ws):
+        a = int(round((bench.START_S + i * bench.STRIDE_S) * bench.FS))
+        sl = slice(a, a + w["t"].size)
+        x = w["dp_own"][int(bench.FS):]
+        t = np.arange(x.size)
+        line = np.polyval(np.polyfit(t, x, 1), t)
+        th_own, v_own = w["theta"] - grid["theta"][sl], w["V"] - grid["V"][sl]
+        per.append({"start_s": float(w["t"][0]), "error_pct": float(err[i]), "k": float(w["k"]),
+                    "line_r2": float(1.0 - np.var(x - line) / np.var(x)),
+                    "theta_ratio": float(np.std(th_own) / np.std(grid["theta"][sl])),
+                    "v_ratio": float(np.std(v_own) / np.std(grid["V"][sl])),
+                    "f_offset_hz": float(abs(np.polyfit(w["t"] - w["t"][0], th_own, 1)[0]) / (2 * np.pi))})
+    rows, out = [], {"own_seed": args.own_seed, "ratio": args.ratio, "candidate": CANDIDATE, "windows": per}
+    for name, sel in (("off > 20 %", err > 20.0), ("within 20 %", err <= 20.0)):
+        g = [p for p, s in zip(per, sel, strict=True) if s]
+        if not g:
+            continue
+        med = {k: float(np.median([p[k] for p in g])) for k in ("k", "line_r2", "theta_ratio", "v_ratio", "f_offset_hz")}
+        out[name] = {"n": len(g), **med}
+        rows.append([name, len(g), f"{med['k']:.1f}", f"{med['line_r2']:.3f}", f"{med['theta_ratio']:.2f}",
+                     f"{med['v_ratio']:.2f}", f"{med['f_offset_hz']:.4f}"])
+    print(common.md_table(["windows", "n", "k (median)", "straight line's R² of own ΔP", "added θ std / grid θ std",
+                           "added V std / grid V std", "added frequency offset [Hz]"], rows))
+    if not args.no_write:
+        common.write_json(f"own_ramp_stretch_own{args.own_seed}_r{args.ratio:g}", out)
+    return out
+
+
+if __name__ == "__main__":
+    main()
