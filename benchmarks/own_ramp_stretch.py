@@ -8,11 +8,13 @@ level reached so far, a frequency offset that turns θ.  Per window: k, the shar
 line explains, and what the scaled own run adds to V and θ (its std over the grid-side run's) and its frequency offset
 (the slope of the added θ), for the windows off by more than 20 % in the run of record and for the others.
 
-    .venv/bin/python -m benchmarks.own_ramp_stretch [--own-seed 31] [--ratio 0.9] [--superposition]
+    .venv/bin/python -m benchmarks.own_ramp_stretch [--own-seed 31] [--ratio 0.9] [--superposition [K ...]]
 
-``--superposition`` also measures the superposition that builds the windows against one ANDES run with both
-excitations (:func:`aslm_sim.andes.own_fluctuation.superposition_error`, 60 s of the own seed's ramp, its own grid
-seed) at the two groups' median k: the superposed channel's error over the joint run's std (~1.5 min of ANDES each).
+Also the windows by their k: how many are off by more than 20 %, and the median |error| there.  ``--superposition``
+measures the superposition that builds the windows against one ANDES run with both excitations
+(:func:`aslm_sim.andes.own_fluctuation.superposition_error`, 60 s of the own seed's ramp, its own grid seed) at the
+scales K (default: the two groups' median k): the superposed channel's error over the joint run's std (~45 s of ANDES
+each).
 
 Reads ``docs/results/own_fluctuation_andes_coupled_own<seed>.json`` (the run of record, for the errors); writes
 ``docs/results/own_ramp_stretch_own<seed>_r<ratio>.json``.
@@ -33,7 +35,8 @@ def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--own-seed", type=int, default=31)
     ap.add_argument("--ratio", type=float, default=0.9)
-    ap.add_argument("--superposition", action="store_true", help="also check the superposition at the median k's")
+    ap.add_argument("--superposition", nargs="*", type=float, default=None, metavar="K",
+                    help="also check the superposition at these scales (none given: the two groups' median k)")
     args = ap.parse_args(argv)
     recorded = common.read_json(f"own_fluctuation_andes_coupled_own{args.own_seed}")
     run = next(r for r in recorded["runs"] if r["shape"] == "ramp" and r["ratio"] == args.ratio)
@@ -66,17 +69,29 @@ def main(argv=None) -> dict:
                      f"{med['v_ratio']:.2f}", f"{med['f_offset_hz']:.4f}"])
     print(common.md_table(["windows", "n", "k (median)", "straight line's R² of own ΔP", "added θ std / grid θ std",
                            "added V std / grid V std", "added frequency offset [Hz]"], rows))
-    if args.superposition:
+    # The windows by the scale of their own run: how many are off, and the coupled default's median |error|.
+    edges = (0.0, 20.0, 40.0, 70.0, np.inf)
+    k_all = np.array([p["k"] for p in per])
+    err4 = 100.0 * np.abs(np.array(run["errors"][CANDIDATE], dtype=float))
+    binned = []
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        m = (k_all > lo) & (k_all <= hi)
+        if m.any():
+            med = np.median(err4[m], axis=0)
+            out.setdefault("by_k", []).append({"k_from": lo, "k_to": hi, "n": int(m.sum()), "off_20": int((err[m] > 20).sum()),
+                                               "median_abs_pct": med.tolist()})
+            binned.append([f"{lo:g}–{hi:g}", int(m.sum()), int((err[m] > 20).sum()), " / ".join(f"{x:.1f}" for x in med)])
+    print(common.md_table(["k", "windows", "off > 20 %", "median |error| a / b / H2 / Tm [%]"], binned))
+    if args.superposition is not None:
+        scales = args.superposition or [round(out[g]["k"]) for g in ("within 20 %", "off > 20 %") if g in out]
         check = []
-        for name in ("within 20 %", "off > 20 %"):
-            if name in out:
-                scale = round(out[name]["k"])
-                err = andes_own.superposition_error(tf=60.0, tstep=bench.TSTEP, shape="ramp", seed=args.own_seed,
-                                                    scale=float(scale))
-                out.setdefault("superposition", {})[str(scale)] = err
-                check.append([name, scale, *(f"{100 * err[c]:.1f}" for c in ("V", "theta", "P", "Q"))])
-        print(common.md_table(["group's median k", "scale", "V error [%]", "θ error [%]", "P error [%]", "Q error [%]"],
-                              check))
+        for scale in scales:
+            err_s = andes_own.superposition_error(tf=60.0, tstep=bench.TSTEP, shape="ramp", seed=args.own_seed,
+                                                  scale=float(scale))
+            out.setdefault("superposition", {})[f"{scale:g}"] = err_s
+            check.append([f"{scale:g}", *(f"{100 * err_s[c]:.1f}" for c in ("V", "theta", "P", "Q"))])
+            print(f"superposition at k = {scale:g}: done", flush=True)
+        print(common.md_table(["k", "V error [%]", "θ error [%]", "P error [%]", "Q error [%]"], check))
     if not args.no_write:
         common.write_json(f"own_ramp_stretch_own{args.own_seed}_r{args.ratio:g}", out)
     return out
