@@ -146,7 +146,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--shape", default="switching")
     ap.add_argument("--ratio", type=float, default=0.9)
     ap.add_argument("--coherence", type=float, default=0.7)
-    ap.add_argument("--andes", action="store_true", help="the ANDES own bench's windows instead (--n default 50)")
+    ap.add_argument("--andes", action="store_true", help="the ANDES own bench's windows instead (its rows have 50: --n 50)")
     ap.add_argument("--own-seed", type=int, default=1, help="with --andes: the own process's seed (1: development)")
     args = ap.parse_args(argv)
     if args.andes:
