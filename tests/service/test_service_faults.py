@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -172,6 +173,19 @@ time.sleep(600)
 
 
 @pytest.mark.slow
+def _kill_marked_worker(marker: Path) -> None:
+    """SIGKILL the worker whose pid ``hang_once_identify`` wrote: with its service killed, nothing else ends it
+    before its 600 s sleep does (it outlived the test run in CI)."""
+    try:
+        pid = int(marker.read_text())
+    except (OSError, ValueError):
+        return
+    try:
+        os.kill(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+
+
 def test_a_kill_9_mid_period_is_recorded_as_interrupted_at_the_next_start(tmp_path, monkeypatch):
     # b2 hangs its worker on purpose: the period is still running when the process is killed.
     env = {**os.environ, "ASLM_TEST_HANG_BUS": "b2", "ASLM_TEST_MARKER": str(tmp_path / "marker"),
@@ -186,6 +200,7 @@ def test_a_kill_9_mid_period_is_recorded_as_interrupted_at_the_next_start(tmp_pa
     finally:
         proc.kill()  # SIGKILL: nothing of the service runs after this
         proc.wait(30)
+        _kill_marked_worker(tmp_path / "marker")
     clock = ManualClock(T0 + 30.0)
     svc = Service(settings_for(tmp_path, 7447, sources=[], sinks=["storage"], period_s=10.0, window_s=2.0,
                                late_s=0.5, identify_fn=FAKE, diagnose_every=0, workers=1), rest=False, clock=clock)
