@@ -421,12 +421,11 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     fd_p = 1.0 - rr_p / ss_p
     fd_q = 1.0 - rr_q / ss_q
     flags = list(prep.flags)
-    static_local, static_se, extra = _static_and_excitation(problem, prep, beta, (rr_p, rr_q), (rho_p, rho_q),
-                                                            (ss_p, ss_q), cov_d)
+    # Another fit's excitation indicators, when given, stand for this one's (keys it lacks included).
     carried = {k: v for k, v in (extra_quality or {}).items() if k in EXCITATION_KEYS}
-    if carried:  # another fit's indicators replace this one's, keys it lacks included
-        extra = {k: v for k, v in extra.items() if k not in EXCITATION_KEYS}
-        extra.update(carried)
+    static_local, static_se, extra = _static_and_excitation(problem, prep, beta, (rr_p, rr_q), (rho_p, rho_q),
+                                                            (ss_p, ss_q), cov_d, indicators=not carried)
+    extra.update(carried)
     if static.split_unidentifiable(static_se, math.hypot(float(pb.p_meas.mean()), float(pb.q_meas.mean())),
                                    config.static):
         flags.append("static_split_unidentifiable")
@@ -495,7 +494,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
 
 def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, rr: tuple[float, float],
                            rho: tuple[float, float], ss: tuple[float, float],
-                           cov_d: np.ndarray) -> tuple[dict, dict, dict]:
+                           cov_d: np.ndarray, indicators: bool = True) -> tuple[dict, dict, dict]:
     """The static part's level and slope with standard errors, and the excitation indicators.
 
     Needs the motor's P, Q and their D-gradients at the optimum in ``problem._p``, ``_q``, ``_dp``, ``_dq``.
@@ -505,7 +504,8 @@ def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, r
     ``static_cond``, ``excitation_share_p|q``, ``own_std_p|q`` [pu], ``own_ratio_p|q``
     (:func:`aslm_core.excitation.split`), ``own_median_hz_p|q`` [Hz] (:func:`aslm_core.excitation.own_median_hz`;
     absent where nothing is above the floor).  ``rr``, ``ss``: residual and centred measured sums of squares per
-    channel (the residual has zero mean: the constant is a static regressor).
+    channel (the residual has zero mean: the constant is a static regressor).  ``indicators`` False: the static
+    entries only (the caller has another fit's indicators).
     """
     pb = problem
     m = pb.basis.shape[1]
@@ -519,6 +519,8 @@ def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, r
     local, coef_se, cond = static.local_part(beta[:, 0], beta[:, 1], pb.r_factor, prep.V[pb.k0:], covs,
                                              pb.config.static)
     extra = {"static_cond": cond}
+    if not indicators:
+        return local, coef_se, extra
     fs = 1.0 / prep.dt
     for c, name, meas, model in ((0, "p", pb.p_meas, pb._p), (1, "q", pb.q_meas, pb._q)):
         noise = prep.noise.get(f"noise_{name}", 0.0)

@@ -115,9 +115,14 @@ def stats(truth: np.ndarray, results: list[dict], bounds: np.ndarray, names: lis
     return out
 
 
+def as_window(w: dict) -> Window:
+    """The identifier's window of one of the bench's window dicts (:func:`windows`)."""
+    return Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=F0, bus="andes-ieee14-bus9")
+
+
 def _identify_all(w: dict, names: list[str]) -> dict:
     """Every candidate on one window, in turn, with its wall time [s]."""
-    win = Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=F0, bus="andes-ieee14-bus9")
+    win = as_window(w)
     out = {}
     for name in names:
         cfg = CANDIDATES[name]
@@ -129,14 +134,24 @@ def _identify_all(w: dict, names: list[str]) -> dict:
     return out
 
 
-def windows(grid: dict, own: dict | None, ratio: float, n: int, rng: np.random.Generator) -> list[dict]:
-    """The level's windows, each with its white noise std and own-fluctuation variance over the regression part."""
+def windows(grid: dict, own: dict | None, ratio: float, n: int, rng: np.random.Generator,
+            loop: bool = True) -> list[dict]:
+    """The level's windows, each with its white noise std and own-fluctuation variance over the regression part
+    (``loop`` False: the loop through the network cut, :func:`aslm_sim.andes.own_fluctuation.cut_windows`)."""
     ws = andes_own.cut_windows(grid, own, ratio, length_s=LENGTH_S, start_s=START_S, stride_s=STRIDE_S, n=n,
-                               snr_db=SNR_DB, rng=rng)
+                               snr_db=SNR_DB, rng=rng, loop=loop)
     skip = int(round(FS))  # the identifier's 1 s
     for w in ws:
         w["own_var"] = float(np.var(w["dp_own"][skip:]))
     return ws
+
+
+def row_windows(grid: dict, own: dict | None, ratio: float, shape: str, n: int, own_seed: int,
+                loop: bool = True) -> list[dict]:
+    """The windows of one row of the bench (own/total ``ratio``, own ``shape``), their white noise drawn from the
+    row's own stream (``own_seed``, ratio, shape), as every run of the bench draws it."""
+    rng = np.random.default_rng([own_seed, RATIOS.index(ratio), SHAPES.index(shape)])
+    return windows(grid, own, ratio, n, rng, loop)
 
 
 HEAD = ["own/total", "shape", "candidate", "median |err| a / b / H2 / Tm [%]", "worst [%]",
@@ -192,10 +207,10 @@ def main(argv=None) -> dict:
     for si, shape in enumerate(args.shapes):
         own = andes_own.own_recording(shape, tf=TF, tstep=TSTEP, seed=args.own_seed, coherence=args.coherence)
         own_cov = window_covariance(shape, l_reg, FS, 600, seed=SEED + 100)
-        for ri, ratio in enumerate(RATIOS):
+        for ratio in RATIOS:
             if ratio == 0.0 and si > 0:
                 continue  # no own fluctuation: the shape does not matter
-            ws = windows(grid, own, ratio, n, np.random.default_rng([args.own_seed, ri, SHAPES.index(shape)]))
+            ws = row_windows(grid, own, ratio, shape, n, args.own_seed)
             results = [_identify_all(w, names) for w in ws]
             bounds = np.array([_bound(w, truth, own_cov, args.coherence) for w in ws]).transpose(1, 0, 2)
             per = stats(truth, results, bounds, names)

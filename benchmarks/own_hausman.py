@@ -24,7 +24,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
 
 import numpy as np  # noqa: E402
 
-from aslm_core import IdentifyConfig, Window, WindowError, identify  # noqa: E402
+from aslm_core import IdentifyConfig, WindowError, identify  # noqa: E402
 from aslm_sim.cases import make_cases  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.own_fluctuation import LEVEL, own_cases  # noqa: E402
@@ -91,12 +91,8 @@ def main(argv=None) -> dict:
                 own = andes_own.own_recording(shape, tf=bench.TF, tstep=bench.TSTEP, seed=args.own_seed, coherence=coh)
             for ratio in args.ratios:
                 if args.andes:
-                    ri, si = bench.RATIOS.index(ratio), bench.SHAPES.index(shape)
-                    ws = andes_own.cut_windows(grid, own, ratio, length_s=bench.LENGTH_S, start_s=bench.START_S,
-                                               stride_s=bench.STRIDE_S, n=args.n, snr_db=bench.SNR_DB,
-                                               rng=np.random.default_rng([args.own_seed, ri, si]))
-                    windows = [Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=bench.F0, bus="andes")
-                               for w in ws]
+                    windows = [bench.as_window(w) for w in bench.row_windows(grid, own, ratio, shape, args.n,
+                                                                              args.own_seed)]
                     truths = [truth] * len(windows)
                 else:
                     cs = own_cases(args.n, ratio, shape, base, args.seed, coh)

@@ -114,7 +114,6 @@ def _fit_rows(pairs, truth_of, out: dict) -> list[list]:
 
 def andes(args) -> dict:
     """The closed and cut loop on the ANDES own bench's windows."""
-    from aslm_core import Window
     from aslm_sim.andes import own_fluctuation as andes_own
     from benchmarks import own_fluctuation_andes as bench
 
@@ -122,13 +121,9 @@ def andes(args) -> dict:
     truth = np.asarray(grid["truth"], dtype=np.float64)
     own = andes_own.own_recording(args.shape, tf=bench.TF, tstep=bench.TSTEP, seed=args.own_seed,
                                   coherence=args.coherence)
-    ri, si = bench.RATIOS.index(args.ratio), bench.SHAPES.index(args.shape)
-    cut = {loop: andes_own.cut_windows(grid, own, args.ratio, length_s=bench.LENGTH_S, start_s=bench.START_S,
-                                       stride_s=bench.STRIDE_S, n=args.n, snr_db=bench.SNR_DB,
-                                       rng=np.random.default_rng([args.own_seed, ri, si]), loop=loop)
+    cut = {loop: bench.row_windows(grid, own, args.ratio, args.shape, args.n, args.own_seed, loop)
            for loop in (True, False)}
-    pairs = [tuple(Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=bench.F0, bus="andes-ieee14-bus9")
-                   for w in (a, b)) for a, b in zip(cut[True], cut[False], strict=True)]
+    pairs = [(bench.as_window(a), bench.as_window(b)) for a, b in zip(cut[True], cut[False], strict=True)]
     out = {"machine": common.machine(), "bench": "andes", "own_seed": args.own_seed, "n": args.n, "shape": args.shape,
            "ratio": args.ratio, "coherence": args.coherence, "truth": truth.tolist(),
            "candidates": {k: v.to_dict() for k, v in CANDIDATES.items()}, "fits": {}}

@@ -43,8 +43,7 @@ def main(argv=None) -> dict:
     err = 100.0 * np.abs(np.array(run["errors"][CANDIDATE], dtype=float)).max(axis=1)
     grid = andes_own.grid_recording(tf=bench.TF, tstep=bench.TSTEP, seed=bench.SEED, fs=bench.FS)
     own = andes_own.own_recording("ramp", tf=bench.TF, tstep=bench.TSTEP, seed=args.own_seed)
-    ws = bench.windows(grid, own, args.ratio, err.size, np.random.default_rng(
-        [args.own_seed, bench.RATIOS.index(args.ratio), bench.SHAPES.index("ramp")]))
+    ws = bench.row_windows(grid, own, args.ratio, "ramp", err.size, args.own_seed)
     per = []
     for i, w in enumerate(ws):
         a = int(round((bench.START_S + i * bench.STRIDE_S) * bench.FS))

@@ -21,7 +21,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
 
 import numpy as np  # noqa: E402
 
-from aslm_core import Window, WindowError, identify  # noqa: E402
+from aslm_core import WindowError, identify  # noqa: E402
 from aslm_core.noise import periodogram  # noqa: E402
 from aslm_sim.cases import make_cases  # noqa: E402
 from aslm_sim.network import forcing_filter  # noqa: E402
@@ -88,11 +88,8 @@ def main(argv=None) -> dict:
                     cs = own_cases(args.n, ratio, shape, base, args.seed) if ratio else base
                     windows = [c.window for c in cs]
                 else:
-                    ws = andes_own.cut_windows(grid, own if ratio else None, ratio, length_s=ab.LENGTH_S,
-                                               start_s=ab.START_S, stride_s=ab.STRIDE_S, n=args.n, snr_db=ab.SNR_DB,
-                                               rng=np.random.default_rng([args.own_seed, ab.RATIOS.index(ratio),
-                                                                          ab.SHAPES.index(shape)]))
-                    windows = [Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=ab.F0, bus="andes") for w in ws]
+                    windows = [ab.as_window(w) for w in ab.row_windows(grid, own if ratio else None, ratio, shape,
+                                                                         args.n, args.own_seed)]
                 s = summary(readings(windows))
                 label = shape if ratio else "–"
                 out["rows"].append({"bench": bench, "shape": label, "ratio": ratio, **s})

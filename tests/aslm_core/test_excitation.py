@@ -54,11 +54,12 @@ def test_a_white_residual_at_its_floor_mostly_reads_nothing():
 
 
 def test_the_low_pass_shapes_the_floor_that_is_removed():
-    # A low-passed white residual with nothing of its own: removing a flat floor would leave a negative
-    # spectrum above the cut-off and push the reading down; the shaped floor leaves about nothing.
+    # A low-passed white residual with nothing of its own: the shaped floor leaves the floor's scatter about zero, so
+    # that, as for a white residual, some draws read something and most nothing (16 of 20 read nothing here); a flat
+    # floor would over-remove above the cut-off and read nothing on every draw.
     rng = np.random.default_rng(10)
     b, a = signal.butter(2, 1.0, fs=FS)
     got = [own_median_hz(signal.lfilter(b, a, 0.3 * rng.standard_normal(N)), FS, 0.3, lowpass_hz=1.0)
            for _ in range(20)]
     flat = [own_median_hz(signal.lfilter(b, a, 0.3 * rng.standard_normal(N)), FS, 0.3) for _ in range(20)]
-    assert sum(math.isnan(g) for g in got) >= 6 and all(math.isnan(g) for g in flat)
+    assert 6 <= sum(math.isnan(g) for g in got) <= 17 and all(math.isnan(g) for g in flat)
