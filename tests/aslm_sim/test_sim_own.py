@@ -76,6 +76,22 @@ def test_window_covariance_is_of_the_demeaned_process_at_unit_variance():
     assert cov[0, 5] > 0.5 * cov[0, 0]  # 2 Hz low-passed: correlated over 50 ms
 
 
+def test_window_covariance_has_the_windows_full_rank_and_matches_many_windows():
+    # Fewer windows than samples: their sample covariance would have rank 49 of 199, and a bound computed with it
+    # finds own-free directions the switching process does not have.
+    cov = window_covariance("switching", 200, 100.0, 50, seed=4)
+    ev = np.linalg.eigvalsh(cov)
+    assert np.sum(ev > 1e-8 * ev.max()) == 199  # all but the removed mean
+    from aslm_sim.network import forcing_filter
+
+    sos, gain = forcing_filter(100.0)
+    w = own_process(np.random.default_rng(5), "switching", 200 * 2000, 100.0, sos, gain).reshape(2000, 200)
+    w = w - w.mean(axis=1, keepdims=True)
+    many = w.T @ w / 2000
+    many /= np.mean(np.diag(many))
+    assert np.abs(cov - many).max() < 0.15
+
+
 def test_unknown_shape_is_a_clear_error():
     with pytest.raises(ValueError, match="own-fluctuation shape"):
         make_cases(1, own_sigma=0.01, own_shape="square")
