@@ -15,10 +15,12 @@ choice (the harness swaps :func:`aslm_core.disturbance.ar_whitener` for these ro
 simulated) and cut (:func:`benchmarks.own_loop.open_loop_window`).
 
     .venv/bin/python -m benchmarks.own_oracle [--seed 243] [--n 30] [--shapes lowpass pink switching]
-        [--ratio 0.9] [--coherence 0.7]
+        [--ratio 0.9] [--coherence 0.7] [--andes [--own-seed 1] --n 50]
 
 Per row: median |error| a / b / H2 / Tm [%], bias of a, and each window's |error| over its own bound (median ÷ 0.674,
-1 for an efficient unbiased estimator).  Results: ``docs/results/own_oracle_seed<seed>_coh<ρ>.json``.
+1 for an efficient unbiased estimator).  With ``--andes`` the same on the independent bench
+(:mod:`benchmarks.own_fluctuation_andes`, own seed ``--own-seed``; its bound and Σ as that bench computes them).
+Results: ``docs/results/own_oracle_seed<seed>_coh<ρ>.json``, ``own_oracle_andes_own<own seed>_coh<ρ>.json``.
 """
 
 from __future__ import annotations
@@ -132,6 +134,83 @@ def oracle_gls(window, d0: np.ndarray, sigma: np.ndarray, iters: int = 15) -> np
     return d
 
 
+def fit_all(window, truth: np.ndarray, sigma: np.ndarray) -> dict[str, np.ndarray]:
+    """Every row's relative error D/D_real − 1 on one window (NaN where the identifier refused it)."""
+    def run(cfg):
+        try:
+            return identify(window, config=cfg).d / truth - 1.0
+        except WindowError:
+            return np.full(4, np.nan)
+
+    out = {name: run(cfg) for name, cfg in CANDIDATES.items()}
+    with fixed_ar_order(FIXED_ORDER):
+        out.update({f"{name}, AR order {FIXED_ORDER}": run(cfg) for name, cfg in CANDIDATES.items()})
+    d_default = (out["default"] + 1.0) * truth
+    start = d_default if np.isfinite(d_default).all() else truth
+    out[f"oracle AR({ORACLE_AR_ORDER})"] = oracle_ar(window, start, sigma) / truth - 1.0
+    out["oracle GLS"] = oracle_gls(window, start, sigma) / truth - 1.0
+    return out
+
+
+def summarise(shape: str, loop: str, per_window: list[dict], bounds: np.ndarray, out: dict, table: list) -> None:
+    """Per row: median |error|, bias and each window's error over its own bound (median ÷ 0.674)."""
+    for name in per_window[0]:
+        e = np.array([w[name] for w in per_window])
+        z = np.abs(e) / np.sqrt(bounds)
+        med, bias = 100 * np.nanmedian(np.abs(e), axis=0), 100 * np.nanmean(e, axis=0)
+        zmed = np.nanmedian(z, axis=0) / 0.6745
+        out["rows"].append({"shape": shape, "loop": loop, "candidate": name, "errors": e.tolist(),
+                            "median_abs_pct": med.tolist(), "bias_pct": bias.tolist(), "z": zmed.tolist()})
+        table.append([shape, loop, name, " / ".join(f"{x:.1f}" for x in med), f"{bias[0]:+.1f}",
+                      " / ".join(f"{x:.2f}" for x in zmed)])
+    print(f"{shape}, loop {loop}: done", flush=True)
+
+
+def synthetic(args, out: dict, table: list) -> None:
+    """The synthetic own bench's windows (seed ``args.seed``)."""
+    base = make_cases(args.n, level=LEVEL, seed=args.seed, input_noise=False)
+    for shape in args.shapes:
+        cs = own_cases(args.n, args.ratio, shape, base, args.seed, args.coherence)
+        cov = window_covariance(shape, 900, 100.0, COV_WINDOWS, COV_SEED)
+        bounds = np.array([window_bound(c, cov, args.coherence)[0] for c in cs])  # (n, 4) relative variances
+        for loop in ("closed", "cut"):
+            per_window = []
+            for b, c in zip(base, cs, strict=True):
+                w = c.window if loop == "closed" else open_loop_window(b, c)
+                white = (float(np.var(b.window.P - b.clean.P)), float(np.var(b.window.Q - b.clean.Q)))
+                sigma = true_covariance(c, cov, args.coherence, white)
+                per_window.append(fit_all(w, np.asarray(c.truth.d, dtype=np.float64), sigma))
+            summarise(shape, loop, per_window, bounds, out, table)
+        allowed = 100 * np.sqrt(np.median(bounds, axis=0)) * 0.6745
+        table.append([shape, "–", "bound (median window's σ × 0.674)", " / ".join(f"{x:.1f}" for x in allowed), "", ""])
+
+
+def andes(args, out: dict, table: list) -> None:
+    """The ANDES own bench's windows (own seed ``args.own_seed``; cut: :func:`aslm_sim.andes.own_fluctuation.cut_windows`)."""
+    from aslm_sim.andes import own_fluctuation as andes_own
+    from benchmarks import own_fluctuation_andes as bench
+
+    grid = andes_own.grid_recording(tf=bench.TF, tstep=bench.TSTEP, seed=bench.SEED, fs=bench.FS)
+    truth = np.asarray(grid["truth"], dtype=np.float64)
+    l_reg = int(round(bench.LENGTH_S * bench.FS)) + 1 - int(round(bench.FS))
+    for shape in args.shapes:
+        own = andes_own.own_recording(shape, tf=bench.TF, tstep=bench.TSTEP, seed=args.own_seed,
+                                      coherence=args.coherence)
+        cov = window_covariance(shape, l_reg, bench.FS, 600, seed=bench.SEED + 100)
+        cut = {loop: bench.row_windows(grid, own, args.ratio, shape, args.n, args.own_seed, loop) for loop in (True, False)}
+        bounds = np.array([bench._bound(w, truth, cov, args.coherence)[0] for w in cut[True]])
+        for loop, ws in (("closed", cut[True]), ("cut", cut[False])):
+            per_window = []
+            for w in ws:
+                sigma = disturbance_covariance(w["own_var"] * cov, (1.0, OWN_Q_PER_P),
+                                               (w["noise_std_p"] ** 2, w["noise_std_q"] ** 2), cross=True,
+                                               coherence=args.coherence)
+                per_window.append(fit_all(bench.as_window(w), truth, sigma))
+            summarise(shape, loop, per_window, bounds, out, table)
+        allowed = 100 * np.sqrt(np.median(bounds, axis=0)) * 0.6745
+        table.append([shape, "–", "bound (median window's σ × 0.674)", " / ".join(f"{x:.1f}" for x in allowed), "", ""])
+
+
 def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=243, help="seed of the bench's cases (243: development)")
@@ -139,59 +218,19 @@ def main(argv=None) -> dict:
     ap.add_argument("--shapes", nargs="+", default=["lowpass", "pink", "switching"])
     ap.add_argument("--ratio", type=float, default=0.9)
     ap.add_argument("--coherence", type=float, default=0.7)
+    ap.add_argument("--andes", action="store_true", help="the ANDES own bench's windows instead (--n 50 for a whole row)")
+    ap.add_argument("--own-seed", type=int, default=1, help="with --andes: the own process's seed (1: development)")
     args = ap.parse_args(argv)
-    base = make_cases(args.n, level=LEVEL, seed=args.seed, input_noise=False)
-    out = {"machine": common.machine(), "seed": args.seed, "n": args.n, "ratio": args.ratio,
+    out = {"machine": common.machine(), "bench": "andes" if args.andes else "synthetic", "seed": args.seed,
+           "own_seed": args.own_seed if args.andes else None, "n": args.n, "ratio": args.ratio,
            "coherence": args.coherence, "candidates": {k: v.to_dict() for k, v in CANDIDATES.items()}, "rows": []}
-    table = []
-    for shape in args.shapes:
-        cs = own_cases(args.n, args.ratio, shape, base, args.seed, args.coherence)
-        cov = window_covariance(shape, 900, 100.0, COV_WINDOWS, COV_SEED)
-        bounds = np.array([window_bound(c, cov, args.coherence)[0] for c in cs])  # (n, 4) relative variances
-        for loop in ("closed", "cut"):
-            fixed = [f"{k}, AR order {FIXED_ORDER}" for k in CANDIDATES]
-            errs: dict[str, list] = {k: [] for k in (*CANDIDATES, *fixed, f"oracle AR({ORACLE_AR_ORDER})",
-                                                     "oracle GLS")}
-            for b, c in zip(base, cs, strict=True):
-                w = c.window if loop == "closed" else open_loop_window(b, c)
-                white = (float(np.var(b.window.P - b.clean.P)), float(np.var(b.window.Q - b.clean.Q)))
-                truth = np.asarray(c.truth.d, dtype=np.float64)
-                d_default = None
-                for name, cfg in CANDIDATES.items():
-                    try:
-                        d = identify(w, config=cfg).d
-                    except WindowError:
-                        d = np.full(4, np.nan)
-                    errs[name].append(d / truth - 1.0)
-                    if name == "default":
-                        d_default = d
-                with fixed_ar_order(FIXED_ORDER):
-                    for name, cfg in CANDIDATES.items():
-                        try:
-                            d = identify(w, config=cfg).d
-                        except WindowError:
-                            d = np.full(4, np.nan)
-                        errs[f"{name}, AR order {FIXED_ORDER}"].append(d / truth - 1.0)
-                sigma = true_covariance(c, cov, args.coherence, white)
-                start = d_default if np.isfinite(d_default).all() else truth
-                errs[f"oracle AR({ORACLE_AR_ORDER})"].append(oracle_ar(w, start, sigma) / truth - 1.0)
-                errs["oracle GLS"].append(oracle_gls(w, start, sigma) / truth - 1.0)
-            for name, e in errs.items():
-                e = np.array(e)
-                z = np.abs(e) / np.sqrt(bounds)
-                med, bias = 100 * np.nanmedian(np.abs(e), axis=0), 100 * np.nanmean(e, axis=0)
-                zmed = np.nanmedian(z, axis=0) / 0.6745
-                out["rows"].append({"shape": shape, "loop": loop, "candidate": name, "errors": e.tolist(),
-                                    "median_abs_pct": med.tolist(), "bias_pct": bias.tolist(), "z": zmed.tolist()})
-                table.append([shape, loop, name, " / ".join(f"{x:.1f}" for x in med), f"{bias[0]:+.1f}",
-                              " / ".join(f"{x:.2f}" for x in zmed)])
-            print(f"{shape}, loop {loop}: done", flush=True)
-        allowed = 100 * np.sqrt(np.median(bounds, axis=0)) * 0.6745
-        table.append([shape, "–", "bound (median window's σ × 0.674)", " / ".join(f"{x:.1f}" for x in allowed), "", ""])
+    table: list = []
+    (andes if args.andes else synthetic)(args, out, table)
     print(common.md_table(["shape", "loop", "fit", "median |err| a / b / H2 / Tm [%]", "bias a [%]",
                            "error / bound (median ÷ 0.674)"], table))
     if not args.no_write:
-        common.write_json(f"own_oracle_seed{args.seed}_coh{args.coherence:g}", out)
+        name = (f"own_oracle_andes_own{args.own_seed}" if args.andes else f"own_oracle_seed{args.seed}")
+        common.write_json(f"{name}_coh{args.coherence:g}", out)
     return out
 
 
