@@ -7,6 +7,7 @@ It imports the worker functions (and with them numpy), never the pool: the paren
 from __future__ import annotations
 
 import logging
+import os
 import queue
 import signal
 import threading
@@ -37,7 +38,8 @@ def worker_loop(conn: Connection, fn_path: str) -> None:
     Messages in are lists of ``(task_id, task)`` (or None: stop); each task's outcome goes back as
     ``(task_id, outcome)`` as soon as it is done, in order.  A reader thread takes messages off the
     pipe while a task runs, so the parent can queue the next tasks without waiting for this one and
-    its sends never wait for the computation.
+    its sends never wait for the computation.  When the pipe closes without a stop message (the parent
+    was killed), the reader ends the process at once, whatever task is running.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     try:
@@ -53,8 +55,10 @@ def worker_loop(conn: Connection, fn_path: str) -> None:
         while True:
             try:
                 msg = conn.recv()
-            except (EOFError, OSError):  # the parent has gone
-                msg = None
+            except (EOFError, OSError):
+                # The parent has gone (a graceful stop sends None first): nobody is left to take this worker's
+                # results, so it ends now, not after its running task, which may be one that hangs.
+                os._exit(0)
             if msg is None:
                 stop.set()
                 inbox.put(None)

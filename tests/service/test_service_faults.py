@@ -172,35 +172,54 @@ time.sleep(600)
 '''
 
 
-@pytest.mark.slow
-def _kill_marked_worker(marker: Path) -> None:
-    """SIGKILL the worker whose pid ``hang_once_identify`` wrote: with its service killed, nothing else ends it
-    before its 600 s sleep does (it outlived the test run in CI)."""
+def _marked_worker(marker: Path) -> int | None:
+    """The pid ``hang_once_identify`` wrote (the worker it hangs), or None."""
     try:
-        pid = int(marker.read_text())
+        return int(marker.read_text())
     except (OSError, ValueError):
-        return
+        return None
+
+
+def _alive(pid: int) -> bool:
     try:
-        os.kill(pid, signal.SIGKILL)
+        os.kill(pid, 0)
     except ProcessLookupError:
-        pass
+        return False
+    # A zombie (exited, not yet reaped by its new parent) counts as gone.
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
 
 
+@pytest.mark.slow
 def test_a_kill_9_mid_period_is_recorded_as_interrupted_at_the_next_start(tmp_path, monkeypatch):
     # b2 hangs its worker on purpose: the period is still running when the process is killed.
     env = {**os.environ, "ASLM_TEST_HANG_BUS": "b2", "ASLM_TEST_MARKER": str(tmp_path / "marker"),
            "PYTHONPATH": os.pathsep.join([str(ROOT), str(ROOT / "tests")])}
     script = KILLED.format(start=T0 + 1.0, tmp=str(tmp_path), boundary=T0 + 10)
     proc = subprocess.Popen([sys.executable, "-c", script], cwd=ROOT, env=env, stdout=subprocess.PIPE, text=True)
+    hung = None
     try:
         assert proc.stdout.readline().strip() == "period started"
         storage = Storage(tmp_path / "aslm.sqlite")
         wait_for(lambda: (tmp_path / "marker").exists() and storage.latest("b1") is not None, 60, 0.05)
         storage.close()
+        hung = _marked_worker(tmp_path / "marker")
+        assert hung is not None and _alive(hung)
     finally:
         proc.kill()  # SIGKILL: nothing of the service runs after this
         proc.wait(30)
-        _kill_marked_worker(tmp_path / "marker")
+    if hung is not None:
+        # The worker hung in its task outlives its killed service only until it sees its pipe close.
+        end = time.monotonic() + 10.0
+        while _alive(hung) and time.monotonic() < end:
+            time.sleep(0.05)
+        outlived = _alive(hung)
+        if outlived:
+            os.kill(hung, signal.SIGKILL)  # never leave it behind, even when the assertion fails
+        assert not outlived, f"worker {hung} outlived its killed service"
     clock = ManualClock(T0 + 30.0)
     svc = Service(settings_for(tmp_path, 7447, sources=[], sinks=["storage"], period_s=10.0, window_s=2.0,
                                late_s=0.5, identify_fn=FAKE, diagnose_every=0, workers=1), rest=False, clock=clock)
