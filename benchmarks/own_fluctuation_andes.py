@@ -54,8 +54,11 @@ RATIOS = (0.0, 0.5, 0.9)
 SHAPES = ("lowpass", "switching", "pink", "ramp")
 #: Own-process seeds of the confirmation runs, fixed before them (the development windows are seed 1's; 21: the
 #: gated estimator's flag ``iv_error_may_exceed_20pct``, 2026-11-24, ``--candidates "output error" gated``; 31: the
-#: coupled channels, 2026-12-02, ``--candidates default "default, coupled channels" --tag coupled``).
-CONFIRM_OWN_SEEDS = (11, 21, 31)
+#: coupled channels, 2026-12-02, ``--candidates default "default, coupled channels" --tag coupled``; 41: the bench
+#: with each window's own run superposed from the window's start, 2026-12-02 (stop 36), ``--candidates "output error"
+#: "default, coupled channels" --horizon 0 --tag horizon0`` and the same without ``--horizon`` and with ``--tag
+#: accumulated``).
+CONFIRM_OWN_SEEDS = (11, 21, 31, 41)
 #: Each with the options it was measured with, not the defaults (which became the S-weighted, gated estimator).
 CANDIDATES = {"output error": IdentifyConfig(**common.OUTPUT_ERROR),
               "AR disturbance (PEM)": IdentifyConfig(disturbance="ar", input_weighting="none"),
@@ -135,11 +138,12 @@ def _identify_all(w: dict, names: list[str]) -> dict:
 
 
 def windows(grid: dict, own: dict | None, ratio: float, n: int, rng: np.random.Generator,
-            loop: bool = True) -> list[dict]:
+            loop: bool = True, horizon_s: float | None = None) -> list[dict]:
     """The level's windows, each with its white noise std and own-fluctuation variance over the regression part
-    (``loop`` False: the loop through the network cut, :func:`aslm_sim.andes.own_fluctuation.cut_windows`)."""
+    (``loop`` False: the loop through the network cut; ``horizon_s``: only the own run's last seconds superposed,
+    :func:`aslm_sim.andes.own_fluctuation.cut_windows`)."""
     ws = andes_own.cut_windows(grid, own, ratio, length_s=LENGTH_S, start_s=START_S, stride_s=STRIDE_S, n=n,
-                               snr_db=SNR_DB, rng=rng, loop=loop)
+                               snr_db=SNR_DB, rng=rng, loop=loop, horizon_s=horizon_s)
     skip = int(round(FS))  # the identifier's 1 s
     for w in ws:
         w["own_var"] = float(np.var(w["dp_own"][skip:]))
@@ -147,11 +151,11 @@ def windows(grid: dict, own: dict | None, ratio: float, n: int, rng: np.random.G
 
 
 def row_windows(grid: dict, own: dict | None, ratio: float, shape: str, n: int, own_seed: int,
-                loop: bool = True) -> list[dict]:
+                loop: bool = True, horizon_s: float | None = None) -> list[dict]:
     """The windows of one row of the bench (own/total ``ratio``, own ``shape``), their white noise drawn from the
     row's own stream (``own_seed``, ratio, shape), as every run of the bench draws it."""
     rng = np.random.default_rng([own_seed, RATIOS.index(ratio), SHAPES.index(shape)])
-    return windows(grid, own, ratio, n, rng, loop)
+    return windows(grid, own, ratio, n, rng, loop, horizon_s)
 
 
 HEAD = ["own/total", "shape", "candidate", "median |err| a / b / H2 / Tm [%]", "worst [%]",
@@ -181,6 +185,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--coherence", type=float, default=1.0,
                     help="correlation of the own ΔQ with the own ΔP (1: ΔQ = 0.33·ΔP, the bench as it was)")
     ap.add_argument("--tag", default="", help="name suffix of the JSON")
+    ap.add_argument("--horizon", type=float, default=None,
+                    help="superpose only the own run's last HORIZON s before each window and the window itself "
+                         "(cut_windows' horizon_s; default: the whole own run from t = 0, the bench as it was)")
     ap.add_argument("--gate", action="store_true",
                     help="print the gated composite from the run of record's JSON (no identification)")
     args = ap.parse_args(argv)
@@ -201,7 +208,8 @@ def main(argv=None) -> dict:
     out = {"machine": common.machine(), "n_per_level": n, "seed": SEED, "own_seed": args.own_seed, "snr_db": SNR_DB,
            "truth": truth,
            "windows": {"length_s": LENGTH_S, "start_s": START_S, "stride_s": STRIDE_S, "tf": TF, "tstep": TSTEP},
-           "candidates": {k: CANDIDATES[k].to_dict() for k in names}, "coherence": args.coherence, "runs": []}
+           "candidates": {k: CANDIDATES[k].to_dict() for k in names}, "coherence": args.coherence,
+           "horizon_s": args.horizon, "runs": []}
     l_reg = int(round(LENGTH_S * FS)) + 1 - int(round(FS))
     table = []
     for si, shape in enumerate(args.shapes):
@@ -210,7 +218,7 @@ def main(argv=None) -> dict:
         for ratio in RATIOS:
             if ratio == 0.0 and si > 0:
                 continue  # no own fluctuation: the shape does not matter
-            ws = row_windows(grid, own, ratio, shape, n, args.own_seed)
+            ws = row_windows(grid, own, ratio, shape, n, args.own_seed, horizon_s=args.horizon)
             results = [_identify_all(w, names) for w in ws]
             bounds = np.array([_bound(w, truth, own_cov, args.coherence) for w in ws]).transpose(1, 0, 2)
             per = stats(truth, results, bounds, names)

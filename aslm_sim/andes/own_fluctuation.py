@@ -236,8 +236,25 @@ def own_recording(shape: str, *, tf: float, tstep: float, seed: int, step_tf: fl
     return {**rec, "t": np.arange(n) * tstep, "dp_own": own, "dq_own": dq}
 
 
+def local_response(own: dict, a: int, end: int, h: int, tstep: float) -> dict:
+    """Bus 9's V, θ, P, Q response on samples a … end − 1 to the own increments from sample a − h on only.
+
+    The own process's level at a − h is taken as the operating point: its earlier history, and the level it had
+    accumulated by then, are left out (:func:`cut_windows` with ``horizon_s``).
+    """
+    lo = max(0, a - h)
+    dp = own["dp_own"][lo:end] - own["dp_own"][lo]
+    rec = respond(step_response(tstep=tstep), dp)
+    extra = (own["dq_own"][lo:end] - own["dq_own"][lo]) - OWN_Q_PER_P * dp
+    if np.any(extra):
+        more = respond(step_response_q(tstep=tstep), extra)
+        rec = {c: rec[c] + more[c] for c in rec}
+    return {c: rec[c][a - lo:] for c in ("V", "theta", "P", "Q")}
+
+
 def cut_windows(grid: dict, own: dict | None, ratio: float, *, length_s: float, start_s: float, stride_s: float,
-                n: int, snr_db: float, rng: np.random.Generator, loop: bool = True) -> list[dict]:
+                n: int, snr_db: float, rng: np.random.Generator, loop: bool = True,
+                horizon_s: float | None = None) -> list[dict]:
     """Windows of the superposed recording with std(own ΔP) / std(grid-driven P) at k = r/√(1 − r²) each.
 
     ``loop`` False cuts the loop through the network: only the own ΔP and ΔQ themselves are added to P and Q,
@@ -257,6 +274,11 @@ def cut_windows(grid: dict, own: dict | None, ratio: float, *, length_s: float, 
         White measurement noise on P and Q [dB, to each window's std].
     rng : numpy.random.Generator
         Source of the measurement noise.
+    horizon_s : float, optional
+        With the loop closed, superpose only the response to the own increments of the ``horizon_s`` before each
+        window and in it (:func:`local_response`) [s]; None: to the whole own run from t = 0, so that a window
+        also carries k times the level the own run has reached by then (for a slow ramp scaled by a large k,
+        a shift of the bus's operating point far beyond what the step response describes).
 
     Returns
     -------
@@ -277,7 +299,12 @@ def cut_windows(grid: dict, own: dict | None, ratio: float, *, length_s: float, 
         scale = 0.0
         if own is not None and ratio > 0.0:
             scale = k_target * float(np.std(grid["P"][sl])) / float(np.std(own["dp_own"][sl]))
-            if loop:
+            if loop and horizon_s is not None:
+                tstep = float(own["t"][1] - own["t"][0])
+                local = local_response(own, a, a + m, int(round(horizon_s / tstep)), tstep)
+                for c in ("V", "theta", "P", "Q"):
+                    w[c] += scale * local[c]
+            elif loop:
                 for c in ("V", "theta", "P", "Q"):
                     w[c] += scale * (own[c][sl] - own[c][0])
             else:
