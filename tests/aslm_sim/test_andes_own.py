@@ -85,3 +85,28 @@ def test_a_partly_coherent_own_dq_is_superposed_from_the_q_step(monkeypatch):
     np.testing.assert_allclose(half["V"], -0.1 * full["dp_own"] - 0.3 * extra, atol=1e-12)
     np.testing.assert_allclose(half["Q"] - full["Q"], extra, atol=1e-12)
     assert 0.2 < np.corrcoef(half["dp_own"], half["dq_own"])[0, 1] < 0.8
+
+
+def test_a_horizon_superposes_the_own_run_from_the_windows_start_not_its_accumulated_level(monkeypatch):
+    """``horizon_s`` 0: a window carries k × the response to the own increments inside it only, so the bus stays at
+    its operating point; without it, k × everything since t = 0 (stub steps: the composition, not ANDES, is under test)."""
+    n = 1200
+    t = np.arange(n) * 0.01
+    step = {c: np.full(n, v) for c, v in zip(("V", "theta", "P", "Q"), (-0.1, -0.01, 1.0, 0.33), strict=True)}
+    step["t"] = t
+    monkeypatch.setattr(andes_own, "step_response", lambda **kw: step)
+    own = andes_own.own_recording("ramp", tf=(n - 1) * 0.01, tstep=0.01, seed=5)
+    grid = {c: np.zeros(n) for c in ("V", "theta", "P", "Q")}
+    grid.update(t=t, P=1.0 + 0.01 * np.sin(t), Q=0.3 + 0.003 * np.sin(t), V=1.0 + 0.001 * np.sin(t))
+    kw = dict(length_s=2.0, start_s=6.0, stride_s=2.0, n=2, snr_db=200.0)
+    whole = andes_own.cut_windows(grid, own, 0.9, rng=np.random.default_rng(0), **kw)
+    local = andes_own.cut_windows(grid, own, 0.9, rng=np.random.default_rng(0), horizon_s=0.0, **kw)
+    for i, (w, h) in enumerate(zip(whole, local, strict=True)):
+        a = 600 + 200 * i
+        sl = slice(a, a + 201)
+        assert h["k"] == w["k"]
+        np.testing.assert_allclose(h["V"] - grid["V"][sl], -0.1 * h["k"] * (own["dp_own"][sl] - own["dp_own"][a]),
+                                   atol=1e-12)
+        np.testing.assert_allclose(w["V"] - grid["V"][sl], -0.1 * w["k"] * (own["dp_own"][sl] - own["dp_own"][0]),
+                                   atol=1e-12)
+        assert h["V"][0] == pytest.approx(grid["V"][a], abs=1e-12)  # no level carried into the window
