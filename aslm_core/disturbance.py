@@ -42,7 +42,22 @@ def levinson_orders(r: np.ndarray, max_order: int) -> tuple[list[np.ndarray], np
     n = x.size
     nfft = 1 << int(math.ceil(math.log2(2 * n)))
     spec = np.fft.rfft(x, nfft)
-    acf = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: max_order + 1] / n
+    return levinson(np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: max_order + 1] / n)
+
+
+def levinson(acf: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """AR polynomials of every order up to len(acf) − 1 from an autocovariance (Levinson–Durbin recursion).
+
+    Parameters
+    ----------
+    acf : ndarray
+        Autocovariance at lags 0, 1, … [pu²].
+
+    Returns
+    -------
+    polys, var : as :func:`levinson_orders`.
+    """
+    max_order = acf.size - 1
     a = np.array([1.0])
     e = acf[0]
     polys, var = [a], [e]

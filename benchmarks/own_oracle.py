@@ -68,17 +68,6 @@ def fixed_ar_order(order: int):
         disturbance.ar_whitener = chosen
 
 
-def _levinson(acf: np.ndarray) -> np.ndarray:
-    """AR polynomial [1, a1, …, ap] of order len(acf) − 1 from an autocovariance (Levinson–Durbin)."""
-    a, e = np.array([1.0]), float(acf[0])
-    for p in range(1, acf.size):
-        k = -(acf[p] + a[1:] @ acf[p - 1:0:-1]) / e
-        a = np.concatenate([a, [0.0]])
-        a = a + k * a[::-1]
-        e *= 1.0 - k * k
-    return a
-
-
 def oracle_ar(window, d0: np.ndarray, sigma: np.ndarray, order: int = ORACLE_AR_ORDER) -> np.ndarray:
     """The prediction-error fit with the AR models of the true Σ (P, and Q − k·P with k = cov(Q, P)/var(P))."""
     pb = Problem(prepare(window, floors=True), window.f0, CANDIDATES["PEM"])
@@ -87,7 +76,7 @@ def oracle_ar(window, d0: np.ndarray, sigma: np.ndarray, order: int = ORACLE_AR_
     k = float(np.trace(sqp) / np.trace(spp))
     s2 = sqq - k * (sqp + sqp.T) + k * k * spp
     acf = [np.array([np.mean(np.diag(m, j)) for j in range(order + 1)]) for m in (spp, s2)]
-    wp = disturbance.Whitened(pb, (_levinson(acf[0]), _levinson(acf[1])), k)
+    wp = disturbance.Whitened(pb, tuple(disturbance.levinson(x)[0][-1] for x in acf), k)
     return disturbance.constrained_lm(wp, pb.into_feasible(d0), 40, 1e-7, 1e-3)["d"]
 
 
