@@ -92,10 +92,9 @@ def window_covariance(shape: str, length: int, fs: float, n_windows: int, seed: 
     matrix is positive semi-definite); each window's mean is then projected out and the result scaled to a
     mean variance of 1 over the window, so that a window's own-fluctuation covariance is its own variance
     times this (the mean is a static regressor, so removing it changes no bound on D).  Not the sample
-    covariance of the ``n_windows`` windows: with fewer windows than samples that has rank below the window's,
-    and a Cramér–Rao bound computed with it finds directions free of the own process that the process does not
-    have (for the broadband ``switching`` shape, 600 windows of 900 samples left the bound of a up to 1.5 ×
-    too small).
+    covariance of the ``n_windows`` windows: with fewer windows than samples its rank is below the window's,
+    and a Cramér–Rao bound computed with it takes the directions it misses as free of the own process, which a
+    broadband process (``switching``) is not: the bound comes out too small (docs/numerics.md, stop 36).
 
     Parameters
     ----------
