@@ -7,7 +7,7 @@ impossible, to show it with the bound of the process and to meet the bound withi
 its bound (:mod:`benchmarks.own_fluctuation_andes`); this is the same bound on the synthetic windows, exact V
 and θ: per window, from the truth's Jacobian on the window's inputs and the true disturbance covariance
 Σ = g·gᵀ ⊗ σ_own²·C + diag(σ_P², σ_Q²) ⊗ I (:mod:`aslm_core.information`; C the own shape's covariance over a
-window from 600 windows of one long realisation, :func:`aslm_sim.own.window_covariance`; σ_own² the window's
+window, the Toeplitz matrix of its autocovariance from one long realisation, :func:`aslm_sim.own.window_covariance`; σ_own² the window's
 own ΔP variance over the regression samples; σ_P², σ_Q² the white noise injected), the static part a nuisance.
 ``crb`` keeps the P–Q cross-covariance (ΔQ_own = 0.33·ΔP_own exactly on this bench), ``crb_sep`` each
 channel's own spectrum only (the bound for estimators that model the channels separately, as the default's
