@@ -8,6 +8,7 @@ single-window ``ar_iv`` fits of the same windows.  Median and worst |error| over
 ±1.96 SE, ``iv_instruments_rejected`` count.
 
     .venv/bin/python -m benchmarks.own_fluctuation_pooled [--seeds 1 2 3 4 5 6] [--shapes ...] [--k 16]
+        [--coherence 1] [--horizon S]
 
 Seeds 1–6 are the development pools; :data:`CONFIRM_SEEDS` were fixed before any run on them.  Results in
 ``docs/results/own_fluctuation_pooled[_confirm].json``.
@@ -38,10 +39,11 @@ CONFIRM_SEEDS = tuple(range(11, 21))
 IV = IdentifyConfig(disturbance="ar_iv")
 
 
-def pool_windows(grid: dict, own: dict, k: int, seed: int, shape: str) -> list[Window]:
-    """k non-overlapping windows at own/total :data:`RATIO`."""
+def pool_windows(grid: dict, own: dict, k: int, seed: int, shape: str, horizon_s: float | None = None) -> list[Window]:
+    """k non-overlapping windows at own/total :data:`RATIO` (``horizon_s``: :func:`aslm_sim.andes.own_fluctuation.cut_windows`)."""
     ws = andes_own.cut_windows(grid, own, RATIO, length_s=LENGTH_S, start_s=START_S, stride_s=LENGTH_S, n=k,
-                               snr_db=SNR_DB, rng=np.random.default_rng([seed, 2, SHAPES.index(shape), 16]))
+                               snr_db=SNR_DB, rng=np.random.default_rng([seed, 2, SHAPES.index(shape), 16]),
+                               horizon_s=horizon_s)
     return [Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=F0, bus="andes-ieee14-bus9") for w in ws]
 
 
@@ -88,18 +90,23 @@ def main(argv=None) -> dict:
     ap.add_argument("--shapes", nargs="+", default=list(SHAPES), choices=SHAPES)
     ap.add_argument("--k", type=int, default=16, help="windows per pool")
     ap.add_argument("--tag", default="", help="name suffix of the JSON")
+    ap.add_argument("--coherence", type=float, default=1.0,
+                    help="correlation of the own ΔQ with the own ΔP (1: ΔQ = 0.33·ΔP, the bench as it was)")
+    ap.add_argument("--horizon", type=float, default=None,
+                    help="superpose only the own run's last HORIZON s before each window and the window itself "
+                         "(default: the whole own run from t = 0, the bench as it was)")
     args = ap.parse_args(argv)
     t_all = time.perf_counter()
     grid = andes_own.grid_recording(tf=TF, tstep=TSTEP, seed=SEED, fs=FS)
     truth = np.asarray(grid["truth"], dtype=float)
     out = {"machine": common.machine(), "ratio": RATIO, "k": args.k, "seeds": args.seeds, "truth": truth.tolist(),
-           "runs": []}
+           "coherence": args.coherence, "horizon_s": args.horizon, "runs": []}
     table = []
     for shape in args.shapes:
         pools = []
         for seed in args.seeds:
-            own = andes_own.own_recording(shape, tf=TF, tstep=TSTEP, seed=seed)
-            pools.append(one_pool(pool_windows(grid, own, args.k, seed, shape), truth))
+            own = andes_own.own_recording(shape, tf=TF, tstep=TSTEP, seed=seed, coherence=args.coherence)
+            pools.append(one_pool(pool_windows(grid, own, args.k, seed, shape, args.horizon), truth))
             print(f"{shape} seed {seed}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
         out["runs"].append({"shape": shape, "pools": pools})
         table.extend([[shape, name, *summary(pools, name)] for name in ("single ar_iv", "pooled, white", "pooled ar_iv")])
