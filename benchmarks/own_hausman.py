@@ -29,7 +29,6 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
     os.environ.setdefault(_v, "1")
 
 import numpy as np  # noqa: E402
-from scipy import signal  # noqa: E402
 
 from aslm_core import IdentifyConfig, WindowError, disturbance, identify  # noqa: E402
 from aslm_core.preprocess import prepare  # noqa: E402
@@ -37,6 +36,7 @@ from aslm_core.problem import Problem  # noqa: E402
 from aslm_sim.cases import make_cases  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.own_fluctuation import LEVEL, own_cases  # noqa: E402
+from benchmarks.own_loop import innovations  # noqa: E402
 
 PEM = IdentifyConfig(disturbance="ar", input_weighting="none")
 IV = IdentifyConfig(disturbance="ar_iv", input_weighting="none")
@@ -51,12 +51,8 @@ def loop_z(window, d: np.ndarray) -> float:
     r = pb.residuals(np.asarray(d, dtype=np.float64), jacobian=False)
     if r is None:
         return float("nan")
-    x = r[0] - r[0].mean()
-    e = signal.lfilter(disturbance.ar_whitener(x), [1.0], x)
-    v = prep.V[pb.k0:] - prep.V[pb.k0:].mean()
-    ev = signal.lfilter(disturbance.ar_whitener(v), [1.0], v)
     skip = disturbance.AR_MAX_ORDER  # both filters' start-up
-    e, ev = e[skip:], ev[skip:]
+    e, ev = innovations(r[0])[skip:], innovations(prep.V[pb.k0:])[skip:]
     return float(np.corrcoef(e, ev)[0, 1] * np.sqrt(e.size))
 
 

@@ -9,6 +9,7 @@ line explains, and what the scaled own run adds to V and θ (its std over the gr
 (the slope of the added θ), for the windows off by more than 20 % in the run of record and for the others.
 
     .venv/bin/python -m benchmarks.own_ramp_stretch [--own-seed 31] [--ratio 0.9] [--superposition [K ...]] [--checks]
+        [--horizon S]
 
 Also the windows by their k: how many are off by more than 20 %, and the median |error| there.  ``--superposition``
 measures the superposition that builds the windows against one ANDES run with both excitations
@@ -95,13 +96,15 @@ def main(argv=None) -> dict:
                          "identifier's own model")
     ap.add_argument("--superposition", nargs="*", type=float, default=None, metavar="K",
                     help="also check the superposition at these scales (none given: the two groups' median k)")
+    ap.add_argument("--horizon", type=float, default=None,
+                    help="build the windows with cut_windows' horizon_s (the groups stay the run of record's)")
     args = ap.parse_args(argv)
     recorded = common.read_json(f"own_fluctuation_andes_coupled_own{args.own_seed}")
     run = next(r for r in recorded["runs"] if r["shape"] == "ramp" and r["ratio"] == args.ratio)
     err = 100.0 * np.abs(np.array(run["errors"][CANDIDATE], dtype=float)).max(axis=1)
     grid = andes_own.grid_recording(tf=bench.TF, tstep=bench.TSTEP, seed=bench.SEED, fs=bench.FS)
     own = andes_own.own_recording("ramp", tf=bench.TF, tstep=bench.TSTEP, seed=args.own_seed)
-    ws = bench.row_windows(grid, own, args.ratio, "ramp", err.size, args.own_seed)
+    ws = bench.row_windows(grid, own, args.ratio, "ramp", err.size, args.own_seed, horizon_s=args.horizon)
     per = []
     for i, w in enumerate(ws):
         a = int(round((bench.START_S + i * bench.STRIDE_S) * bench.FS))
@@ -114,18 +117,26 @@ def main(argv=None) -> dict:
                     "line_r2": float(1.0 - np.var(x - line) / np.var(x)),
                     "theta_ratio": float(np.std(th_own) / np.std(grid["theta"][sl])),
                     "v_ratio": float(np.std(v_own) / np.std(grid["V"][sl])),
-                    "f_offset_hz": float(abs(np.polyfit(w["t"] - w["t"][0], th_own, 1)[0]) / (2 * np.pi))})
+                    "f_offset_hz": float(abs(np.polyfit(w["t"] - w["t"][0], th_own, 1)[0]) / (2 * np.pi)),
+                    # How far the scaled own run has moved the bus's operating point (stop 36).
+                    "v_shift_pct": float(100.0 * abs(v_own.mean()) / grid["V"][sl].mean()),
+                    "p_shift_pct": float(100.0 * abs((w["P"] - grid["P"][sl]).mean()) / grid["P"][sl].mean())})
     rows, out = [], {"own_seed": args.own_seed, "ratio": args.ratio, "candidate": CANDIDATE, "windows": per}
     for name, sel in (("off > 20 %", err > 20.0), ("within 20 %", err <= 20.0)):
         g = [p for p, s in zip(per, sel, strict=True) if s]
         if not g:
             continue
-        med = {k: float(np.median([p[k] for p in g])) for k in ("k", "line_r2", "theta_ratio", "v_ratio", "f_offset_hz")}
-        out[name] = {"n": len(g), **med}
+        keys = ("k", "line_r2", "theta_ratio", "v_ratio", "f_offset_hz", "v_shift_pct", "p_shift_pct")
+        med = {k: float(np.median([p[k] for p in g])) for k in keys}
+        span = {f"{k}_range": [min(p[k] for p in g), max(p[k] for p in g)] for k in ("v_shift_pct", "p_shift_pct")}
+        out[name] = {"n": len(g), **med, **span}
         rows.append([name, len(g), f"{med['k']:.1f}", f"{med['line_r2']:.3f}", f"{med['theta_ratio']:.2f}",
-                     f"{med['v_ratio']:.2f}", f"{med['f_offset_hz']:.4f}"])
+                     f"{med['v_ratio']:.2f}", f"{med['f_offset_hz']:.4f}",
+                     f"{med['v_shift_pct']:.2f} [{span['v_shift_pct_range'][0]:.2f}, {span['v_shift_pct_range'][1]:.2f}]",
+                     f"{med['p_shift_pct']:.1f} [{span['p_shift_pct_range'][0]:.1f}, {span['p_shift_pct_range'][1]:.1f}]"])
     print(common.md_table(["windows", "n", "k (median)", "straight line's R² of own ΔP", "added θ std / grid θ std",
-                           "added V std / grid V std", "added frequency offset [Hz]"], rows))
+                           "added V std / grid V std", "added frequency offset [Hz]",
+                           "|mean V shift| [%] (median [range])", "|mean P shift| [%] (median [range])"], rows))
     # The windows by the scale of their own run: how many are off, and the coupled default's median |error|.
     edges = (0.0, 20.0, 40.0, 70.0, np.inf)
     k_all = np.array([p["k"] for p in per])
@@ -153,7 +164,8 @@ def main(argv=None) -> dict:
         out["derotated"] = derotated(ws, err, np.asarray(grid["truth"], dtype=np.float64))
         out["frequency_offset"] = frequency_offset_check()
     if not args.no_write:
-        common.write_json(f"own_ramp_stretch_own{args.own_seed}_r{args.ratio:g}", out)
+        common.write_json(f"own_ramp_stretch_own{args.own_seed}_r{args.ratio:g}"
+                          + ("" if args.horizon is None else f"_horizon{args.horizon:g}"), out)
     return out
 
 
