@@ -269,9 +269,7 @@ def constrained_lm(wp, d0: np.ndarray, max_iter: int, xtol: float, margin: float
     it = 0
     while it < max_iter:
         it += 1
-        w = wp.weights(es)
-        g = sum(wc * (j.T @ e) for wc, j, e in zip(w, js, es, strict=True))
-        A = sum(wc * (j.T @ j) for wc, j in zip(w, js, strict=True))
+        g, A = normal_equations(wp, es, js)
         gc = np.array([vmin * vmin * (1.0 - margin), -2.0 * d[3], 0.0, -2.0 * d[1]])
         c_d = gc[0] * d[0] - 2.0 * d[1] * d[3]
         accepted = False
@@ -307,6 +305,17 @@ def constrained_lm(wp, d0: np.ndarray, max_iter: int, xtol: float, margin: float
     except np.linalg.LinAlgError:
         cov = np.full((4, 4), np.inf)
     return {"d": d, "cost": cost, "iterations": it, "status": status, "cov": cov, "resid": es}
+
+
+def normal_equations(wp, es: list, js: list) -> tuple[np.ndarray, np.ndarray]:
+    """Gradient of ``wp``'s criterion in D and its Gauss–Newton matrix: Σ_c w_c·J_cᵀe_c and Σ_c w_c·J_cᵀJ_c, or
+    the criterion's own ``normal_equations`` where it is not a weighted sum of squares."""
+    own = getattr(wp, "normal_equations", None)
+    if own is not None:
+        return own(es, js)
+    w = wp.weights(es)
+    return (sum(wc * (j.T @ e) for wc, j, e in zip(w, js, es, strict=True)),
+            sum(wc * (j.T @ j) for wc, j in zip(w, js, strict=True)))
 
 
 def standard_errors(cov: np.ndarray) -> dict[str, float]:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy import linalg
 from scipy.stats import chi2
 
 from aslm_core import disturbance
@@ -226,6 +227,99 @@ class Instrumented(_Weighted):
         return sum(q.shape[1] - self.n_static for q in self.bases)
 
 
+class Liml(Instrumented):
+    """The instrumented problem by limited-information maximum likelihood (LIML) instead of 2SLS.
+
+    2SLS minimises ‖P_Z·ε‖²/σ² with σ² fixed.  With weak instruments its criterion's expectation holds a
+    term (instruments)·σ²(D), the variance of the structural residual at D, which is smallest toward the
+    least-squares answer: that is the finite-sample pull of 2SLS toward least squares, growing with the
+    number of instruments (docs/numerics.md, "Number of lags").  LIML divides by the residual's variance
+    outside the instruments at the same D, ρ(D) = min_β ε'P_Zε / ε'M_Zε (ε = r(D) − Φβ, the constant, which
+    is exogenous and an instrument, projected out of all), so that term no longer depends on D; its normal
+    equations are the k-class ones with k = 1 + ρ.  Per channel the criterion is ½·ν·ρ with ν the rows
+    outside the instruments (≈ ½‖P_Z·ε‖²/σ², so 2 × the criterion is the Anderson–Rubin over-identification
+    statistic); ρ and the static part come from the smallest generalised eigenvalue of the (r, Φ) block of
+    the instrument-space and outside Gram matrices, the gradient by the envelope theorem and the
+    Gauss–Newton matrix from the k-class form W = G_P − ρ·G_M with the static part concentrated out.
+    The residuals are per channel :class:`_Grams` (what the criterion and its normal equations need); the
+    Jacobians those of 2SLS in the instrument space, for the white-noise covariance at the end (LIML and
+    2SLS share their first-order covariance).
+    """
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.centred = [_orthonormal(q - q.mean(axis=0)) for q in self.bases]
+
+    def residuals(self, d: np.ndarray):
+        """Per channel the Gram matrices of [r, ∂r/∂D, Φ] (centred) in and outside the instruments, and the
+        2SLS instrument-space Jacobian."""
+        self.evaluations += 1
+        zs = disturbance.whitened_columns(self.pb, self.polys, d, self.skip, self.mix)
+        if zs is None:
+            return None
+        gs, js = [], []
+        for zf, q, qc in zip(zs, self.bases, self.centred, strict=True):
+            zl = zf[self.top:]
+            u = q.T @ zl
+            js.append(_off(u[:, 1:5], u[:, 5:]))
+            x = zl[:, :5] - zl[:, :5].mean(axis=0)
+            phi = _orthonormal(zl[:, 5:] - zl[:, 5:].mean(axis=0))
+            y = np.hstack([x, phi])
+            up = qc.T @ y
+            g_p = up.T @ up
+            g = _Grams(g_p, y.T @ y - g_p, y.shape[0] - qc.shape[1])
+            if not g.solve():
+                return None
+            gs.append(g)
+        return gs, js
+
+    def cost(self, es: list) -> float:
+        """½ Σ_c ν_c·ρ_c: LIML's criterion per channel, summed."""
+        return 0.5 * sum(g.nu * g.rho for g in es)
+
+    def normal_equations(self, es: list, js: list) -> tuple[np.ndarray, np.ndarray]:
+        """Gradient of :meth:`cost` in D and its Gauss–Newton matrix (k-class, static part concentrated)."""
+        return sum(g.gradient for g in es), sum(g.hessian for g in es)
+
+    def weights(self, es: list) -> list[float]:
+        return [1.0 / v for v in self.var]
+
+
+class _Grams:
+    """One channel's LIML quantities at a D (:class:`Liml`): Gram matrices of y = [r, ∂r/∂D (4), Φ] in the
+    instrument space (``g_p``) and outside it (``g_m``), and ν, the rows outside the instruments."""
+
+    def __init__(self, g_p: np.ndarray, g_m: np.ndarray, nu: int) -> None:
+        self.g_p, self.g_m, self.nu = g_p, g_m, max(nu, 1)
+        self.rho = math.inf
+        self.gradient = np.zeros(4)
+        self.hessian = np.zeros((4, 4))
+
+    def solve(self) -> bool:
+        """ρ, the static part and the criterion's derivatives in D; False where the Gram matrices are singular."""
+        s = np.r_[0, 5:self.g_p.shape[0]]
+        try:
+            lam, vec = linalg.eigh(self.g_p[np.ix_(s, s)], self.g_m[np.ix_(s, s)])
+        except (linalg.LinAlgError, ValueError):
+            return False
+        v = vec[:, 0]
+        if abs(v[0]) < 1e-12 * np.abs(v).max():
+            return False
+        a = np.zeros(self.g_p.shape[0])
+        a[s] = v / v[0]
+        self.rho = max(float(lam[0]), 0.0)
+        w = self.g_p - self.rho * self.g_m
+        scale = self.nu / float(a @ self.g_m @ a)
+        self.gradient = scale * (w[1:5] @ a)
+        st = slice(5, None)
+        try:
+            conc = w[1:5, st] @ np.linalg.solve(w[st, st], w[st, 1:5]) if w.shape[0] > 5 else 0.0
+        except np.linalg.LinAlgError:
+            return False
+        self.hessian = scale * (w[1:5, 1:5] - conc)
+        return True
+
+
 class Stacked(_Weighted):
     """Several windows' instrumented problems with one D (pooled): criteria summed, the windows independent.
 
@@ -243,6 +337,20 @@ class Stacked(_Weighted):
         self.var = [v for p in parts for v in p.var]
         self.strength = [min(s) for s in zip(*(p.strength for p in parts), strict=True)]
         self.evaluations = 0
+
+    def cost(self, es: list) -> float:
+        """The windows' criteria summed (2SLS or LIML, as the parts are)."""
+        if es and isinstance(es[0], _Grams):
+            return 0.5 * sum(g.nu * g.rho for g in es)
+        return super().cost(es)
+
+    def normal_equations(self, es: list, js: list) -> tuple[np.ndarray, np.ndarray]:
+        """Gradient and Gauss–Newton matrix of :meth:`cost` (:func:`aslm_core.disturbance.normal_equations`)."""
+        if es and isinstance(es[0], _Grams):
+            return sum(g.gradient for g in es), sum(g.hessian for g in es)
+        w = self.weights(es)
+        return (sum(wc * (j.T @ e) for wc, j, e in zip(w, js, es, strict=True)),
+                sum(wc * (j.T @ j) for wc, j in zip(w, js, strict=True)))
 
     def residuals(self, d: np.ndarray):
         """Every window's residuals and Jacobians in its instrument space, in one list per kind."""
@@ -267,6 +375,10 @@ class Stacked(_Weighted):
         return sum(p.overid_dof() for p in self.parts)
 
 
+#: The IV criteria by name (``IdentifyConfig.iv_estimator``).
+_ESTIMATORS = {"2sls": Instrumented, "liml": Liml}
+
+
 def sandwich(bread: np.ndarray, meat: np.ndarray) -> np.ndarray:
     """B⁻¹·M·B⁻¹ (inf where B is singular)."""
     try:
@@ -284,8 +396,11 @@ def _off(x: np.ndarray, basis_cols: np.ndarray) -> np.ndarray:
 
 def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin: float = 1e-3,
         reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS,
-        first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None, couple: bool = False) -> dict:
+        first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None, couple: bool = False,
+        estimator: str = "2sls") -> dict:
     """IV prediction-error fit of D from an output-error optimum d0; AR models and instruments renewed per pass.
+
+    ``estimator``: ``"2sls"`` (:class:`Instrumented`) or ``"liml"`` (:class:`Liml`).
 
     ``first_lag``: the shortest instrument lag [samples]; ``se_smooth_hz``: the covariance of D and the
     over-identification statistic robust to coloured innovations (:meth:`Instrumented.spectral_moments`, the
@@ -301,7 +416,7 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
     """
     def make(pb, polys, d, mix):
         try:
-            return Instrumented(pb, polys, d, lags, first_lag, mix)
+            return _ESTIMATORS[estimator](pb, polys, d, lags, first_lag, mix)
         except ValueError:
             return None
 
@@ -346,7 +461,8 @@ def _overid_and_covariance(wp: Instrumented | Stacked, state: dict, se_smooth_hz
 
 def fit_pooled(pool, problems: list, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin: float = 1e-3,
                reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS,
-               first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None, couple: bool = False) -> dict:
+               first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None, couple: bool = False,
+               estimator: str = "2sls") -> dict:
     """IV prediction-error fit of one D from several windows: per window its AR models and instruments (and with
     ``couple`` its second channel Q − k·P, k per window: :func:`aslm_core.disturbance.coupling`).
 
@@ -375,7 +491,7 @@ def fit_pooled(pool, problems: list, d0: np.ndarray, max_iter: int = 40, xtol: f
             mix = disturbance.coupling(r[0], r[1]) if couple else 0.0
             polys = (disturbance.ar_whitener(r[0], max_order), disturbance.ar_whitener(r[1] - mix * r[0], max_order))
             try:
-                parts.append(Instrumented(pb, polys, d, lags, first_lag, mix))
+                parts.append(_ESTIMATORS[estimator](pb, polys, d, lags, first_lag, mix))
             except ValueError:
                 break
         if len(parts) < len(problems):

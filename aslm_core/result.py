@@ -15,6 +15,7 @@ StaticModel = Literal["zip", "exponential"]
 InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
 Disturbance = Literal["none", "ar", "ar_iv", "gated"]
 StderrMethod = Literal["spectral", "ar1"]
+IvEstimator = Literal["2sls", "liml"]
 InputWeighting = Literal["none", "spectral"]
 
 
@@ -129,6 +130,7 @@ class IdentifyConfig:
     couple_channels: bool = True
     stderr_method: StderrMethod = "spectral"
     input_weighting: InputWeighting = "spectral"
+    iv_estimator: IvEstimator = "2sls"
 
     def to_dict(self) -> dict:
         """The options as a plain dict (flat, so cheaper than ``dataclasses.asdict``)."""

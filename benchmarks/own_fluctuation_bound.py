@@ -65,7 +65,10 @@ CANDIDATES = {"default": IdentifyConfig(), "uncoupled": IdentifyConfig(couple_ch
               # The gated default's two branches alone (stop 35: which is nearer the bound when ΔQ follows ΔP
               # only in part, --coherence < 1).
               "PEM": IdentifyConfig(disturbance="ar", input_weighting="none"),
-              "IV": IdentifyConfig(disturbance="ar_iv", input_weighting="none")}
+              "IV": IdentifyConfig(disturbance="ar_iv", input_weighting="none"),
+              # The IV by LIML instead of 2SLS (stop 37), alone and in the default.
+              "IV, LIML": IdentifyConfig(disturbance="ar_iv", input_weighting="none", iv_estimator="liml"),
+              "default, LIML": IdentifyConfig(iv_estimator="liml")}
 
 
 def window_bound(case, cov: np.ndarray | None, coherence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
