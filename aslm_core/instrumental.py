@@ -246,10 +246,6 @@ class Liml(Instrumented):
     2SLS share their first-order covariance).
     """
 
-    def __init__(self, *args, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self.centred = [_orthonormal(q - q.mean(axis=0)) for q in self.bases]
-
     def residuals(self, d: np.ndarray):
         """Per channel the Gram matrices of [r, ∂r/∂D, Φ] (centred) in and outside the instruments, and the
         2SLS instrument-space Jacobian."""
@@ -258,16 +254,25 @@ class Liml(Instrumented):
         if zs is None:
             return None
         gs, js = [], []
-        for zf, q, qc in zip(zs, self.bases, self.centred, strict=True):
+        for zf, q in zip(zs, self.bases, strict=True):
             zl = zf[self.top:]
             u = q.T @ zl
             js.append(_off(u[:, 1:5], u[:, 5:]))
-            x = zl[:, :5] - zl[:, :5].mean(axis=0)
-            phi = _orthonormal(zl[:, 5:] - zl[:, 5:].mean(axis=0))
-            y = np.hstack([x, phi])
-            up = qc.T @ y
-            g_p = up.T @ up
-            g = _Grams(g_p, y.T @ y - g_p, y.shape[0] - qc.shape[1])
+            # The constant is exogenous and in the instruments' span: centred columns are orthogonal to it, so
+            # their instrument-space part is (P_Z − P_1)·y.  Centred before the products (the residual's mean is
+            # large against its fluctuation: subtracting n·m·mᵀ from the Gram matrices loses the digits).
+            zc = zl - zl.mean(axis=0)
+            uc = q.T @ zc
+            g_i = zc.T @ zc
+            g_p = uc.T @ uc
+            g_m = g_i - g_p
+            # The constant (whitened, still a constant) leaves a null direction in the static block: drop it.
+            lam, vec = np.linalg.eigh(g_i[5:, 5:])
+            kept = lam > 1e-10 * max(float(lam[-1]), 1e-300)
+            t = np.zeros((zl.shape[1], 5 + int(kept.sum())))
+            t[:5, :5] = np.eye(5)
+            t[5:, 5:] = vec[:, kept] / np.sqrt(lam[kept])
+            g = _Grams(t.T @ g_p @ t, t.T @ g_m @ t, zl.shape[0] - q.shape[1])
             if not g.solve():
                 return None
             gs.append(g)
@@ -299,7 +304,7 @@ class _Grams:
         """ρ, the static part and the criterion's derivatives in D; False where the Gram matrices are singular."""
         s = np.r_[0, 5:self.g_p.shape[0]]
         try:
-            lam, vec = linalg.eigh(self.g_p[np.ix_(s, s)], self.g_m[np.ix_(s, s)])
+            lam, vec = linalg.eigh(self.g_p[np.ix_(s, s)], self.g_m[np.ix_(s, s)], check_finite=False)
         except (linalg.LinAlgError, ValueError):
             return False
         v = vec[:, 0]

@@ -35,7 +35,7 @@ import contextlib  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import linalg  # noqa: E402
 
-from aslm_core import IdentifyConfig, WindowError, disturbance, identify  # noqa: E402
+from aslm_core import IdentifyConfig, WindowError, disturbance, identify, instrumental  # noqa: E402
 from aslm_core.information import disturbance_covariance  # noqa: E402
 from aslm_core.preprocess import prepare  # noqa: E402
 from aslm_core.problem import Problem  # noqa: E402
@@ -78,6 +78,24 @@ def oracle_ar(window, d0: np.ndarray, sigma: np.ndarray, order: int = ORACLE_AR_
     acf = [np.array([np.mean(np.diag(m, j)) for j in range(order + 1)]) for m in (spp, s2)]
     wp = disturbance.Whitened(pb, tuple(disturbance.levinson(x)[0][-1] for x in acf), k)
     return disturbance.constrained_lm(wp, pb.into_feasible(d0), 40, 1e-7, 1e-3)["d"]
+
+
+def oracle_iv(window, d0: np.ndarray, sigma: np.ndarray, estimator: str, order: int = ORACLE_AR_ORDER,
+              passes: int = 2) -> np.ndarray:
+    """The IV fit (``estimator``: 2SLS or LIML) whitened by the AR models of the true Σ (as :func:`oracle_ar`), its
+    instruments renewed at each pass's D."""
+    pb = Problem(prepare(window, floors=True), window.f0, CANDIDATES["PEM"])
+    l = sigma.shape[0] // 2
+    spp, sqp, sqq = sigma[:l, :l], sigma[l:, :l], sigma[l:, l:]
+    k = float(np.trace(sqp) / np.trace(spp))
+    s2 = sqq - k * (sqp + sqp.T) + k * k * spp
+    acf = [np.array([np.mean(np.diag(m, j)) for j in range(order + 1)]) for m in (spp, s2)]
+    polys = tuple(disturbance.levinson(x)[0][-1] for x in acf)
+    d = pb.into_feasible(d0)
+    for _ in range(passes):
+        wp = instrumental._ESTIMATORS[estimator](pb, polys, d, mix=k)
+        d = disturbance.constrained_lm(wp, d, 40, 1e-7, 1e-3)["d"]
+    return d
 
 
 def true_covariance(case, cov: np.ndarray, coherence: float, white: tuple[float, float]) -> np.ndarray:
@@ -138,6 +156,8 @@ def fit_all(window, truth: np.ndarray, sigma: np.ndarray) -> dict[str, np.ndarra
     start = d_default if np.isfinite(d_default).all() else truth
     out[f"oracle AR({ORACLE_AR_ORDER})"] = oracle_ar(window, start, sigma) / truth - 1.0
     out["oracle GLS"] = oracle_gls(window, start, sigma) / truth - 1.0
+    for est in ("2sls", "liml"):
+        out[f"oracle AR({ORACLE_AR_ORDER}) IV, {est.upper()}"] = oracle_iv(window, start, sigma, est) / truth - 1.0
     return out
 
 
@@ -209,6 +229,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--coherence", type=float, default=0.7)
     ap.add_argument("--andes", action="store_true", help="the ANDES own bench's windows instead (--n 50 for a whole row)")
     ap.add_argument("--own-seed", type=int, default=1, help="with --andes: the own process's seed (1: development)")
+    ap.add_argument("--tag", default="", help="name suffix of the JSON")
     args = ap.parse_args(argv)
     out = {"machine": common.machine(), "bench": "andes" if args.andes else "synthetic", "seed": args.seed,
            "own_seed": args.own_seed if args.andes else None, "n": args.n, "ratio": args.ratio,
@@ -219,7 +240,7 @@ def main(argv=None) -> dict:
                            "error / bound (median ÷ 0.674)"], table))
     if not args.no_write:
         name = (f"own_oracle_andes_own{args.own_seed}" if args.andes else f"own_oracle_seed{args.seed}")
-        common.write_json(f"{name}_coh{args.coherence:g}", out)
+        common.write_json(f"{name}_coh{args.coherence:g}" + (f"_{args.tag}" if args.tag else ""), out)
     return out
 
 
