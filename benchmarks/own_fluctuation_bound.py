@@ -55,6 +55,9 @@ from benchmarks.own_gate import WARNING_FLAGS, window_records  # noqa: E402
 
 #: The bench's confirmation seed of the default (stop 26's re-measurement, ``own_fluctuation_default_seed243``).
 SEED = 243
+#: Confirmation seed of the IV by LIML (stop 37), fixed before any run on it: ``--seed 251 --candidates default
+#: "default, LIML" --tag liml`` at ``--coherence`` 1 and 0.7.
+LIML_CONFIRM_SEED = 251
 #: Seed of the long realisation behind each shape's window covariance (not a window's: an independent draw).
 COV_SEED = 4320
 COV_WINDOWS = 600
