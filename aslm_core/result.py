@@ -108,6 +108,12 @@ class IdentifyConfig:
         (:mod:`aslm_core.input_weighting`), on the Wiener-smoothed V, θ and the unfiltered P, Q; standard errors
         from the weighted fit.  About twice the time on noisy windows.  ``none``: the output-error fit alone.
         See docs/numerics.md.
+    iv_estimator : {"2sls", "liml"}
+        Criterion of the IV fit (``ar_iv``, and ``gated`` where the IV answers): two-stage least squares, or
+        limited-information maximum likelihood, whose criterion divides by the structural residual's variance
+        outside the instruments, so that with weak instruments it does not pull toward the least-squares answer
+        that the loop through the network biases (:class:`aslm_core.instrumental.Liml`).  See docs/numerics.md,
+        "Stop 37: LIML".
     """
 
     integrator: Integrator = "rk4"

@@ -141,12 +141,13 @@ def _identify_all(w: dict, names: list[str]) -> dict:
 
 
 def windows(grid: dict, own: dict | None, ratio: float, n: int, rng: np.random.Generator,
-            loop: bool = True, horizon_s: float | None = None) -> list[dict]:
+            loop: bool = True, horizon_s: float | None = None, snr_db: float = SNR_DB) -> list[dict]:
     """The level's windows, each with its white noise std and own-fluctuation variance over the regression part
     (``loop`` False: the loop through the network cut; ``horizon_s``: only the own run's last seconds superposed,
-    :func:`aslm_sim.andes.own_fluctuation.cut_windows`)."""
+    :func:`aslm_sim.andes.own_fluctuation.cut_windows`; ``snr_db``: of the white noise on P and Q, the same draws
+    scaled)."""
     ws = andes_own.cut_windows(grid, own, ratio, length_s=LENGTH_S, start_s=START_S, stride_s=STRIDE_S, n=n,
-                               snr_db=SNR_DB, rng=rng, loop=loop, horizon_s=horizon_s)
+                               snr_db=snr_db, rng=rng, loop=loop, horizon_s=horizon_s)
     skip = int(round(FS))  # the identifier's 1 s
     for w in ws:
         w["own_var"] = float(np.var(w["dp_own"][skip:]))
@@ -154,11 +155,11 @@ def windows(grid: dict, own: dict | None, ratio: float, n: int, rng: np.random.G
 
 
 def row_windows(grid: dict, own: dict | None, ratio: float, shape: str, n: int, own_seed: int,
-                loop: bool = True, horizon_s: float | None = None) -> list[dict]:
+                loop: bool = True, horizon_s: float | None = None, snr_db: float = SNR_DB) -> list[dict]:
     """The windows of one row of the bench (own/total ``ratio``, own ``shape``), their white noise drawn from the
     row's own stream (``own_seed``, ratio, shape), as every run of the bench draws it."""
     rng = np.random.default_rng([own_seed, RATIOS.index(ratio), SHAPES.index(shape)])
-    return windows(grid, own, ratio, n, rng, loop, horizon_s)
+    return windows(grid, own, ratio, n, rng, loop, horizon_s, snr_db)
 
 
 HEAD = ["own/total", "shape", "candidate", "median |err| a / b / H2 / Tm [%]", "worst [%]",

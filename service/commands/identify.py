@@ -9,7 +9,7 @@ from typing import get_args
 
 from aslm_core import IdentifyConfig, WindowError, identify, warmup
 from aslm_core.preprocess import INPUT_SMOOTHERS
-from aslm_core.result import Disturbance, InputWeighting
+from aslm_core.result import Disturbance, InputWeighting, IvEstimator
 from service.commands._common import add_mapping_flags
 from service.files import read_window
 
@@ -41,6 +41,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--couple-channels", action=argparse.BooleanOptionalAction, default=IdentifyConfig.couple_channels,
                    help="the AR and IV fits take Q − k·P as the second channel, k the own fluctuation's ΔQ/ΔP read "
                         "from the residuals (default on; docs/numerics.md, \"P and Q together\")")
+    p.add_argument("--iv-estimator", choices=list(get_args(IvEstimator)), default=IdentifyConfig.iv_estimator,
+                   help="criterion of the IV fit (ar_iv, and gated where the IV answers): 2sls or liml, which does "
+                        "not pull toward the loop-biased least-squares answer when the instruments are weak "
+                        "(default %(default)s; docs/numerics.md)")
     p.set_defaults(func=run)
 
 
@@ -49,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
         integrator=args.integrator, objective=args.objective, static=args.static,
         lowpass_hz=args.lowpass, input_smoother=args.input_smoother, n_starts=args.starts,
         disturbance=args.disturbance, input_weighting=args.input_weighting, couple_channels=args.couple_channels,
+        iv_estimator=args.iv_estimator,
     )
     warmup()  # load the compiled kernels first so elapsed_s measures the identification alone
     status = 0
