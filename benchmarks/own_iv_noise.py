@@ -15,7 +15,8 @@ instruments see.  Two checks of that reading, on the same windows:
   p + 1 … p + m, which hold for the own process's AR part whatever the white noise is (an AR(p) plus white noise
   is an ARMA(p, p)): ``--myw-order``;
 * the identifier's AR order and Yule–Walker fit, with the white variance read from the autocovariance at lags
-  0–2 taken off γ(0) first (``--whitening deconvolved``, :func:`deconvolved_whitener`).
+  0–2 taken off γ(0) first (``--whitening deconvolved``, :func:`deconvolved_whitener`), or the white variance
+  chosen by the Whittle likelihood of AR(p) + white noise (``--whitening whittle``, :func:`whittle_whitener`).
 
 Rows: the IV by 2SLS and by LIML (``IdentifyConfig.iv_estimator``), each with the identifier's AR whitening and with
 the modified Yule–Walker one, at the bench's noise and at the reduced noise.  Exact V and θ.
@@ -65,17 +66,19 @@ def modified_yule_walker(r: np.ndarray, order: int, equations: int) -> np.ndarra
     return poly if np.max(np.abs(np.roots(poly))) < 0.999 else None
 
 
-def deconvolved_whitener(r: np.ndarray, max_order: int = disturbance.AR_MAX_ORDER) -> np.ndarray | None:
+def deconvolved_whitener(r: np.ndarray, max_order: int = disturbance.AR_MAX_ORDER,
+                         bic_whitener=disturbance.ar_whitener) -> np.ndarray | None:
     """The identifier's AR whitening (order by BIC on r) with the white noise's variance taken off γ(0) first.
 
     The white variance is read as γ(0) − γ(1)²/γ(2) (clipped at 0): exact for an AR(1) own process plus white
     noise (γ_x(0) = γ_x(1)/φ, φ = γ(2)/γ(1)); a smooth own process, whose autocovariance falls quadratically at
     the origin, gives a negative value, so nothing is taken off and the whitening is the identifier's.  None where
-    the deconvolved autocovariance is not positive definite at that order.
+    the deconvolved autocovariance is not positive definite at that order.  ``bic_whitener``: the identifier's
+    whitening, whose order is kept.
     """
     x = r - r.mean()
     n = x.size
-    p = len(disturbance.ar_whitener(r, max_order)) - 1
+    p = len(bic_whitener(r, max_order)) - 1
     if p == 0:
         return np.array([1.0])
     nfft = 1 << int(math.ceil(math.log2(2 * n)))
@@ -86,6 +89,38 @@ def deconvolved_whitener(r: np.ndarray, max_order: int = disturbance.AR_MAX_ORDE
     g[0] -= min(max(white, 0.0), 0.99 * g[0])
     polys, var = disturbance.levinson(g)
     return polys[-1] if np.all(var > 0.0) else None
+
+
+def whittle_whitener(r: np.ndarray, max_order: int = disturbance.AR_MAX_ORDER,
+                     bic_whitener=disturbance.ar_whitener, grid: int = 24) -> np.ndarray:
+    """The AR part of an AR(p) + white-noise model of r, the white variance s by the Whittle likelihood.
+
+    p is the identifier's (BIC on r); for each s on a grid from 0 to 0.9·γ(0), Levinson on the autocovariance with s
+    taken off γ(0) gives A_s and σ_e²(s), and the model spectrum σ_e²/|A_s|² + s is scored against r's periodogram
+    by the Whittle likelihood; the best s's A_s is returned (s = 0: the identifier's whitening).
+    """
+    x = r - r.mean()
+    n = x.size
+    p = len(bic_whitener(r, max_order)) - 1
+    if p == 0:
+        return np.array([1.0])
+    nfft = 1 << int(math.ceil(math.log2(2 * n)))
+    spec = np.fft.rfft(x, nfft)
+    g = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: p + 1] / n
+    per = np.abs(np.fft.rfft(x)) ** 2 / n  # E = the spectrum at the window's own bins
+    best, best_ll = None, -math.inf
+    for s in np.linspace(0.0, 0.9 * g[0], grid):
+        gs = g.copy()
+        gs[0] -= s
+        polys, var = disturbance.levinson(gs)
+        if not np.all(var > 0.0):
+            break
+        a = polys[-1]
+        model = var[-1] / np.abs(np.fft.rfft(a, n)) ** 2 + s
+        ll = -float(np.sum(np.log(model) + per / model))
+        if ll > best_ll:
+            best, best_ll = a, ll
+    return best if best is not None else np.array([1.0])
 
 
 @contextlib.contextmanager
@@ -99,10 +134,15 @@ def whitening(kind: str, order: int, equations: int):
         return chosen(r, max_order) if poly is None else poly
 
     def deconvolved(r, max_order=disturbance.AR_MAX_ORDER):
-        poly = deconvolved_whitener(r, max_order)
+        poly = deconvolved_whitener(r, max_order, chosen)
         return chosen(r, max_order) if poly is None else poly
 
-    if kind == "myw":
+    def whittle(r, max_order=disturbance.AR_MAX_ORDER):
+        return whittle_whitener(r, max_order, chosen)
+
+    if kind == "whittle":
+        disturbance.ar_whitener = whittle
+    elif kind == "myw":
         disturbance.ar_whitener = myw
     elif kind == "deconvolved":
         disturbance.ar_whitener = deconvolved
@@ -168,7 +208,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--coherence", type=float, default=0.7)
     ap.add_argument("--noise-scale", type=float, default=0.1, help="synthetic: the P/Q noise's reduced scale")
     ap.add_argument("--snr-db", type=float, default=50.0, help="ANDES: the P/Q noise's reduced level [dB]")
-    ap.add_argument("--whitening", nargs="+", default=["bic", "myw"], choices=["bic", "myw", "deconvolved"],
+    ap.add_argument("--whitening", nargs="+", default=["bic", "myw"], choices=["bic", "myw", "deconvolved", "whittle"],
                     help="bic: the identifier's; myw: modified Yule–Walker; deconvolved: the identifier's order, "
                          "the white variance γ(0) − γ(1)²/γ(2) taken off γ(0)")
     ap.add_argument("--tag", default="", help="name suffix of the JSON")
@@ -190,7 +230,8 @@ def main(argv=None) -> dict:
                 cover = 100 * np.mean([f[1] for f in fits], axis=0)
                 name = f"{est.upper()}, " + {"bic": "AR by BIC (the identifier's)",
                                              "myw": f"modified Yule–Walker AR({args.myw_order})",
-                                             "deconvolved": "AR by BIC, white variance off γ(0)"}[kind]
+                                             "deconvolved": "AR by BIC, white variance off γ(0)",
+                                             "whittle": "AR by BIC + white noise, Whittle"}[kind]
                 out["rows"].append({"shape": shape, "noise": noise, "fit": name, "errors_pct": e.tolist(),
                                     "cover_pct": cover.tolist()})
                 table.append([shape, noise, name, " / ".join(f"{v:+.1f}" for v in np.nanmedian(e, axis=0)),
