@@ -16,7 +16,9 @@ instruments see.  Two checks of that reading, on the same windows:
   is an ARMA(p, p)): ``--myw-order``;
 * the identifier's AR order and Yule–Walker fit, with the white variance read from the autocovariance at lags
   0–2 taken off γ(0) first (``--whitening deconvolved``, :func:`deconvolved_whitener`), or the white variance
-  chosen by the Whittle likelihood of AR(p) + white noise (``--whitening whittle``, :func:`whittle_whitener`).
+  chosen by the Whittle likelihood of AR(p) + white noise (``--whitening whittle``, :func:`whittle_whitener`), or
+  the deconvolved one only where the residual's autocovariance at lags 1–3 is exponential (``--whitening gated``,
+  :func:`exponential_autocovariance`).
 
 Rows: the IV by 2SLS and by LIML (``IdentifyConfig.iv_estimator``), each with the identifier's AR whitening and with
 the modified Yule–Walker one, at the bench's noise and at the reduced noise.  Exact V and θ.
@@ -123,6 +125,32 @@ def whittle_whitener(r: np.ndarray, max_order: int = disturbance.AR_MAX_ORDER,
     return best if best is not None else np.array([1.0])
 
 
+#: Largest |second difference / first difference| of log γ at lags 1–3 read as an exponential autocovariance (0 for
+#: one; 0.42–0.69 for the 2 Hz and 1/f own processes, −0.15–0.17 for switching: p10–p90 of 20 development windows per
+#: shape and bench, synthetic seed 243 and ANDES own seed 1, own/total 0.9, ρ = 0.7).
+EXPONENTIAL_CURVATURE_MAX = 0.25
+#: Smallest lag-1 autocorrelation for it: a channel whose residual is mostly white (the second channel Q − k·P when ΔQ
+#: follows ΔP) has nothing to take its noise out of, and its log γ at lags 1–3 is noise.
+EXPONENTIAL_LAG1_MIN = 0.5
+#: Confirmation seeds of the gated whitening, fixed before any run on them (ANDES own seed; synthetic bench seed).
+CONFIRM_OWN_SEED, CONFIRM_SEED = 61, 253
+
+
+def exponential_autocovariance(r: np.ndarray) -> bool:
+    """Whether r's autocovariance at lags 1–3 is exponential (an AR(1)-like own process such as many small loads
+    switching), the case where :func:`deconvolved_whitener`'s white-noise estimate holds."""
+    x = r - r.mean()
+    n = x.size
+    nfft = 1 << int(math.ceil(math.log2(2 * n)))
+    spec = np.fft.rfft(x, nfft)
+    g = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[:4] / n
+    if np.any(g[1:] <= 0.0) or g[1] < EXPONENTIAL_LAG1_MIN * g[0]:
+        return False
+    lg = np.log(g[1:])
+    slope = lg[1] - lg[0]
+    return slope < 0.0 and abs(lg[0] - 2.0 * lg[1] + lg[2]) <= EXPONENTIAL_CURVATURE_MAX * abs(slope)
+
+
 @contextlib.contextmanager
 def whitening(kind: str, order: int, equations: int):
     """The identifier's AR whitening replaced by :func:`modified_yule_walker` inside the block (``kind`` "myw"; the
@@ -140,7 +168,13 @@ def whitening(kind: str, order: int, equations: int):
     def whittle(r, max_order=disturbance.AR_MAX_ORDER):
         return whittle_whitener(r, max_order, chosen)
 
-    if kind == "whittle":
+    def gated(r, max_order=disturbance.AR_MAX_ORDER):
+        poly = deconvolved_whitener(r, max_order, chosen) if exponential_autocovariance(r) else None
+        return chosen(r, max_order) if poly is None else poly
+
+    if kind == "gated":
+        disturbance.ar_whitener = gated
+    elif kind == "whittle":
         disturbance.ar_whitener = whittle
     elif kind == "myw":
         disturbance.ar_whitener = myw
@@ -208,7 +242,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--coherence", type=float, default=0.7)
     ap.add_argument("--noise-scale", type=float, default=0.1, help="synthetic: the P/Q noise's reduced scale")
     ap.add_argument("--snr-db", type=float, default=50.0, help="ANDES: the P/Q noise's reduced level [dB]")
-    ap.add_argument("--whitening", nargs="+", default=["bic", "myw"], choices=["bic", "myw", "deconvolved", "whittle"],
+    ap.add_argument("--whitening", nargs="+", default=["bic", "myw"], choices=["bic", "myw", "deconvolved", "whittle", "gated"],
                     help="bic: the identifier's; myw: modified Yule–Walker; deconvolved: the identifier's order, "
                          "the white variance γ(0) − γ(1)²/γ(2) taken off γ(0)")
     ap.add_argument("--tag", default="", help="name suffix of the JSON")
@@ -231,7 +265,8 @@ def main(argv=None) -> dict:
                 name = f"{est.upper()}, " + {"bic": "AR by BIC (the identifier's)",
                                              "myw": f"modified Yule–Walker AR({args.myw_order})",
                                              "deconvolved": "AR by BIC, white variance off γ(0)",
-                                             "whittle": "AR by BIC + white noise, Whittle"}[kind]
+                                             "whittle": "AR by BIC + white noise, Whittle",
+                                             "gated": "deconvolved where the autocovariance is exponential"}[kind]
                 out["rows"].append({"shape": shape, "noise": noise, "fit": name, "errors_pct": e.tolist(),
                                     "cover_pct": cover.tolist()})
                 table.append([shape, noise, name, " / ".join(f"{v:+.1f}" for v in np.nanmedian(e, axis=0)),
