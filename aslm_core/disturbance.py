@@ -93,6 +93,89 @@ def ar_whitener(r: np.ndarray, max_order: int = AR_MAX_ORDER) -> np.ndarray:
     return polys[int(np.argmin(bic))]
 
 
+#: Largest |second / first difference| of log γ at lags 1–3 that :func:`exponential_autocovariance` reads as an
+#: exponential autocovariance (0 for one).  Development windows (synthetic seed 243, ANDES own seed 1, own/total 0.9,
+#: ρ = 0.7; p10–p90 of 20 per shape): switching −0.15–0.17, 2 Hz and 1/f own processes 0.42–0.69.
+EXPONENTIAL_CURVATURE_MAX = 0.25
+#: Smallest lag-1 autocorrelation for it: a mostly white residual has no coloured part to take the noise out of.
+EXPONENTIAL_LAG1_MIN = 0.5
+
+
+def autocovariance(r: np.ndarray, max_lag: int) -> np.ndarray:
+    """Biased autocovariance of r (mean removed) at lags 0 … max_lag [units of r²]."""
+    x = r - r.mean()
+    n = x.size
+    nfft = 1 << int(math.ceil(math.log2(2 * n)))
+    spec = np.fft.rfft(x, nfft)
+    return np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: max_lag + 1] / n
+
+
+def exponential_autocovariance(g: np.ndarray) -> bool:
+    """Whether an autocovariance is exponential at lags 1–3 (an AR(1)-like process, e.g. many small loads switching)
+    plus white noise, which shows at lag 0 only.
+
+    Parameters
+    ----------
+    g : ndarray
+        Autocovariance at lags 0 … ≥ 3.
+
+    Returns
+    -------
+    bool
+        log γ(1) − 2·log γ(2) + log γ(3) within :data:`EXPONENTIAL_CURVATURE_MAX` of the slope log γ(2) − log γ(1) < 0,
+        and γ(1) ≥ :data:`EXPONENTIAL_LAG1_MIN`·γ(0).
+    """
+    if np.any(g[1:4] <= 0.0) or g[1] < EXPONENTIAL_LAG1_MIN * g[0]:
+        return False
+    lg = np.log(g[1:4])
+    slope = lg[1] - lg[0]
+    return bool(slope < 0.0 and abs(lg[0] - 2.0 * lg[1] + lg[2]) <= EXPONENTIAL_CURVATURE_MAX * abs(slope))
+
+
+def own_whitener(r: np.ndarray, max_order: int = AR_MAX_ORDER) -> np.ndarray:
+    """The AR polynomial of r's coloured part alone: :func:`ar_whitener`'s, with the white noise's variance taken off
+    γ(0) first where the autocovariance says how much it is.
+
+    r is the load's own fluctuation plus the PMU's white noise on P and Q.  The instruments of the IV see the own
+    fluctuation (through V) but not the noise, so they are uncorrelated with the whitened residual only if the filter
+    whitens the own part; the AR model of the sum does not (its Yule–Walker equations differ at lag 0), and on a
+    step-like own process, whose per-sample innovation is small, the difference biases the IV (docs/numerics.md,
+    "Stop 37").  For an exponential autocovariance (:func:`exponential_autocovariance`) the white variance is
+    γ(0) − γ(1)²/γ(2) (γ_own(0) = γ(1)/φ with φ = γ(2)/γ(1)); elsewhere nothing is taken off.
+
+    Parameters
+    ----------
+    r : ndarray
+        Residual [pu].
+    max_order : int
+        Longest model tried (the order is :func:`ar_whitener`'s, by BIC on r).
+
+    Returns
+    -------
+    ndarray
+        [1, a1, ..., ap].
+    """
+    chosen = ar_whitener(r, max_order)
+    p = len(chosen) - 1
+    g = autocovariance(r, max(p, 3))
+    if p == 0 or not exponential_autocovariance(g):
+        return chosen
+    white = g[0] - g[1] * g[1] / g[2]
+    g = g[: p + 1].copy()
+    g[0] -= min(max(white, 0.0), 0.99 * g[0])
+    polys, var = levinson(g)
+    return polys[-1] if np.all(var > 0.0) else chosen
+
+
+#: The AR noise models of the IV's passes by name (``IdentifyConfig.iv_whitening``).
+WHITENERS = {"residual": "ar_whitener", "own": "own_whitener"}
+
+
+def whitener(name: str):
+    """The whitening function named ``name`` (:data:`WHITENERS`), looked up at call time."""
+    return globals()[WHITENERS[name]]
+
+
 class Whitened:
     """The identification problem with its P and Q residuals whitened by fixed AR polynomials.
 
@@ -210,12 +293,13 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
 
 
 def passes(problem, d0: np.ndarray, make, *, max_iter: int, xtol: float, margin: float, reestimate: int,
-           max_order: int, finish=None, couple: bool = False) -> dict:
+           max_order: int, finish=None, couple: bool = False, whitening: str = "residual") -> dict:
     """``reestimate`` passes of: AR models from the output-error residual at D, then a fit of D with them.
 
     ``make(problem, polys, d, mix)`` builds the pass's criterion (as :class:`Whitened`; None: stop); with
     ``couple`` its second channel is Q − mix·P, mix from the pass's residuals (:func:`coupling`), else mix = 0;
-    ``finish(criterion, state)`` may add entries to the pass's result.  Returns the last pass's result (as
+    ``finish(criterion, state)`` may add entries to the pass's result; ``whitening`` names the AR models' fit
+    (:data:`WHITENERS`).  Returns the last pass's result (as
     :func:`fit`) with the iterations and evaluations of all passes.
     """
     d = problem.into_feasible(d0)
@@ -228,7 +312,8 @@ def passes(problem, d0: np.ndarray, make, *, max_iter: int, xtol: float, margin:
         if r is None:
             break
         mix = coupling(r[0], r[1]) if couple else 0.0
-        polys = (ar_whitener(r[0], max_order), ar_whitener(r[1] - mix * r[0], max_order))
+        fit_ar = whitener(whitening)
+        polys = (fit_ar(r[0], max_order), fit_ar(r[1] - mix * r[0], max_order))
         wp = make(problem, polys, d, mix)
         if wp is None:
             break

@@ -341,7 +341,8 @@ def _disturbance_fit(kind: str, problem: Problem, final: dict, best: dict,
     else:
         pem = instrumental.fit(problem, final["d"], max_iter=config.max_iter, max_order=config.ar_max_order,
                                se_smooth_hz=SE_SMOOTH_HZ if config.stderr_method == "spectral" else None,
-                               couple=config.couple_channels, estimator=config.iv_estimator)
+                               couple=config.couple_channels, estimator=config.iv_estimator,
+                               whitening=config.iv_whitening)
     problem.evaluations += pem["evaluations"]
     if not math.isfinite(pem["cost"]):
         return final, None, {}

@@ -402,10 +402,11 @@ def _off(x: np.ndarray, basis_cols: np.ndarray) -> np.ndarray:
 def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin: float = 1e-3,
         reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS,
         first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None, couple: bool = False,
-        estimator: str = "2sls") -> dict:
+        estimator: str = "2sls", whitening: str = "residual") -> dict:
     """IV prediction-error fit of D from an output-error optimum d0; AR models and instruments renewed per pass.
 
-    ``estimator``: ``"2sls"`` (:class:`Instrumented`) or ``"liml"`` (:class:`Liml`).
+    ``estimator``: ``"2sls"`` (:class:`Instrumented`) or ``"liml"`` (:class:`Liml`); ``whitening``: the AR models of
+    the residual (``"residual"``) or of its own part alone (``"own"``, :func:`aslm_core.disturbance.own_whitener`).
 
     ``first_lag``: the shortest instrument lag [samples]; ``se_smooth_hz``: the covariance of D and the
     over-identification statistic robust to coloured innovations (:meth:`Instrumented.spectral_moments`, the
@@ -429,7 +430,8 @@ def fit(problem, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin:
         _overid_and_covariance(wp, state, se_smooth_hz)
 
     return disturbance.passes(problem, d0, make, max_iter=max_iter, xtol=xtol, margin=margin,
-                              reestimate=reestimate, max_order=max_order, finish=finish, couple=couple)
+                              reestimate=reestimate, max_order=max_order, finish=finish, couple=couple,
+                              whitening=whitening)
 
 
 def covariance_scale(overid: float) -> float:
@@ -467,7 +469,7 @@ def _overid_and_covariance(wp: Instrumented | Stacked, state: dict, se_smooth_hz
 def fit_pooled(pool, problems: list, d0: np.ndarray, max_iter: int = 40, xtol: float = 1e-7, margin: float = 1e-3,
                reestimate: int = 2, max_order: int = disturbance.AR_MAX_ORDER, lags: int = IV_LAGS,
                first_lag: int = FIRST_LAG, se_smooth_hz: float | None = None, couple: bool = False,
-               estimator: str = "2sls") -> dict:
+               estimator: str = "2sls", whitening: str = "residual") -> dict:
     """IV prediction-error fit of one D from several windows: per window its AR models and instruments (and with
     ``couple`` its second channel Q − k·P, k per window: :func:`aslm_core.disturbance.coupling`).
 
@@ -494,7 +496,8 @@ def fit_pooled(pool, problems: list, d0: np.ndarray, max_iter: int = 40, xtol: f
             if r is None:
                 break
             mix = disturbance.coupling(r[0], r[1]) if couple else 0.0
-            polys = (disturbance.ar_whitener(r[0], max_order), disturbance.ar_whitener(r[1] - mix * r[0], max_order))
+            fit_ar = disturbance.whitener(whitening)
+            polys = (fit_ar(r[0], max_order), fit_ar(r[1] - mix * r[0], max_order))
             try:
                 parts.append(_ESTIMATORS[estimator](pb, polys, d, lags, first_lag, mix))
             except ValueError:

@@ -359,7 +359,8 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
         iv = instrumental.fit_pooled(pool, pool.problems, d, max_iter=max_iter, xtol=xtol, margin=EQUILIBRIUM_MARGIN,
                                      max_order=config.ar_max_order,
                                      se_smooth_hz=SE_SMOOTH_HZ if config.stderr_method == "spectral" else None,
-                                     couple=config.couple_channels, estimator=config.iv_estimator)
+                                     couple=config.couple_channels, estimator=config.iv_estimator,
+                                     whitening=config.iv_whitening)
         evaluations += iv["evaluations"]
         if math.isfinite(iv["cost"]):
             d, cost, cov = iv["d"], iv["cost"], iv["cov"]

@@ -16,6 +16,7 @@ InputSmoother = Literal["none", "wiener", "wiener_lowpass", "zero_phase"]
 Disturbance = Literal["none", "ar", "ar_iv", "gated"]
 StderrMethod = Literal["spectral", "ar1"]
 IvEstimator = Literal["2sls", "liml"]
+IvWhitening = Literal["residual", "own"]
 InputWeighting = Literal["none", "spectral"]
 
 
@@ -114,6 +115,12 @@ class IdentifyConfig:
         outside the instruments, so that with weak instruments it does not pull toward the least-squares answer
         that the loop through the network biases (:class:`aslm_core.instrumental.Liml`).  See docs/numerics.md,
         "Stop 37: LIML".
+    iv_whitening : {"residual", "own"}
+        AR noise models of the IV fit: of the residual as it is (the load's own fluctuation plus the PMU's white noise
+        on P and Q), or of the own fluctuation alone (``own``: the white noise's variance taken off where the
+        residual's autocovariance is exponential, as for many small loads switching;
+        :func:`aslm_core.disturbance.own_whitener`).  The instruments see the own fluctuation through V, not the
+        noise: whitening the sum leaves them correlated with the residual (docs/numerics.md, "Stop 37").
     """
 
     integrator: Integrator = "rk4"
@@ -137,6 +144,7 @@ class IdentifyConfig:
     stderr_method: StderrMethod = "spectral"
     input_weighting: InputWeighting = "spectral"
     iv_estimator: IvEstimator = "2sls"
+    iv_whitening: IvWhitening = "residual"
 
     def to_dict(self) -> dict:
         """The options as a plain dict (flat, so cheaper than ``dataclasses.asdict``)."""

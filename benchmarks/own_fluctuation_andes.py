@@ -75,6 +75,8 @@ CANDIDATES = {"output error": IdentifyConfig(**common.OUTPUT_ERROR),
 CANDIDATES = {k: v if k.endswith("coupled channels") else replace(v, couple_channels=False) for k, v in CANDIDATES.items()}
 #: The coupled default with its IV by LIML instead of 2SLS (stop 37).
 CANDIDATES["default, LIML"] = IdentifyConfig(iv_estimator="liml")
+#: The coupled default with its IV's AR models of the own fluctuation alone (stop 37).
+CANDIDATES["default, own whitening"] = IdentifyConfig(iv_whitening="own")
 F0 = 60.0
 
 

@@ -71,7 +71,9 @@ CANDIDATES = {"default": IdentifyConfig(), "uncoupled": IdentifyConfig(couple_ch
               "IV": IdentifyConfig(disturbance="ar_iv", input_weighting="none"),
               # The IV by LIML instead of 2SLS (stop 37), alone and in the default.
               "IV, LIML": IdentifyConfig(disturbance="ar_iv", input_weighting="none", iv_estimator="liml"),
-              "default, LIML": IdentifyConfig(iv_estimator="liml")}
+              "default, LIML": IdentifyConfig(iv_estimator="liml"),
+              # The IV's AR models of the own fluctuation alone (stop 37).
+              "default, own whitening": IdentifyConfig(iv_whitening="own")}
 
 
 def window_bound(case, cov: np.ndarray | None, coherence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:

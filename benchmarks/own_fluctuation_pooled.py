@@ -8,7 +8,7 @@ single-window ``ar_iv`` fits of the same windows.  Median and worst |error| over
 ±1.96 SE, ``iv_instruments_rejected`` count.
 
     .venv/bin/python -m benchmarks.own_fluctuation_pooled [--seeds 1 2 3 4 5 6] [--shapes ...] [--k 16]
-        [--coherence 1] [--horizon S] [--iv-estimator 2sls|liml]
+        [--coherence 1] [--horizon S] [--iv-estimator 2sls|liml] [--iv-whitening residual|own]
 
 Seeds 1–6 are the development pools; :data:`CONFIRM_SEEDS` were fixed before any run on them.  Results in
 ``docs/results/own_fluctuation_pooled[_confirm].json``.
@@ -48,11 +48,11 @@ def pool_windows(grid: dict, own: dict, k: int, seed: int, shape: str, horizon_s
     return [Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=F0, bus="andes-ieee14-bus9") for w in ws]
 
 
-def one_pool(windows: list[Window], truth: np.ndarray, iv_estimator: str = "2sls") -> dict:
+def one_pool(windows: list[Window], truth: np.ndarray, iv_estimator: str = "2sls", iv_whitening: str = "residual") -> dict:
     """Pooled white, pooled ``ar_iv`` and the single-window ``ar_iv`` fits: relative errors and SEs, flags, time
-    (``iv_estimator``: the IV criterion of both, ``IdentifyConfig.iv_estimator``)."""
+    (``iv_estimator``, ``iv_whitening``: the IV's criterion and AR models in both, as ``IdentifyConfig``'s)."""
     out = {}
-    iv = replace(IV, iv_estimator=iv_estimator)
+    iv = replace(IV, iv_estimator=iv_estimator, iv_whitening=iv_whitening)
     t0 = time.perf_counter()
     single = []
     for w in windows:
@@ -65,7 +65,8 @@ def one_pool(windows: list[Window], truth: np.ndarray, iv_estimator: str = "2sls
                            "seconds": time.perf_counter() - t0}
     for name, dist in (("pooled, white", "none"), ("pooled ar_iv", "ar_iv")):
         t0 = time.perf_counter()
-        r = identify_pooled(windows, disturbance=dist, config=IdentifyConfig(iv_estimator=iv_estimator))
+        r = identify_pooled(windows, disturbance=dist,
+                            config=IdentifyConfig(iv_estimator=iv_estimator, iv_whitening=iv_whitening))
         out[name] = {"errors": (r.d / truth - 1).tolist(),
                      "stderr": [r.stderr[p] / t for p, t in zip(common.PARAMS, truth, strict=True)],
                      "flags": r.flags, "seconds": time.perf_counter() - t0}
@@ -100,18 +101,21 @@ def main(argv=None) -> dict:
                          "(default: the whole own run from t = 0, the bench as it was)")
     ap.add_argument("--iv-estimator", choices=["2sls", "liml"], default="2sls",
                     help="the IV criterion of the single-window and pooled ar_iv fits (default 2sls, the bench as it was)")
+    ap.add_argument("--iv-whitening", choices=["residual", "own"], default="residual",
+                    help="the AR models of the ar_iv fits (default residual, the bench as it was)")
     args = ap.parse_args(argv)
     t_all = time.perf_counter()
     grid = andes_own.grid_recording(tf=TF, tstep=TSTEP, seed=SEED, fs=FS)
     truth = np.asarray(grid["truth"], dtype=float)
     out = {"machine": common.machine(), "ratio": RATIO, "k": args.k, "seeds": args.seeds, "truth": truth.tolist(),
-           "coherence": args.coherence, "horizon_s": args.horizon, "iv_estimator": args.iv_estimator, "runs": []}
+           "coherence": args.coherence, "horizon_s": args.horizon, "iv_estimator": args.iv_estimator,
+           "iv_whitening": args.iv_whitening, "runs": []}
     table = []
     for shape in args.shapes:
         pools = []
         for seed in args.seeds:
             own = andes_own.own_recording(shape, tf=TF, tstep=TSTEP, seed=seed, coherence=args.coherence)
-            pools.append(one_pool(pool_windows(grid, own, args.k, seed, shape, args.horizon), truth, args.iv_estimator))
+            pools.append(one_pool(pool_windows(grid, own, args.k, seed, shape, args.horizon), truth, args.iv_estimator, args.iv_whitening))
             print(f"{shape} seed {seed}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
         out["runs"].append({"shape": shape, "pools": pools})
         table.extend([[shape, name, *summary(pools, name)] for name in ("single ar_iv", "pooled, white", "pooled ar_iv")])

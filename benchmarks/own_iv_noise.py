@@ -17,8 +17,8 @@ instruments see.  Two checks of that reading, on the same windows:
 * the identifier's AR order and Yule–Walker fit, with the white variance read from the autocovariance at lags
   0–2 taken off γ(0) first (``--whitening deconvolved``, :func:`deconvolved_whitener`), or the white variance
   chosen by the Whittle likelihood of AR(p) + white noise (``--whitening whittle``, :func:`whittle_whitener`), or
-  the deconvolved one only where the residual's autocovariance at lags 1–3 is exponential (``--whitening gated``,
-  :func:`exponential_autocovariance`).
+  the deconvolved one only where the residual's autocovariance at lags 1–3 is exponential (``--whitening gated``: the
+  identifier's ``iv_whitening="own"``, :func:`aslm_core.disturbance.own_whitener`).
 
 Rows: the IV by 2SLS and by LIML (``IdentifyConfig.iv_estimator``), each with the identifier's AR whitening and with
 the modified Yule–Walker one, at the bench's noise and at the reduced noise.  Exact V and θ.
@@ -56,12 +56,7 @@ def modified_yule_walker(r: np.ndarray, order: int, equations: int) -> np.ndarra
     AR polynomial whatever w's variance; least squares over ``equations`` = m lags.  None where the polynomial has
     a root on or outside the unit circle.
     """
-    x = r - r.mean()
-    n = x.size
-    m = 2 * order + equations + 1
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    spec = np.fft.rfft(x, nfft)
-    g = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: m + 1] / n
+    g = disturbance.autocovariance(r, 2 * order + equations + 1)
     a = np.array([[g[abs(k - j)] for j in range(1, order + 1)] for k in range(order + 1, order + equations + 1)])
     b = -g[order + 1:order + equations + 1]
     poly = np.r_[1.0, np.linalg.lstsq(a, b, rcond=None)[0]]
@@ -78,14 +73,10 @@ def deconvolved_whitener(r: np.ndarray, max_order: int = disturbance.AR_MAX_ORDE
     the deconvolved autocovariance is not positive definite at that order.  ``bic_whitener``: the identifier's
     whitening, whose order is kept.
     """
-    x = r - r.mean()
-    n = x.size
     p = len(bic_whitener(r, max_order)) - 1
     if p == 0:
         return np.array([1.0])
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    spec = np.fft.rfft(x, nfft)
-    g = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: max(p, 2) + 1] / n
+    g = disturbance.autocovariance(r, max(p, 2))
     white = g[0] - g[1] * g[1] / g[2] if g[2] > 0.0 else 0.0
     g = g[: p + 1].copy()
     g[0] -= min(max(white, 0.0), 0.99 * g[0])
@@ -106,9 +97,7 @@ def whittle_whitener(r: np.ndarray, max_order: int = disturbance.AR_MAX_ORDER,
     p = len(bic_whitener(r, max_order)) - 1
     if p == 0:
         return np.array([1.0])
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    spec = np.fft.rfft(x, nfft)
-    g = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: p + 1] / n
+    g = disturbance.autocovariance(r, p)
     per = np.abs(np.fft.rfft(x)) ** 2 / n  # E = the spectrum at the window's own bins
     best, best_ll = None, -math.inf
     for s in np.linspace(0.0, 0.9 * g[0], grid):
@@ -125,30 +114,9 @@ def whittle_whitener(r: np.ndarray, max_order: int = disturbance.AR_MAX_ORDER,
     return best if best is not None else np.array([1.0])
 
 
-#: Largest |second difference / first difference| of log γ at lags 1–3 read as an exponential autocovariance (0 for
-#: one; 0.42–0.69 for the 2 Hz and 1/f own processes, −0.15–0.17 for switching: p10–p90 of 20 development windows per
-#: shape and bench, synthetic seed 243 and ANDES own seed 1, own/total 0.9, ρ = 0.7).
-EXPONENTIAL_CURVATURE_MAX = 0.25
-#: Smallest lag-1 autocorrelation for it: a channel whose residual is mostly white (the second channel Q − k·P when ΔQ
-#: follows ΔP) has nothing to take its noise out of, and its log γ at lags 1–3 is noise.
-EXPONENTIAL_LAG1_MIN = 0.5
-#: Confirmation seeds of the gated whitening, fixed before any run on them (ANDES own seed; synthetic bench seed).
+#: Confirmation seeds of the gated whitening (``--whitening gated``, the identifier's ``iv_whitening="own"``), fixed
+#: before any run on them (ANDES own seed; synthetic bench seed).
 CONFIRM_OWN_SEED, CONFIRM_SEED = 61, 253
-
-
-def exponential_autocovariance(r: np.ndarray) -> bool:
-    """Whether r's autocovariance at lags 1–3 is exponential (an AR(1)-like own process such as many small loads
-    switching), the case where :func:`deconvolved_whitener`'s white-noise estimate holds."""
-    x = r - r.mean()
-    n = x.size
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    spec = np.fft.rfft(x, nfft)
-    g = np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[:4] / n
-    if np.any(g[1:] <= 0.0) or g[1] < EXPONENTIAL_LAG1_MIN * g[0]:
-        return False
-    lg = np.log(g[1:])
-    slope = lg[1] - lg[0]
-    return slope < 0.0 and abs(lg[0] - 2.0 * lg[1] + lg[2]) <= EXPONENTIAL_CURVATURE_MAX * abs(slope)
 
 
 @contextlib.contextmanager
@@ -168,13 +136,7 @@ def whitening(kind: str, order: int, equations: int):
     def whittle(r, max_order=disturbance.AR_MAX_ORDER):
         return whittle_whitener(r, max_order, chosen)
 
-    def gated(r, max_order=disturbance.AR_MAX_ORDER):
-        poly = deconvolved_whitener(r, max_order, chosen) if exponential_autocovariance(r) else None
-        return chosen(r, max_order) if poly is None else poly
-
-    if kind == "gated":
-        disturbance.ar_whitener = gated
-    elif kind == "whittle":
+    if kind == "whittle":
         disturbance.ar_whitener = whittle
     elif kind == "myw":
         disturbance.ar_whitener = myw
@@ -186,10 +148,11 @@ def whitening(kind: str, order: int, equations: int):
         disturbance.ar_whitener = chosen
 
 
-def fit(window, truth: np.ndarray, est: str) -> tuple[list[float], list[bool]]:
-    """Relative error and ±1.96 SE coverage of the IV ``est`` on one window (NaN / False where refused)."""
+def fit(window, truth: np.ndarray, est: str, kind: str = "bic") -> tuple[list[float], list[bool]]:
+    """Relative error and ±1.96 SE coverage of the IV ``est`` on one window (NaN / False where refused); ``kind``
+    "gated": the identifier's ``iv_whitening="own"``."""
     try:
-        r = identify(window, config=IV[est])
+        r = identify(window, config=replace(IV[est], iv_whitening="own" if kind == "gated" else "residual"))
     except WindowError:
         return [math.nan] * 4, [False] * 4
     se = np.array([r.stderr[k] for k in DYNAMIC_NAMES])
@@ -259,7 +222,7 @@ def main(argv=None) -> dict:
         for kind in args.whitening:
             for est in ("2sls", "liml"):
                 with whitening(kind, args.myw_order, args.myw_equations):
-                    fits = [fit(w, truth, est) for w, truth in ws]
+                    fits = [fit(w, truth, est, kind) for w, truth in ws]
                 e = 100 * np.array([f[0] for f in fits])
                 cover = 100 * np.mean([f[1] for f in fits], axis=0)
                 name = f"{est.upper()}, " + {"bic": "AR by BIC (the identifier's)",

@@ -19,6 +19,7 @@ PINNED: dict = {
     "coarse_to_fine": True, "disturbance": "none", "ar_max_order": 30, "couple_channels": False,
     "stderr_method": "spectral",
     "input_weighting": "none", "iv_estimator": "2sls",
+    "iv_whitening": "residual",
 }
 
 

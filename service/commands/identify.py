@@ -9,7 +9,7 @@ from typing import get_args
 
 from aslm_core import IdentifyConfig, WindowError, identify, warmup
 from aslm_core.preprocess import INPUT_SMOOTHERS
-from aslm_core.result import Disturbance, InputWeighting, IvEstimator
+from aslm_core.result import Disturbance, InputWeighting, IvEstimator, IvWhitening
 from service.commands._common import add_mapping_flags
 from service.files import read_window
 
@@ -45,6 +45,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="criterion of the IV fit (ar_iv, and gated where the IV answers): 2sls or liml, which does "
                         "not pull toward the loop-biased least-squares answer when the instruments are weak "
                         "(default %(default)s; docs/numerics.md)")
+    p.add_argument("--iv-whitening", choices=list(get_args(IvWhitening)), default=IdentifyConfig.iv_whitening,
+                   help="AR noise models of the IV fit: of the residual (own fluctuation plus the PMU's white noise) "
+                        "or of the own fluctuation alone, the white noise taken off where the residual's "
+                        "autocovariance is exponential (default %(default)s; docs/numerics.md)")
     p.set_defaults(func=run)
 
 
@@ -53,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         integrator=args.integrator, objective=args.objective, static=args.static,
         lowpass_hz=args.lowpass, input_smoother=args.input_smoother, n_starts=args.starts,
         disturbance=args.disturbance, input_weighting=args.input_weighting, couple_channels=args.couple_channels,
-        iv_estimator=args.iv_estimator,
+        iv_estimator=args.iv_estimator, iv_whitening=args.iv_whitening,
     )
     warmup()  # load the compiled kernels first so elapsed_s measures the identification alone
     status = 0
