@@ -58,8 +58,10 @@ SHAPES = ("lowpass", "switching", "pink", "ramp")
 #: with each window's own run superposed from the window's start, 2026-12-02 (stop 36), ``--candidates "output error"
 #: "default, coupled channels" --horizon 0 --tag horizon0`` and the same without ``--horizon`` and with ``--tag
 #: accumulated``); 51: the IV by LIML (stop 37), fixed before any run on it, ``--candidates "default, coupled channels"
-#: "default, LIML" --horizon 0 --tag liml`` at ``--coherence`` 1 and 0.7.
-CONFIRM_OWN_SEEDS = (11, 21, 31, 41, 51)
+#: "default, LIML" --horizon 0 --tag liml`` at ``--coherence`` 1 and 0.7; 61: the IV's own whitening (stop 37; fixed in
+#: benchmarks/own_iv_noise.py before any run on it), ``--candidates "default, coupled channels" "default, own
+#: whitening" --horizon 0 --tag whiten`` at ``--coherence`` 1 and 0.7.
+CONFIRM_OWN_SEEDS = (11, 21, 31, 41, 51, 61)
 #: Each with the options it was measured with, not the defaults (which became the S-weighted, gated estimator).
 CANDIDATES = {"output error": IdentifyConfig(**common.OUTPUT_ERROR),
               "AR disturbance (PEM)": IdentifyConfig(disturbance="ar", input_weighting="none"),
