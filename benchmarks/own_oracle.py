@@ -68,15 +68,21 @@ def fixed_ar_order(order: int):
         disturbance.ar_whitener = chosen
 
 
-def oracle_ar(window, d0: np.ndarray, sigma: np.ndarray, order: int = ORACLE_AR_ORDER) -> np.ndarray:
-    """The prediction-error fit with the AR models of the true Σ (P, and Q − k·P with k = cov(Q, P)/var(P))."""
-    pb = Problem(prepare(window, floors=True), window.f0, CANDIDATES["PEM"])
+def true_ar_models(sigma: np.ndarray, order: int) -> tuple[tuple[np.ndarray, np.ndarray], float]:
+    """The AR models (order ``order``) of the true Σ's P channel and of Q − k·P, k = cov(Q, P)/var(P), and k."""
     l = sigma.shape[0] // 2
     spp, sqp, sqq = sigma[:l, :l], sigma[l:, :l], sigma[l:, l:]
     k = float(np.trace(sqp) / np.trace(spp))
     s2 = sqq - k * (sqp + sqp.T) + k * k * spp
     acf = [np.array([np.mean(np.diag(m, j)) for j in range(order + 1)]) for m in (spp, s2)]
-    wp = disturbance.Whitened(pb, tuple(disturbance.levinson(x)[0][-1] for x in acf), k)
+    return tuple(disturbance.levinson(x)[0][-1] for x in acf), k
+
+
+def oracle_ar(window, d0: np.ndarray, sigma: np.ndarray, order: int = ORACLE_AR_ORDER) -> np.ndarray:
+    """The prediction-error fit with the AR models of the true Σ (P, and Q − k·P with k = cov(Q, P)/var(P))."""
+    pb = Problem(prepare(window, floors=True), window.f0, CANDIDATES["PEM"])
+    polys, k = true_ar_models(sigma, order)
+    wp = disturbance.Whitened(pb, polys, k)
     return disturbance.constrained_lm(wp, pb.into_feasible(d0), 40, 1e-7, 1e-3)["d"]
 
 
@@ -85,12 +91,7 @@ def oracle_iv(window, d0: np.ndarray, sigma: np.ndarray, estimator: str, order: 
     """The IV fit (``estimator``: 2SLS or LIML) whitened by the AR models of the true Σ (as :func:`oracle_ar`), its
     instruments renewed at each pass's D."""
     pb = Problem(prepare(window, floors=True), window.f0, CANDIDATES["PEM"])
-    l = sigma.shape[0] // 2
-    spp, sqp, sqq = sigma[:l, :l], sigma[l:, :l], sigma[l:, l:]
-    k = float(np.trace(sqp) / np.trace(spp))
-    s2 = sqq - k * (sqp + sqp.T) + k * k * spp
-    acf = [np.array([np.mean(np.diag(m, j)) for j in range(order + 1)]) for m in (spp, s2)]
-    polys = tuple(disturbance.levinson(x)[0][-1] for x in acf)
+    polys, k = true_ar_models(sigma, order)
     d = pb.into_feasible(d0)
     for _ in range(passes):
         wp = instrumental._ESTIMATORS[estimator](pb, polys, d, mix=k)

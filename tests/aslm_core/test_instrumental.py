@@ -231,15 +231,18 @@ def test_liml_pulls_less_toward_least_squares_than_2sls_on_step_like_own_switchi
     strength; LIML's criterion does not reward it.  On 20 windows of the synthetic bench's development seed where
     the own switching is 0.9 of the ambient P and its ΔQ follows ΔP only in part (ρ = 0.7), the median error of a
     by 2SLS is below −5 %; LIML's is less than half of it in magnitude (docs/numerics.md, "Stop 37: LIML")."""
-    cases = _own_windows("switching", 0.9, n=20, seed=243, coherence=0.7)
-    err = {k: [] for k in ("2sls", "liml")}
-    for c in cases:
-        for k in err:
-            r = identify(c.window, config=replace(IV, input_weighting="none", iv_estimator=k))
-            err[k].append(r.d[0] / c.truth.d[0] - 1.0)
-    m2, ml = float(np.median(err["2sls"])), float(np.median(err["liml"]))
+    m2 = _median_error_of_a(iv_estimator="2sls")
+    ml = _median_error_of_a(iv_estimator="liml")
     assert m2 < -0.05
     assert abs(ml) < 0.5 * abs(m2)
+
+
+def _median_error_of_a(**options) -> float:
+    """Median relative error of a by the IV (with ``options``) on 20 development windows of the synthetic bench:
+    switching at own/total 0.9, its ΔQ following ΔP in part (ρ = 0.7)."""
+    cases = _own_windows("switching", 0.9, n=20, seed=243, coherence=0.7)
+    return float(np.median([identify(c.window, config=replace(IV, input_weighting="none", **options)).d[0]
+                            / c.truth.d[0] - 1.0 for c in cases]))
 
 
 def test_whitening_the_own_fluctuation_alone_takes_the_noise_driven_bias_off_the_iv():
@@ -248,12 +251,7 @@ def test_whitening_the_own_fluctuation_alone_takes_the_noise_driven_bias_off_the
     synthetic bench (switching 0.9, ρ = 0.7) the median error of a by the IV with the residual's AR models is below
     −5 %; with the own fluctuation's alone (``iv_whitening="own"``) it is less than 0.6 of it in magnitude
     (docs/numerics.md, "Stop 37")."""
-    cases = _own_windows("switching", 0.9, n=20, seed=243, coherence=0.7)
-    err = {k: [] for k in ("residual", "own")}
-    for c in cases:
-        for k in err:
-            r = identify(c.window, config=replace(IV, input_weighting="none", iv_whitening=k))
-            err[k].append(r.d[0] / c.truth.d[0] - 1.0)
-    m_res, m_own = float(np.median(err["residual"])), float(np.median(err["own"]))
+    m_res = _median_error_of_a(iv_whitening="residual")
+    m_own = _median_error_of_a(iv_whitening="own")
     assert m_res < -0.05
     assert abs(m_own) < 0.6 * abs(m_res)
