@@ -398,7 +398,11 @@ def normal_equations(wp, es: list, js: list) -> tuple[np.ndarray, np.ndarray]:
     own = getattr(wp, "normal_equations", None)
     if own is not None:
         return own(es, js)
-    w = wp.weights(es)
+    return weighted_normal_equations(wp.weights(es), es, js)
+
+
+def weighted_normal_equations(w: list[float], es: list, js: list) -> tuple[np.ndarray, np.ndarray]:
+    """Σ_c w_c·J_cᵀe_c and Σ_c w_c·J_cᵀJ_c: the gradient and Gauss–Newton matrix of ½ Σ_c w_c·‖e_c‖²."""
     return (sum(wc * (j.T @ e) for wc, j, e in zip(w, js, es, strict=True)),
             sum(wc * (j.T @ j) for wc, j in zip(w, js, strict=True)))
 

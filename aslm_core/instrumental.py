@@ -233,7 +233,7 @@ class Liml(Instrumented):
     2SLS minimises ‖P_Z·ε‖²/σ² with σ² fixed.  With weak instruments its criterion's expectation holds a
     term (instruments)·σ²(D), the variance of the structural residual at D, which is smallest toward the
     least-squares answer: that is the finite-sample pull of 2SLS toward least squares, growing with the
-    number of instruments (docs/numerics.md, "Number of lags").  LIML divides by the residual's variance
+    number of instruments (docs/numerics.md, "Instrumental variables through the algebraic loop").  LIML divides by the residual's variance
     outside the instruments at the same D, ρ(D) = min_β ε'P_Zε / ε'M_Zε (ε = r(D) − Φβ, the constant, which
     is exogenous and an instrument, projected out of all), so that term no longer depends on D; its normal
     equations are the k-class ones with k = 1 + ρ.  Per channel the criterion is ½·ν·ρ with ν the rows
@@ -285,9 +285,6 @@ class Liml(Instrumented):
     def normal_equations(self, es: list, js: list) -> tuple[np.ndarray, np.ndarray]:
         """Gradient of :meth:`cost` in D and its Gauss–Newton matrix (k-class, static part concentrated)."""
         return sum(g.gradient for g in es), sum(g.hessian for g in es)
-
-    def weights(self, es: list) -> list[float]:
-        return [1.0 / v for v in self.var]
 
 
 class _Grams:
@@ -353,9 +350,7 @@ class Stacked(_Weighted):
         """Gradient and Gauss–Newton matrix of :meth:`cost` (:func:`aslm_core.disturbance.normal_equations`)."""
         if es and isinstance(es[0], _Grams):
             return sum(g.gradient for g in es), sum(g.hessian for g in es)
-        w = self.weights(es)
-        return (sum(wc * (j.T @ e) for wc, j, e in zip(w, js, es, strict=True)),
-                sum(wc * (j.T @ j) for wc, j in zip(w, js, strict=True)))
+        return disturbance.weighted_normal_equations(self.weights(es), es, js)
 
     def residuals(self, d: np.ndarray):
         """Every window's residuals and Jacobians in its instrument space, in one list per kind."""

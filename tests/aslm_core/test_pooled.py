@@ -97,3 +97,25 @@ def test_pooled_iv_takes_no_shared_static_part(own_bus):
         identify_pooled(own_bus[0][:2], disturbance="ar_iv", shared_static=True)
     with pytest.raises(ValueError):
         identify_pooled(own_bus[0][:2], disturbance="ar")
+
+
+@pytest.mark.parametrize("options", [{"iv_estimator": "liml"}, {"iv_whitening": "own"}])
+def test_pooled_iv_options_reach_the_pooled_fit_and_stay_within_the_errors(own_bus, options, monkeypatch):
+    """The IV's options (LIML; the own fluctuation's AR models alone) reach the pooled fit, and the four windows'
+    pool with them is within 4 SE of the truth."""
+    from aslm_core import instrumental
+
+    seen = []
+    fit_pooled = instrumental.fit_pooled
+
+    def spy(*args, **kwargs):
+        seen.append((kwargs["estimator"], kwargs["whitening"]))
+        return fit_pooled(*args, **kwargs)
+
+    monkeypatch.setattr(instrumental, "fit_pooled", spy)
+    windows, d_true = own_bus
+    config = IdentifyConfig(**options)
+    four = identify_pooled(windows, disturbance="ar_iv", config=config)
+    assert seen == [(config.iv_estimator, config.iv_whitening)]
+    se = np.array([four.stderr[k] for k in PARAMS])
+    assert np.all(np.abs(four.d - d_true) < 4 * se)
