@@ -60,8 +60,9 @@ SHAPES = ("lowpass", "switching", "pink", "ramp")
 #: accumulated``); 51: the IV by LIML (stop 37), fixed before any run on it, ``--candidates "default, coupled channels"
 #: "default, LIML" --horizon 0 --tag liml`` at ``--coherence`` 1 and 0.7; 61: the IV's own whitening (stop 37; fixed in
 #: benchmarks/own_iv_noise.py before any run on it), ``--candidates "default, coupled channels" "default, own
-#: whitening" --horizon 0 --tag whiten`` at ``--coherence`` 1 and 0.7.
-CONFIRM_OWN_SEEDS = (11, 21, 31, 41, 51, 61)
+#: whitening" --horizon 0 --tag whiten`` at ``--coherence`` 1 and 0.7; 71: both (stop 37), ``--candidates "default,
+#: coupled channels" "default, LIML, own whitening" --horizon 0 --tag liml_own`` at ``--coherence`` 1 and 0.7.
+CONFIRM_OWN_SEEDS = (11, 21, 31, 41, 51, 61, 71)
 #: Each with the options it was measured with, not the defaults (which became the S-weighted, gated estimator).
 CANDIDATES = {"output error": IdentifyConfig(**common.OUTPUT_ERROR),
               "AR disturbance (PEM)": IdentifyConfig(disturbance="ar", input_weighting="none"),
@@ -79,6 +80,8 @@ CANDIDATES = {k: v if k.endswith("coupled channels") else replace(v, couple_chan
 CANDIDATES["default, LIML"] = IdentifyConfig(iv_estimator="liml")
 #: The coupled default with its IV's AR models of the own fluctuation alone (stop 37).
 CANDIDATES["default, own whitening"] = IdentifyConfig(iv_whitening="own")
+#: Both (stop 37).
+CANDIDATES["default, LIML, own whitening"] = IdentifyConfig(iv_estimator="liml", iv_whitening="own")
 F0 = 60.0
 
 

@@ -58,6 +58,9 @@ SEED = 243
 #: Confirmation seed of the IV by LIML (stop 37), fixed before any run on it: ``--seed 251 --candidates default
 #: "default, LIML" --tag liml`` at ``--coherence`` 1 and 0.7.
 LIML_CONFIRM_SEED = 251
+#: Confirmation seed of both (LIML and the own fluctuation's AR models, stop 37), fixed before any run on it:
+#: ``--seed 257 --candidates default "default, LIML, own whitening" --tag liml_own`` at ``--coherence`` 1 and 0.7.
+BOTH_CONFIRM_SEED = 257
 #: Seed of the long realisation behind each shape's window covariance (not a window's: an independent draw).
 COV_SEED = 4320
 COV_WINDOWS = 600
@@ -73,7 +76,8 @@ CANDIDATES = {"default": IdentifyConfig(), "uncoupled": IdentifyConfig(couple_ch
               "IV, LIML": IdentifyConfig(disturbance="ar_iv", input_weighting="none", iv_estimator="liml"),
               "default, LIML": IdentifyConfig(iv_estimator="liml"),
               # The IV's AR models of the own fluctuation alone (stop 37).
-              "default, own whitening": IdentifyConfig(iv_whitening="own")}
+              "default, own whitening": IdentifyConfig(iv_whitening="own"),
+              "default, LIML, own whitening": IdentifyConfig(iv_estimator="liml", iv_whitening="own")}
 
 
 def window_bound(case, cov: np.ndarray | None, coherence: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
