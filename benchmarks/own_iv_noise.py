@@ -7,7 +7,7 @@ own process through V (the loop); they are valid only if the whitened residual i
 process's past, i.e. if the whitening filter is the own process's own AR polynomial.  The identifier fits the AR
 model to the residual, own process *plus* the white measurement noise on P and Q, whose Yule–Walker equations
 differ from the own process's at lag 0: its whitened residual keeps a part of the own process's past, which the
-instruments see.  Two checks of that reading, on the same windows:
+instruments see.  Checks of that reading, on the same windows:
 
 * the white noise on P and Q scaled down (synthetic: ``--noise-scale``, the same draws; ANDES: ``--snr-db``), the
   AR whitening as in the identifier: the bias should go with the noise;
@@ -20,10 +20,12 @@ instruments see.  Two checks of that reading, on the same windows:
   the deconvolved one only where the residual's autocovariance at lags 1–3 is exponential (``--whitening gated``: the
   identifier's ``iv_whitening="own"``, :func:`aslm_core.disturbance.own_whitener`).
 
-Rows: the IV by 2SLS and by LIML (``IdentifyConfig.iv_estimator``), each with the identifier's AR whitening and with
-the modified Yule–Walker one, at the bench's noise and at the reduced noise.  Exact V and θ.
+Rows: the IV by 2SLS and by LIML (``IdentifyConfig.iv_estimator``), each with every whitening of ``--whitening``
+(default: the identifier's and the modified Yule–Walker one), at the bench's noise and at the reduced noise.  Exact V
+and θ.
 
     .venv/bin/python -m benchmarks.own_iv_noise [--andes] [--shapes switching lowpass] [--n 30] [--coherence 0.7]
+        [--whitening bic myw deconvolved whittle gated] [--tag TAG]
 
 Results: ``docs/results/own_iv_noise_{synthetic_seed<seed>|andes_own<seed>}_coh<ρ>.json``.
 """
@@ -69,7 +71,7 @@ def deconvolved_whitener(r: np.ndarray, max_order: int = disturbance.AR_MAX_ORDE
 
     The white variance is read as γ(0) − γ(1)²/γ(2) (clipped at 0): exact for an AR(1) own process plus white
     noise (γ_x(0) = γ_x(1)/φ, φ = γ(2)/γ(1)); a smooth own process, whose autocovariance falls quadratically at
-    the origin, gives a negative value, so nothing is taken off and the whitening is the identifier's.  None where
+    the origin, gives a value below the noise's (negative on most windows: then nothing is taken off).  None where
     the deconvolved autocovariance is not positive definite at that order.  ``bic_whitener``: the identifier's
     whitening, whose order is kept.
     """
@@ -121,8 +123,10 @@ CONFIRM_OWN_SEED, CONFIRM_SEED = 61, 253
 
 @contextlib.contextmanager
 def whitening(kind: str, order: int, equations: int):
-    """The identifier's AR whitening replaced by :func:`modified_yule_walker` inside the block (``kind`` "myw"; the
-    identifier's own where it returns None), or left as it is (``kind`` "bic")."""
+    """The identifier's AR whitening replaced inside the block: by :func:`modified_yule_walker` (``kind`` "myw"),
+    :func:`deconvolved_whitener` ("deconvolved"), each falling back to the identifier's where it returns None, or
+    :func:`whittle_whitener` ("whittle"); left as it is for "bic" and "gated" (which :func:`fit` runs through the
+    identifier's own ``iv_whitening="own"``)."""
     chosen = disturbance.ar_whitener
 
     def myw(r, max_order=disturbance.AR_MAX_ORDER):

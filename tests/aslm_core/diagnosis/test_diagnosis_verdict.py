@@ -341,10 +341,9 @@ def test_a_motor_form_cause_kept_on_a_bound_that_does_not_bind_is_withheld(cause
 def test_a_second_motor_that_beats_the_opened_box_is_named_with_excess_left(monkeypatch):
     """Self-test case second_motor/3/18 (28 dB): the plain fit sits on H2 = 3 s, opening the box improves it (z ≈ 84)
     and the second motor beats that rival though P and Q excess is left: the stop-30 rule leaves it to the rival's
-    test and it is named.  (Until stop 37 this was case second_motor/1/10, whose first motor also stayed on H2's
-    bound; at 14 dB its best candidate removes 39 % of the excess on an Intel Xeon, under the 50 % to be named,
-    where it removed more on the AMD EPYC it was chosen on: the rule's branch for a cause kept on a bound that binds
-    is tested without the CPU's rounding in test_a_motor_form_cause_kept_on_a_bound_that_does_not_bind_is_withheld.)"""
+    test and it is named.  (Not case 1/10, whose first motor stays on H2's bound too: it sits at the edge of being
+    named and moves with the CPU's rounding, docs/diagnosis.md, "Stop 37: the self-test on another CPU"; the branch
+    for a cause kept on a bound that binds is tested on stub fits above.)"""
     from benchmarks.diagnosis import case
 
     effect = "second_motor"
