@@ -22,6 +22,15 @@ from aslm_core.params import DYNAMIC_NAMES
 AR_MAX_ORDER = 30
 
 
+def autocovariance(r: np.ndarray, max_lag: int) -> np.ndarray:
+    """Biased autocovariance of r (mean removed) at lags 0 … max_lag [units of r²]."""
+    x = r - r.mean()
+    n = x.size
+    nfft = 1 << int(math.ceil(math.log2(2 * n)))
+    spec = np.fft.rfft(x, nfft)
+    return np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: max_lag + 1] / n
+
+
 def levinson_orders(r: np.ndarray, max_order: int) -> tuple[list[np.ndarray], np.ndarray]:
     """AR polynomials of every order up to max_order from a residual (Yule–Walker by Levinson–Durbin).
 
@@ -38,11 +47,7 @@ def levinson_orders(r: np.ndarray, max_order: int) -> tuple[list[np.ndarray], np
     var : ndarray
         Prediction-error variance of each order [pu²].
     """
-    x = r - r.mean()
-    n = x.size
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    spec = np.fft.rfft(x, nfft)
-    return levinson(np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: max_order + 1] / n)
+    return levinson(autocovariance(r, max_order))
 
 
 def levinson(acf: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
@@ -95,19 +100,11 @@ def ar_whitener(r: np.ndarray, max_order: int = AR_MAX_ORDER) -> np.ndarray:
 
 #: Largest |second / first difference| of log γ at lags 1–3 that :func:`exponential_autocovariance` reads as an
 #: exponential autocovariance (0 for one).  Development windows (synthetic seed 243, ANDES own seed 1, own/total 0.9,
-#: ρ = 0.7; p10–p90 of 20 per shape): switching −0.15–0.17, 2 Hz and 1/f own processes 0.42–0.69.
+#: ρ = 0.7; p10–p90 of 20 per shape, ``benchmarks.own_iv_noise --shape-statistics``): switching −0.17 to +0.15, 2 Hz and
+#: 1/f own processes −0.69 to −0.42.
 EXPONENTIAL_CURVATURE_MAX = 0.25
 #: Smallest lag-1 autocorrelation for it: a mostly white residual has no coloured part to take the noise out of.
 EXPONENTIAL_LAG1_MIN = 0.5
-
-
-def autocovariance(r: np.ndarray, max_lag: int) -> np.ndarray:
-    """Biased autocovariance of r (mean removed) at lags 0 … max_lag [units of r²]."""
-    x = r - r.mean()
-    n = x.size
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    spec = np.fft.rfft(x, nfft)
-    return np.fft.irfft(spec.real**2 + spec.imag**2, nfft)[: max_lag + 1] / n
 
 
 def exponential_autocovariance(g: np.ndarray) -> bool:
@@ -122,14 +119,22 @@ def exponential_autocovariance(g: np.ndarray) -> bool:
     Returns
     -------
     bool
-        log γ(1) − 2·log γ(2) + log γ(3) within :data:`EXPONENTIAL_CURVATURE_MAX` of the slope log γ(2) − log γ(1) < 0,
-        and γ(1) ≥ :data:`EXPONENTIAL_LAG1_MIN`·γ(0).
+        |:func:`log_curvature`| ≤ :data:`EXPONENTIAL_CURVATURE_MAX` and γ(1) ≥ :data:`EXPONENTIAL_LAG1_MIN`·γ(0).
     """
-    if np.any(g[1:4] <= 0.0) or g[1] < EXPONENTIAL_LAG1_MIN * g[0]:
+    if g[1] < EXPONENTIAL_LAG1_MIN * g[0]:
         return False
+    return abs(log_curvature(g)) <= EXPONENTIAL_CURVATURE_MAX
+
+
+def log_curvature(g: np.ndarray) -> float:
+    """(log γ(1) − 2·log γ(2) + log γ(3)) / |log γ(2) − log γ(1)| of an autocovariance [-]: 0 where it is exponential
+    at lags 1–3, negative where log γ bends down (a smooth process), positive where it levels off; inf where γ(1 … 3) is not
+    positive and falling."""
+    if np.any(g[1:4] <= 0.0):
+        return math.inf
     lg = np.log(g[1:4])
     slope = lg[1] - lg[0]
-    return bool(slope < 0.0 and abs(lg[0] - 2.0 * lg[1] + lg[2]) <= EXPONENTIAL_CURVATURE_MAX * abs(slope))
+    return float((lg[0] - 2.0 * lg[1] + lg[2]) / abs(slope)) if slope < 0.0 else math.inf
 
 
 def own_whitener(r: np.ndarray, max_order: int = AR_MAX_ORDER) -> np.ndarray:

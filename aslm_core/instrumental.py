@@ -280,11 +280,21 @@ class Liml(Instrumented):
 
     def cost(self, es: list) -> float:
         """½ Σ_c ν_c·ρ_c: LIML's criterion per channel, summed."""
-        return 0.5 * sum(g.nu * g.rho for g in es)
+        return _liml_cost(es)
 
     def normal_equations(self, es: list, js: list) -> tuple[np.ndarray, np.ndarray]:
         """Gradient of :meth:`cost` in D and its Gauss–Newton matrix (k-class, static part concentrated)."""
-        return sum(g.gradient for g in es), sum(g.hessian for g in es)
+        return _liml_normal_equations(es)
+
+
+def _liml_cost(gs: list) -> float:
+    """½ Σ ν·ρ over channels (and windows) of :class:`_Grams`."""
+    return 0.5 * sum(g.nu * g.rho for g in gs)
+
+
+def _liml_normal_equations(gs: list) -> tuple[np.ndarray, np.ndarray]:
+    """Summed gradients and Gauss–Newton matrices of :class:`_Grams`."""
+    return sum(g.gradient for g in gs), sum(g.hessian for g in gs)
 
 
 class _Grams:
@@ -343,13 +353,13 @@ class Stacked(_Weighted):
     def cost(self, es: list) -> float:
         """The windows' criteria summed (2SLS or LIML, as the parts are)."""
         if es and isinstance(es[0], _Grams):
-            return 0.5 * sum(g.nu * g.rho for g in es)
+            return _liml_cost(es)
         return super().cost(es)
 
     def normal_equations(self, es: list, js: list) -> tuple[np.ndarray, np.ndarray]:
         """Gradient and Gauss–Newton matrix of :meth:`cost` (:func:`aslm_core.disturbance.normal_equations`)."""
         if es and isinstance(es[0], _Grams):
-            return sum(g.gradient for g in es), sum(g.hessian for g in es)
+            return _liml_normal_equations(es)
         return disturbance.weighted_normal_equations(self.weights(es), es, js)
 
     def residuals(self, d: np.ndarray):

@@ -25,7 +25,7 @@ Rows: the IV by 2SLS and by LIML (``IdentifyConfig.iv_estimator``), each with ev
 and θ.
 
     .venv/bin/python -m benchmarks.own_iv_noise [--andes] [--shapes switching lowpass] [--n 30] [--coherence 0.7]
-        [--whitening bic myw deconvolved whittle gated] [--tag TAG]
+        [--whitening bic myw deconvolved whittle gated] [--tag TAG] [--shape-statistics]
 
 Results: ``docs/results/own_iv_noise_{synthetic_seed<seed>|andes_own<seed>}_coh<ρ>.json``.
 """
@@ -45,6 +45,8 @@ import numpy as np  # noqa: E402
 
 from aslm_core import IdentifyConfig, WindowError, disturbance, identify  # noqa: E402
 from aslm_core.params import DYNAMIC_NAMES  # noqa: E402
+from aslm_core.preprocess import prepare  # noqa: E402
+from aslm_core.problem import Problem  # noqa: E402
 from benchmarks import common  # noqa: E402
 
 #: The IV alone, as the gated default runs it where own fluctuation dominates.
@@ -198,6 +200,25 @@ def andes_rows(args) -> dict:
     return out
 
 
+def shape_statistics(windows: dict) -> dict:
+    """Per shape (the bench's noise), p10 / median / p90 over the windows of :func:`aslm_core.disturbance.log_curvature`
+    of the P residual at the output-error optimum: what :data:`aslm_core.disturbance.EXPONENTIAL_CURVATURE_MAX` was set
+    from (development windows: synthetic seed 243 and ANDES own seed 1, the first 20 per shape)."""
+    out = {}
+    for (shape, noise), ws in windows.items():
+        if noise not in ("bench's noise", "22 dB"):
+            continue
+        vals = []
+        for w, _ in ws:
+            oe = identify(w, config=replace(IV["2sls"], disturbance="none"))
+            pb = Problem(prepare(w, floors=True), w.f0, IV["2sls"])
+            r = pb.residuals(pb.into_feasible(np.asarray(oe.d)), jacobian=False)[0]
+            vals.append(disturbance.log_curvature(disturbance.autocovariance(r, 3)))
+        out[shape] = np.percentile(vals, [10, 50, 90]).tolist()
+        print(f"{shape}: log-curvature p10 / median / p90 " + " / ".join(f"{v:+.2f}" for v in out[shape]), flush=True)
+    return out
+
+
 def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--andes", action="store_true", help="the ANDES own bench (own seed --own-seed) instead")
@@ -215,8 +236,13 @@ def main(argv=None) -> dict:
     ap.add_argument("--tag", default="", help="name suffix of the JSON")
     ap.add_argument("--myw-order", type=int, default=1, help="order of the modified Yule–Walker whitening")
     ap.add_argument("--myw-equations", type=int, default=4, help="its equations (lags p + 1 … p + m)")
+    ap.add_argument("--shape-statistics", action="store_true",
+                    help="print the P residual's log-curvature per shape (what the own whitening's gate was set from) "
+                         "and identify nothing else")
     args = ap.parse_args(argv)
     windows = andes_rows(args) if args.andes else synthetic_rows(args)
+    if args.shape_statistics:
+        return shape_statistics(windows)
     out = {"machine": common.machine(), "bench": "andes" if args.andes else "synthetic",
            "seed": None if args.andes else args.seed, "own_seed": args.own_seed if args.andes else None,
            "n": args.n, "ratio": args.ratio, "coherence": args.coherence, "myw_order": args.myw_order,

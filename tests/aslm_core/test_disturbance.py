@@ -8,7 +8,7 @@ import pytest
 from scipy import signal
 
 from aslm_core import IdentifyConfig, identify
-from aslm_core.disturbance import ar_whitener, coupling, own_whitener
+from aslm_core.disturbance import ar_whitener, autocovariance, coupling, log_curvature, own_whitener
 from aslm_sim.cases import make_cases
 
 AR = IdentifyConfig(disturbance="ar")
@@ -142,3 +142,20 @@ def test_own_whitener_leaves_smooth_and_white_residuals_to_the_residuals_ar():
         white = rng.standard_normal(900)
         np.testing.assert_array_equal(own_whitener(smooth), ar_whitener(smooth))
         np.testing.assert_array_equal(own_whitener(white), ar_whitener(white))
+
+
+def test_log_curvature_is_near_zero_for_an_exponential_and_negative_for_a_smooth_autocovariance():
+    """The own whitener's gate reads the shape of the autocovariance at lags 1–3: near 0 for an AR(1) (with white
+    noise, which shows at lag 0 only), clearly negative for a 2 Hz low-passed process (log γ bends down).  One window
+    of 900 samples of an AR(1) with a pole at 0.98 scatters widely (−1.0 to +0.3 on these 9, the biased sample
+    autocovariance pulling it down), so the AR(1)'s median is compared with every smooth window."""
+    rng = np.random.default_rng(9)
+    b, a = signal.butter(4, 2.0, fs=100.0)
+    exp, smooth = [], []
+    for _ in range(9):
+        x = signal.lfilter([1.0], [1.0, -0.98], rng.standard_normal(1400))[500:]
+        exp.append(log_curvature(autocovariance(x + rng.standard_normal(x.size), 3)))
+        y = signal.lfilter(b, a, rng.standard_normal(1400))[500:]
+        smooth.append(log_curvature(autocovariance(y / y.std() + 0.1 * rng.standard_normal(y.size), 3)))
+    assert abs(float(np.median(exp))) < 0.3
+    assert max(smooth) < -0.5 and max(smooth) < float(np.median(exp)) - 0.25
