@@ -55,6 +55,9 @@ FLAGS_CONFIRM_SEED = 48
 #: --seed 49``; read with ``benchmarks.input_noise_cover``), fixed before any run on it: a cell of 100 windows decides the
 #: 90–97 % target only to about ±4 points.
 COVER_POOL_SEED = 49
+#: Confirmation seed of the supplement's coverage and σ on a third set (stop 38, 2026-12-02: ``--supplement --n 300
+#: --seed 50``), fixed before any run on it.
+SUPPLEMENT_POOL_SEED = 50
 #: PMU classes: (name, std of the V noise as a fraction of mean V [-], std of the θ noise [rad]).
 INPUT_NOISE = (("none", 0.0, 0.0), ("0.03 % / 3e-4 rad", 3e-4, 3e-4), ("0.1 % / 1e-3 rad", 1e-3, 1e-3))
 #: The smoothers as output error's input conditioning (``input_weighting="none"``, the default until issue 11's
