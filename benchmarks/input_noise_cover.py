@@ -1,0 +1,63 @@
+"""Issue 11's coverage target read from runs of :mod:`benchmarks.input_noise`, with intervals (no identification).
+
+Per cell (reporting rate or disturbance level, PMU class): coverage of ±1.96 SE per parameter with its Wilson 95 %
+interval and the verdict against the 90–97 % target (``met``: the estimate inside; ``open``: outside, its interval
+reaching the target; ``missed``), and σ of D_opt/D_real with its bootstrap interval.  A cell of 100 windows decides
+the target only to about ±4 points; the confirmation seeds 49 (rates) and 50 (supplement) hold 300 per cell.
+
+    .venv/bin/python -m benchmarks.input_noise_cover input_noise_rates_seed49 [input_noise_supplement_seed50 ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from benchmarks import common
+from benchmarks.own_targets import verdict, wilson
+
+TARGET = (0.90, 0.97)
+HEAD = ["run", "cell", "PMU class", "n", "coverage a / b / H2 / Tm [%] [Wilson 95 %]", "verdicts",
+        "σ a / b / H2 / Tm [95 % bootstrap]"]
+
+
+def cells(run: dict) -> list[tuple[str, str, dict]]:
+    """(cell label, PMU class, the default's statistics) of a rates or supplement run."""
+    by = ("rates", " frames/s") if "rates" in run else ("levels", "DL ")
+    out = []
+    for key, classes in run[by[0]].items():
+        label = f"{key}{by[1]}" if by[0] == "rates" else f"DL {key}"
+        for cls, per in classes.items():
+            out.append((label, cls, per["default"]))
+    return out
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("runs", nargs="+", help="JSON names under docs/results")
+    args = ap.parse_args(argv)
+    rows, summary = [], {}
+    for name in args.runs:
+        counts = {"met": 0, "open": 0, "missed": 0}
+        for label, cls, st in cells(common.read_json(name)):
+            n, cov = st["n"] - st.get("failed", 0), st["coverage_95"]
+            fig = {p: (cov[p], *wilson(round(cov[p] * n), n)) for p in common.PARAMS}
+            verdicts = {p: verdict(*fig[p], TARGET) for p in common.PARAMS}
+            if cls != "none":  # the target is under input noise
+                for v in verdicts.values():
+                    counts[v] += 1
+            sig = st["sigma"]
+            iv = st.get("intervals", {}).get("sigma", {})
+            rows.append([name, label, cls, n, " / ".join(f"{100 * v:.0f} [{100 * lo:.0f}, {100 * hi:.0f}]"
+                                                         for v, lo, hi in fig.values()),
+                         " / ".join(verdicts.values()),
+                         " / ".join(f"{sig[p]:.3f}" + (f" [{iv[p][0]:.3f}, {iv[p][1]:.3f}]" if p in iv else "")
+                                    for p in common.PARAMS)])
+        summary[name] = counts
+    print(common.md_table(HEAD, rows))
+    for name, counts in summary.items():
+        print(f"{name}: noisy cells × parameters {counts}")
+    return summary
+
+
+if __name__ == "__main__":
+    main()
