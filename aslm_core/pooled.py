@@ -19,11 +19,12 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from aslm_core import instrumental, optimize, static
+from aslm_core import excitation, instrumental, optimize, static
 from aslm_core.errors import WindowError
 from aslm_core.identify import (
     EQUILIBRIUM_MARGIN,
     IV_OVERID_MAX,
+    OWN_UNMODELLED_RATIO,
     SE_SMOOTH_HZ,
     Problem,
     _transient_skip,
@@ -55,18 +56,24 @@ class PooledResult:
     noise_std : list of list
         Per window, the residual std of P and Q [pu] (the weights' inverse square roots).
     objective : float
-        Weighted sum of squares Σ_i Σ_c ‖r_ic‖²/σ_ic² at the optimum [-] (≈ number of samples); with
-        ``disturbance="ar_iv"`` the summed 2SLS criteria ½·Σ_i Σ_c ‖P_Z·ε_ic‖²/σ_ic² [-].
+        Weighted sum of squares Σ_i Σ_c ‖r_ic‖²/σ_ic² at the optimum [-] (≈ number of samples); where the IV
+        answers (``disturbance`` below) the summed 2SLS criteria ½·Σ_i Σ_c ‖P_Z·ε_ic‖²/σ_ic² [-].
     n_windows : int
     iterations, evaluations : int
         LM iterations and window simulations.
     status : str
         ``converged``, ``max_iter`` or ``stalled``.
     flags : list of str
-        ``at_bound:NAME``, ``equilibrium_constraint_active``; with ``disturbance="ar_iv"``
-        ``iv_instruments_rejected`` (the pool's over-identification statistic over its degrees of freedom above
-        :data:`aslm_core.identify.IV_OVERID_MAX`).
+        ``at_bound:NAME``, ``equilibrium_constraint_active``; where the IV ran ``iv_instruments_rejected`` (the
+        pool's over-identification statistic over its degrees of freedom above
+        :data:`aslm_core.identify.IV_OVERID_MAX`); ``own_fluctuation_unmodelled`` where the gate wanted the IV and
+        the white-noise answer was kept (the IV rejected or failed, or ``shared_static``).
     elapsed_s : float
+    own_ratio_p : float
+        The load's own fluctuation over the ambient part of P at the white-noise optimum, pooled over the windows
+        (:func:`pool_own_ratio`) [-]: what the gate of ``disturbance="gated"`` reads.
+    disturbance : str
+        The estimate returned: ``none`` (white noise per window and channel) or ``ar_iv``.
     """
 
     dynamic: dict[str, float]
@@ -81,6 +88,8 @@ class PooledResult:
     status: str = "converged"
     flags: list[str] = field(default_factory=list)
     elapsed_s: float = 0.0
+    own_ratio_p: float = 0.0
+    disturbance: str = "none"
 
     @property
     def d(self) -> np.ndarray:
@@ -273,9 +282,27 @@ def _static_parts(pool: _Pool, d: np.ndarray) -> list[dict[str, float]]:
     return parts
 
 
+def pool_own_ratio(pool: _Pool, blocks) -> float:
+    """The load's own fluctuation over the ambient part of P, pooled over a pool's windows [-].
+
+    Each window's split of its P channel as the single window's (:func:`aslm_core.excitation.split`): measured
+    variance over the regression samples less the white floor (the ambient part), the projected residual's variance
+    less the floor (the own fluctuation, within [0, ambient]); the pool's ratio is √(Σ own / Σ ambient), the windows
+    weighted by their ambient variance as a pool of one long window would weigh them.
+    """
+    own = amb = 0.0
+    for prob, (rp, _, _, _) in zip(pool.problems, blocks, strict=True):
+        white = excitation.white_variance(prob.prep.noise.get("noise_p", 0.0), 1.0 / prob.prep.dt,
+                                          prob.prep.lowpass_hz)
+        a = max(float(np.var(prob.p_meas)) - white, 1e-300)
+        own += min(max(float(rp @ rp) / rp.size - white, 0.0), a)
+        amb += a
+    return math.sqrt(own / amb)
+
+
 def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[float] | None = None,
                     config: IdentifyConfig | None = None, shared_static: bool = False,
-                    max_iter: int | None = None, xtol: float = 1e-7, disturbance: str = "none") -> PooledResult:
+                    max_iter: int | None = None, xtol: float = 1e-7, disturbance: str = "gated") -> PooledResult:
     """Identify one D = [a, b, H2, Tm] from several windows of the same bus, jointly.
 
     Parameters
@@ -295,12 +322,16 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
         LM iterations per reweighting pass (default ``config.max_iter``).
     xtol : float
         Relative step below which the LM stops.
-    disturbance : {"none", "ar_iv"}
+    disturbance : {"gated", "none", "ar_iv"}
         ``none``: white noise per window and channel (above).  ``ar_iv``: from that optimum, the instrumental-
         variable fit of :mod:`aslm_core.instrumental` with per-window AR models of the load's own fluctuation and
         per-window instruments, one D (the windows' 2SLS criteria summed); standard errors from the summed
         moment conditions with each window's innovation spectrum (``config.stderr_method="ar1"``: white).  Not
-        with ``shared_static``.
+        with ``shared_static``.  ``gated`` (default, as ``identify``'s): the white-noise answer unless the pool's
+        own-fluctuation ratio at it (:func:`pool_own_ratio`) is above
+        :data:`aslm_core.identify.OWN_UNMODELLED_RATIO`, where output error is not consistent (the loop through
+        the network); then the IV's, unless its instruments are rejected or it fails (the white-noise answer,
+        flagged ``own_fluctuation_unmodelled``).
 
     Returns
     -------
@@ -316,8 +347,8 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
     t0 = time.perf_counter()
     if not windows:
         raise ValueError("identify_pooled needs at least one window")
-    if disturbance not in ("none", "ar_iv"):
-        raise ValueError(f"disturbance must be 'none' or 'ar_iv', got {disturbance!r}")
+    if disturbance not in ("gated", "none", "ar_iv"):
+        raise ValueError(f"disturbance must be 'gated', 'none' or 'ar_iv', got {disturbance!r}")
     if disturbance == "ar_iv" and shared_static:
         raise ValueError("disturbance='ar_iv' estimates each window's static part in its instrument space: "
                          "not with shared_static")
@@ -354,19 +385,24 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
     pool.reweight(fit["blocks"])
     cost, _, _ = pool.normal(fit["blocks"])
     cov = _covariance(pool, fit["blocks"])
-    flags = []
-    if disturbance == "ar_iv":
+    own_ratio = pool_own_ratio(pool, fit["blocks"])
+    flags, answered = [], "none"
+    wants_iv = disturbance == "ar_iv" or (disturbance == "gated" and own_ratio > OWN_UNMODELLED_RATIO)
+    if wants_iv and not shared_static:
         iv = instrumental.fit_pooled(pool, pool.problems, d, max_iter=max_iter, xtol=xtol, margin=EQUILIBRIUM_MARGIN,
                                      max_order=config.ar_max_order,
                                      se_smooth_hz=SE_SMOOTH_HZ if config.stderr_method == "spectral" else None,
                                      couple=config.couple_channels, estimator=config.iv_estimator,
                                      whitening=config.iv_whitening)
         evaluations += iv["evaluations"]
-        if math.isfinite(iv["cost"]):
-            d, cost, cov = iv["d"], iv["cost"], iv["cov"]
+        rejected = math.isfinite(iv["cost"]) and iv["overid"] > IV_OVERID_MAX
+        if rejected:
+            flags.append("iv_instruments_rejected")
+        if math.isfinite(iv["cost"]) and (disturbance == "ar_iv" or not rejected):
+            d, cost, cov, answered = iv["d"], iv["cost"], iv["cov"], "ar_iv"
             iterations += iv["iterations"]
-            if iv["overid"] > IV_OVERID_MAX:
-                flags.append("iv_instruments_rejected")
+    if wants_iv and answered == "none":
+        flags.append("own_fluctuation_unmodelled")
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
     flags += [f"at_bound:{n}" for i, n in enumerate(DYNAMIC_NAMES)
               if d[i] <= pool.lower[i] * (1 + 1e-9) or d[i] >= pool.upper[i] * (1 - 1e-9)]
@@ -386,4 +422,6 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
         status=fit["status"],
         flags=flags,
         elapsed_s=time.perf_counter() - t0,
+        own_ratio_p=own_ratio,
+        disturbance=answered,
     )

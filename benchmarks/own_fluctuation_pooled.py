@@ -1,14 +1,15 @@
 """Pooled windows under the load's own fluctuation (issue 20's k = 16 target) on the ANDES bench.
 
 The windows of ``benchmarks.own_fluctuation_andes`` (IEEE 14-bus, Motor3 + ZIP at bus 9, P and Q at 22 dB), at
-own/total 0.9 per shape, but not overlapping: 16 windows of 10 s, one every 10 s from 5 s, per own seed (the own
-process and the P/Q noise; the grid-side run is the same for every seed, so the pools share its excitation).  Per
-pool: ``identify_pooled`` with white noise (``disturbance="none"``) and with ``disturbance="ar_iv"``, and the
-single-window ``ar_iv`` fits of the same windows.  Median and worst |error| over the pools, bias, coverage of
-±1.96 SE, ``iv_instruments_rejected`` count.
+own/total 0.9 per shape (``--ratio``), but not overlapping: 16 windows of 10 s, one every 10 s from 5 s, per own seed
+(the own process and the P/Q noise; the grid-side run is the same for every seed, so the pools share its
+excitation).  Per pool: ``identify_pooled`` with white noise (``disturbance="none"``), with ``disturbance="ar_iv"``
+and with the default ``disturbance="gated"`` (which of the two it returned, and the pool's own ratio it read), and
+the single-window ``ar_iv`` fits of the same windows.  Median and worst |error| over the pools, bias, coverage of
+±1.96 SE, ``iv_instruments_rejected`` count, and for the gated pool how many took the IV.
 
     .venv/bin/python -m benchmarks.own_fluctuation_pooled [--seeds 1 2 3 4 5 6] [--shapes ...] [--k 16]
-        [--coherence 1] [--horizon S] [--iv-estimator 2sls|liml] [--iv-whitening residual|own]
+        [--ratio 0.9] [--coherence 1] [--horizon S] [--iv-estimator 2sls|liml] [--iv-whitening residual|own]
 
 Seeds 1–6 are the development pools; :data:`CONFIRM_SEEDS` were fixed before any run on them.  Results in
 ``docs/results/own_fluctuation_pooled[_confirm].json``.
@@ -39,21 +40,28 @@ DEV_SEEDS = (1, 2, 3, 4, 5, 6)
 #: the same with the defaults.
 CONFIRM_SEEDS = tuple(range(11, 21))
 CONFIRM_SEEDS_37 = tuple(range(21, 31))
+#: 31–40: the gated pool (stop 38, the service's tracked model), fixed before any run on them, ``--seeds 31 … 40
+#: --horizon 0 --tag gated`` at ``--ratio`` 0.9, 0.5 and 0 (and ``--coherence 0.7`` at 0.9).
+CONFIRM_SEEDS_38 = tuple(range(31, 41))
 #: The single-window IV (since stop 34 coupled, as the pooled one: ``couple_channels`` is the default).
 IV = IdentifyConfig(disturbance="ar_iv")
+#: The pooled fits per row name: ``identify_pooled``'s ``disturbance`` (``gated``: its default since stop 38).
+POOLED = {"pooled, white": "none", "pooled ar_iv": "ar_iv", "pooled, gated": "gated"}
 
 
-def pool_windows(grid: dict, own: dict, k: int, seed: int, shape: str, horizon_s: float | None = None) -> list[Window]:
-    """k non-overlapping windows at own/total :data:`RATIO` (``horizon_s``: :func:`aslm_sim.andes.own_fluctuation.cut_windows`)."""
-    ws = andes_own.cut_windows(grid, own, RATIO, length_s=LENGTH_S, start_s=START_S, stride_s=LENGTH_S, n=k,
+def pool_windows(grid: dict, own: dict, k: int, seed: int, shape: str, horizon_s: float | None = None,
+                 ratio: float = RATIO) -> list[Window]:
+    """k non-overlapping windows at own/total ``ratio`` (``horizon_s``: :func:`aslm_sim.andes.own_fluctuation.cut_windows`)."""
+    ws = andes_own.cut_windows(grid, own, ratio, length_s=LENGTH_S, start_s=START_S, stride_s=LENGTH_S, n=k,
                                snr_db=SNR_DB, rng=np.random.default_rng([seed, 2, SHAPES.index(shape), 16]),
                                horizon_s=horizon_s)
     return [Window(w["t"], w["V"], w["theta"], w["P"], w["Q"], f0=F0, bus="andes-ieee14-bus9") for w in ws]
 
 
 def one_pool(windows: list[Window], truth: np.ndarray, iv_estimator: str = "2sls", iv_whitening: str = "residual") -> dict:
-    """Pooled white, pooled ``ar_iv`` and the single-window ``ar_iv`` fits: relative errors and SEs, flags, time
-    (``iv_estimator``, ``iv_whitening``: the IV's criterion and AR models in both, as ``IdentifyConfig``'s)."""
+    """Pooled white, pooled ``ar_iv``, pooled gated and the single-window ``ar_iv`` fits: relative errors and SEs,
+    flags, time, and the gated pool's answer and own ratio (``iv_estimator``, ``iv_whitening``: the IV's criterion
+    and AR models in all, as ``IdentifyConfig``'s)."""
     out = {}
     iv = replace(IV, iv_estimator=iv_estimator, iv_whitening=iv_whitening)
     t0 = time.perf_counter()
@@ -66,13 +74,14 @@ def one_pool(windows: list[Window], truth: np.ndarray, iv_estimator: str = "2sls
     out["single ar_iv"] = {"errors": [(r.d / truth - 1).tolist() for r in single],
                            "stderr": [[r.stderr[p] / t for p, t in zip(common.PARAMS, truth, strict=True)] for r in single],
                            "seconds": time.perf_counter() - t0}
-    for name, dist in (("pooled, white", "none"), ("pooled ar_iv", "ar_iv")):
+    for name, dist in POOLED.items():
         t0 = time.perf_counter()
         r = identify_pooled(windows, disturbance=dist,
                             config=IdentifyConfig(iv_estimator=iv_estimator, iv_whitening=iv_whitening))
         out[name] = {"errors": (r.d / truth - 1).tolist(),
                      "stderr": [r.stderr[p] / t for p, t in zip(common.PARAMS, truth, strict=True)],
-                     "flags": r.flags, "seconds": time.perf_counter() - t0}
+                     "flags": r.flags, "seconds": time.perf_counter() - t0,
+                     "disturbance": r.disturbance, "own_ratio_p": r.own_ratio_p}
     return out
 
 
@@ -86,6 +95,8 @@ def summary(pools: list[dict], name: str) -> list:
         e = np.array([p[name]["errors"] for p in pools])
         s = np.array([p[name]["stderr"] for p in pools])
         flagged = str(sum("iv_instruments_rejected" in p[name]["flags"] for p in pools))
+        if name == "pooled, gated":
+            flagged += f"; IV {sum(p[name]['disturbance'] == 'ar_iv' for p in pools)} of {len(pools)}"
     return [" / ".join(f"{100 * v:.1f}" for v in np.median(np.abs(e), axis=0)), f"{100 * np.abs(e).max():.0f}",
             " / ".join(f"{100 * v:+.1f}" for v in e.mean(axis=0)),
             " / ".join(f"{100 * v:.0f}" for v in np.mean(np.abs(e) <= 1.96 * s, axis=0)), flagged, str(len(e))]
@@ -96,6 +107,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--seeds", nargs="+", type=int, default=list(DEV_SEEDS))
     ap.add_argument("--shapes", nargs="+", default=list(SHAPES), choices=SHAPES)
     ap.add_argument("--k", type=int, default=16, help="windows per pool")
+    ap.add_argument("--ratio", type=float, default=RATIO, help="own/total of the windows (0: grid-excited only)")
     ap.add_argument("--tag", default="", help="name suffix of the JSON")
     ap.add_argument("--coherence", type=float, default=1.0,
                     help="correlation of the own ΔQ with the own ΔP (1: ΔQ = 0.33·ΔP, the bench as it was)")
@@ -110,7 +122,7 @@ def main(argv=None) -> dict:
     t_all = time.perf_counter()
     grid = andes_own.grid_recording(tf=TF, tstep=TSTEP, seed=SEED, fs=FS)
     truth = np.asarray(grid["truth"], dtype=float)
-    out = {"machine": common.machine(), "ratio": RATIO, "k": args.k, "seeds": args.seeds, "truth": truth.tolist(),
+    out = {"machine": common.machine(), "ratio": args.ratio, "k": args.k, "seeds": args.seeds, "truth": truth.tolist(),
            "coherence": args.coherence, "horizon_s": args.horizon, "iv_estimator": args.iv_estimator,
            "iv_whitening": args.iv_whitening, "runs": []}
     table = []
@@ -118,16 +130,18 @@ def main(argv=None) -> dict:
         pools = []
         for seed in args.seeds:
             own = andes_own.own_recording(shape, tf=TF, tstep=TSTEP, seed=seed, coherence=args.coherence)
-            pools.append(one_pool(pool_windows(grid, own, args.k, seed, shape, args.horizon), truth, args.iv_estimator, args.iv_whitening))
+            pools.append(one_pool(pool_windows(grid, own, args.k, seed, shape, args.horizon, args.ratio), truth,
+                                  args.iv_estimator, args.iv_whitening))
             print(f"{shape} seed {seed}: done ({time.perf_counter() - t_all:.0f} s)", flush=True)
         out["runs"].append({"shape": shape, "pools": pools})
-        table.extend([[shape, name, *summary(pools, name)] for name in ("single ar_iv", "pooled, white", "pooled ar_iv")])
+        table.extend([[shape, name, *summary(pools, name)] for name in ("single ar_iv", *POOLED)])
     out["total_s"] = time.perf_counter() - t_all
-    print(common.md_table(["shape (0.9)", "estimator", "median |err| a / b / H2 / Tm [%]", "worst [%]",
+    print(common.md_table([f"shape ({args.ratio:g})", "estimator", "median |err| a / b / H2 / Tm [%]", "worst [%]",
                            "bias μ−1 [%]", "±1.96 SE cover [%]", "iv_instruments_rejected", "fits"], table))
     if not args.no_write:
-        confirm = set(args.seeds) <= set(CONFIRM_SEEDS) | set(CONFIRM_SEEDS_37)
-        common.write_json("own_fluctuation_pooled" + (f"_{args.tag}" if args.tag else "") + ("_confirm" if confirm else "")
+        confirm = set(args.seeds) <= set(CONFIRM_SEEDS) | set(CONFIRM_SEEDS_37) | set(CONFIRM_SEEDS_38)
+        common.write_json("own_fluctuation_pooled" + (f"_{args.tag}" if args.tag else "")
+                          + ("" if args.ratio == RATIO else f"_ratio{args.ratio:g}") + ("_confirm" if confirm else "")
                           + ("_quick" if args.quick else ""), out)
     return out
 

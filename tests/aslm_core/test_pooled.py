@@ -119,3 +119,45 @@ def test_pooled_iv_options_reach_the_pooled_fit_and_stay_within_the_errors(own_b
     assert seen == [(config.iv_estimator, config.iv_whitening)]
     se = np.array([four.stderr[k] for k in PARAMS])
     assert np.all(np.abs(four.d - d_true) < 4 * se)
+
+
+@pytest.fixture(scope="module")
+def own_dominated_bus():
+    """Four windows of one bus whose own constant-power part dominates P's ambient variation (own ratio ~0.8)."""
+    rng = np.random.default_rng([78, 0])
+    truth = random_truth(rng)
+    net = draw_network(rng, truth, 50.0)
+    cases = make_cases(4, level=2, seed=7800, input_noise=False, truths=[truth] * 4, networks=[net] * 4,
+                       own_sigma=0.008)
+    return [c.window for c in cases], truth.d
+
+
+def test_the_gated_pool_takes_the_iv_where_the_own_fluctuation_dominates(own_dominated_bus):
+    """The default pool reads the own ratio at the white-noise optimum and, above the single window's gate, returns
+    the pooled IV's answer: within 3 SE of the truth, where the white-noise pool is off by more than 10 % in a."""
+    windows, d_true = own_dominated_bus
+    white = identify_pooled(windows, disturbance="none")
+    iv = identify_pooled(windows, disturbance="ar_iv")
+    gated = identify_pooled(windows)
+    assert gated.disturbance == "ar_iv" and white.disturbance == "none"
+    assert gated.own_ratio_p > 0.6 and gated.own_ratio_p == white.own_ratio_p
+    np.testing.assert_array_equal(gated.d, iv.d)
+    se = np.array([gated.stderr[k] for k in PARAMS])
+    assert np.all(np.abs(gated.d - d_true) < 3 * se)
+    assert abs(white.d[0] / d_true[0] - 1.0) > 0.1
+
+
+def test_the_gated_pool_keeps_the_white_answer_without_own_fluctuation(buses):
+    windows, _ = buses[2]
+    white = identify_pooled(windows[:4], disturbance="none")
+    gated = identify_pooled(windows[:4])
+    assert gated.disturbance == "none" and gated.own_ratio_p < 0.1 and gated.flags == white.flags
+    np.testing.assert_array_equal(gated.d, white.d)
+    assert gated.stderr == white.stderr
+
+
+def test_the_gated_pool_with_one_static_part_flags_the_own_fluctuation_it_cannot_model(own_dominated_bus):
+    """The IV keeps a static part per window, so a shared one leaves the white-noise answer, flagged."""
+    windows, _ = own_dominated_bus
+    shared = identify_pooled(windows[:2], shared_static=True)
+    assert shared.disturbance == "none" and "own_fluctuation_unmodelled" in shared.flags
