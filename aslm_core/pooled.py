@@ -302,7 +302,8 @@ def pool_own_ratio(pool: _Pool, blocks) -> float:
 
 def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[float] | None = None,
                     config: IdentifyConfig | None = None, shared_static: bool = False,
-                    max_iter: int | None = None, xtol: float = 1e-7, disturbance: str = "gated") -> PooledResult:
+                    max_iter: int | None = None, xtol: float = 1e-7, disturbance: str = "gated",
+                    iv_estimator: str = "liml", iv_whitening: str = "own") -> PooledResult:
     """Identify one D = [a, b, H2, Tm] from several windows of the same bus, jointly.
 
     Parameters
@@ -313,9 +314,9 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
         First iterate (e.g. the previous pooled D); default: the component-wise median of the windows'
         own identifications (:func:`aslm_core.identify`, which also costs one fit per window).
     config : IdentifyConfig, optional
-        Integrator, static model, skip, preprocessing of every window (``objective`` and ``disturbance``
-        do not apply: the pool weights each window and channel by its inverse noise variance; the disturbance
-        model is the ``disturbance`` argument).
+        Integrator, static model, skip, preprocessing of every window (``objective``, ``disturbance``,
+        ``iv_estimator`` and ``iv_whitening`` do not apply: the pool weights each window and channel by its inverse
+        noise variance; the disturbance model and the IV's options are the arguments below).
     shared_static : bool
         One static part for all windows instead of one per window.
     max_iter : int, optional
@@ -332,6 +333,12 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
         :data:`aslm_core.identify.OWN_UNMODELLED_RATIO`, where output error is not consistent (the loop through
         the network); then the IV's, unless its instruments are rejected or it fails (the white-noise answer,
         flagged ``own_fluctuation_unmodelled``).
+    iv_estimator, iv_whitening : str
+        The pooled IV's criterion and AR models (as :class:`IdentifyConfig`'s fields of the same names).  Default
+        LIML with the own fluctuation's AR models, not the single window's 2SLS with the residual's: they take the
+        P/Q noise's bias off the IV below full P–Q coherence at the cost of a larger spread per window, which a
+        pool averages down and a single window does not (docs/numerics.md, "Stop 37" and "Stop 38: the pool's
+        IV options").
 
     Returns
     -------
@@ -392,8 +399,8 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
         iv = instrumental.fit_pooled(pool, pool.problems, d, max_iter=max_iter, xtol=xtol, margin=EQUILIBRIUM_MARGIN,
                                      max_order=config.ar_max_order,
                                      se_smooth_hz=SE_SMOOTH_HZ if config.stderr_method == "spectral" else None,
-                                     couple=config.couple_channels, estimator=config.iv_estimator,
-                                     whitening=config.iv_whitening)
+                                     couple=config.couple_channels, estimator=iv_estimator,
+                                     whitening=iv_whitening)
         evaluations += iv["evaluations"]
         rejected = math.isfinite(iv["cost"]) and iv["overid"] > IV_OVERID_MAX
         if rejected:

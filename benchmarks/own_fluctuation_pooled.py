@@ -43,6 +43,11 @@ CONFIRM_SEEDS_37 = tuple(range(21, 31))
 #: 31–40: the gated pool (stop 38, the service's tracked model), fixed before any run on them, ``--seeds 31 … 40
 #: --horizon 0 --tag gated`` at ``--ratio`` 0.9, 0.5 and 0 (and ``--coherence 0.7`` at 0.9).
 CONFIRM_SEEDS_38 = tuple(range(31, 41))
+#: 41–50: the pooled IV's options (stop 38: LIML with the own fluctuation's AR models as identify_pooled's default
+#: against 2SLS with the residual's), fixed before any run on them, ``--seeds 41 … 50 --horizon 0`` with
+#: ``--iv-estimator liml --iv-whitening own --tag iv_liml_own`` and ``--iv-estimator 2sls --iv-whitening residual
+#: --tag iv_2sls``, at ``--coherence`` 1 and 0.7 (own/total 0.9; tags with ``_coh0.7``) and ``--ratio 0.5``.
+CONFIRM_SEEDS_38_IV = tuple(range(41, 51))
 #: The single-window IV (since stop 34 coupled, as the pooled one: ``couple_channels`` is the default).
 IV = IdentifyConfig(disturbance="ar_iv")
 #: The pooled fits per row name: ``identify_pooled``'s ``disturbance`` (``gated``: its default since stop 38).
@@ -76,8 +81,7 @@ def one_pool(windows: list[Window], truth: np.ndarray, iv_estimator: str = "2sls
                            "seconds": time.perf_counter() - t0}
     for name, dist in POOLED.items():
         t0 = time.perf_counter()
-        r = identify_pooled(windows, disturbance=dist,
-                            config=IdentifyConfig(iv_estimator=iv_estimator, iv_whitening=iv_whitening))
+        r = identify_pooled(windows, disturbance=dist, iv_estimator=iv_estimator, iv_whitening=iv_whitening)
         out[name] = {"errors": (r.d / truth - 1).tolist(),
                      "stderr": [r.stderr[p] / t for p, t in zip(common.PARAMS, truth, strict=True)],
                      "flags": r.flags, "seconds": time.perf_counter() - t0,
@@ -115,9 +119,11 @@ def main(argv=None) -> dict:
                     help="superpose only the own run's last HORIZON s before each window and the window itself "
                          "(default: the whole own run from t = 0, the bench as it was)")
     ap.add_argument("--iv-estimator", choices=["2sls", "liml"], default="2sls",
-                    help="the IV criterion of the single-window and pooled ar_iv fits (default 2sls, the bench as it was)")
+                    help="the IV criterion of the single-window and pooled ar_iv fits (default 2sls, the bench as it was; "
+                         "identify_pooled's own default since stop 38: liml)")
     ap.add_argument("--iv-whitening", choices=["residual", "own"], default="residual",
-                    help="the AR models of the ar_iv fits (default residual, the bench as it was)")
+                    help="the AR models of the ar_iv fits (default residual, the bench as it was; identify_pooled's own "
+                         "default since stop 38: own)")
     args = ap.parse_args(argv)
     t_all = time.perf_counter()
     grid = andes_own.grid_recording(tf=TF, tstep=TSTEP, seed=SEED, fs=FS)
@@ -139,7 +145,7 @@ def main(argv=None) -> dict:
     print(common.md_table([f"shape ({args.ratio:g})", "estimator", "median |err| a / b / H2 / Tm [%]", "worst [%]",
                            "bias μ−1 [%]", "±1.96 SE cover [%]", "iv_instruments_rejected", "fits"], table))
     if not args.no_write:
-        confirm = set(args.seeds) <= set(CONFIRM_SEEDS) | set(CONFIRM_SEEDS_37) | set(CONFIRM_SEEDS_38)
+        confirm = set(args.seeds) <= {*CONFIRM_SEEDS, *CONFIRM_SEEDS_37, *CONFIRM_SEEDS_38, *CONFIRM_SEEDS_38_IV}
         common.write_json("own_fluctuation_pooled" + (f"_{args.tag}" if args.tag else "")
                           + ("" if args.ratio == RATIO else f"_ratio{args.ratio:g}") + ("_confirm" if confirm else "")
                           + ("_quick" if args.quick else ""), out)

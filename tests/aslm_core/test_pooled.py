@@ -82,11 +82,11 @@ def test_pooled_iv_is_the_window_fit_for_one_window_and_shrinks_its_errors_with_
     windows, d_true = own_bus
     iv = IdentifyConfig(disturbance="ar_iv")
     alone = identify(windows[0], config=iv)
-    one = identify_pooled(windows[:1], disturbance="ar_iv")
+    one = identify_pooled(windows[:1], disturbance="ar_iv", iv_estimator="2sls", iv_whitening="residual")
     # The same estimator (the pool starts at the window's output-error optimum, as identify does).
     assert one.d == pytest.approx(alone.d, rel=0.03)
     assert [one.stderr[k] for k in PARAMS] == pytest.approx([alone.stderr[k] for k in PARAMS], rel=0.3)
-    four = identify_pooled(windows, disturbance="ar_iv", start=one.d)
+    four = identify_pooled(windows, disturbance="ar_iv", start=one.d, iv_estimator="2sls", iv_whitening="residual")
     se = np.array([four.stderr[k] for k in PARAMS])
     assert np.all(se < 0.8 * np.array([one.stderr[k] for k in PARAMS]))
     assert np.all(np.abs(four.d - d_true) < 4 * se)
@@ -99,10 +99,10 @@ def test_pooled_iv_takes_no_shared_static_part(own_bus):
         identify_pooled(own_bus[0][:2], disturbance="ar")
 
 
-@pytest.mark.parametrize("options", [{"iv_estimator": "liml"}, {"iv_whitening": "own"}])
+@pytest.mark.parametrize("options", [{"iv_estimator": "2sls"}, {"iv_whitening": "residual"}, {}])
 def test_pooled_iv_options_reach_the_pooled_fit_and_stay_within_the_errors(own_bus, options, monkeypatch):
-    """The IV's options (LIML; the own fluctuation's AR models alone) reach the pooled fit, and the four windows'
-    pool with them is within 4 SE of the truth."""
+    """The pool's IV options (default LIML with the own fluctuation's AR models; 2SLS, the residual's AR models)
+    reach the pooled fit, and the four windows' pool with them is within 4 SE of the truth."""
     from aslm_core import instrumental
 
     seen = []
@@ -114,9 +114,8 @@ def test_pooled_iv_options_reach_the_pooled_fit_and_stay_within_the_errors(own_b
 
     monkeypatch.setattr(instrumental, "fit_pooled", spy)
     windows, d_true = own_bus
-    config = IdentifyConfig(**options)
-    four = identify_pooled(windows, disturbance="ar_iv", config=config)
-    assert seen == [(config.iv_estimator, config.iv_whitening)]
+    four = identify_pooled(windows, disturbance="ar_iv", **options)
+    assert seen == [(options.get("iv_estimator", "liml"), options.get("iv_whitening", "own"))]
     se = np.array([four.stderr[k] for k in PARAMS])
     assert np.all(np.abs(four.d - d_true) < 4 * se)
 
