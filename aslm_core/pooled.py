@@ -16,6 +16,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field, replace
+from typing import get_args
 
 import numpy as np
 
@@ -32,7 +33,7 @@ from aslm_core.identify import (
 )
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import prepare
-from aslm_core.result import IdentifyConfig
+from aslm_core.result import IdentifyConfig, IvEstimator, IvWhitening
 from aslm_core.window import Window
 
 # Reweighting passes: noise variances at the start, then at the optimum of the previous pass.
@@ -57,7 +58,7 @@ class PooledResult:
         Per window, the residual std of P and Q [pu] (the weights' inverse square roots).
     objective : float
         Weighted sum of squares Σ_i Σ_c ‖r_ic‖²/σ_ic² at the optimum [-] (≈ number of samples); where the IV
-        answers (``disturbance`` below) the summed 2SLS criteria ½·Σ_i Σ_c ‖P_Z·ε_ic‖²/σ_ic² [-].
+        answers (``disturbance`` below) the windows' IV criteria summed (2SLS: ½·Σ_i Σ_c ‖P_Z·ε_ic‖²/σ_ic²) [-].
     n_windows : int
     iterations, evaluations : int
         LM iterations and window simulations.
@@ -303,7 +304,7 @@ def pool_own_ratio(pool: _Pool, blocks) -> float:
 def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[float] | None = None,
                     config: IdentifyConfig | None = None, shared_static: bool = False,
                     max_iter: int | None = None, xtol: float = 1e-7, disturbance: str = "gated",
-                    iv_estimator: str = "liml", iv_whitening: str = "own") -> PooledResult:
+                    iv_estimator: IvEstimator = "liml", iv_whitening: IvWhitening = "own") -> PooledResult:
     """Identify one D = [a, b, H2, Tm] from several windows of the same bus, jointly.
 
     Parameters
@@ -326,7 +327,7 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
     disturbance : {"gated", "none", "ar_iv"}
         ``none``: white noise per window and channel (above).  ``ar_iv``: from that optimum, the instrumental-
         variable fit of :mod:`aslm_core.instrumental` with per-window AR models of the load's own fluctuation and
-        per-window instruments, one D (the windows' 2SLS criteria summed); standard errors from the summed
+        per-window instruments, one D (the windows' IV criteria summed); standard errors from the summed
         moment conditions with each window's innovation spectrum (``config.stderr_method="ar1"``: white).  Not
         with ``shared_static``.  ``gated`` (default, as ``identify``'s): the white-noise answer unless the pool's
         own-fluctuation ratio at it (:func:`pool_own_ratio`) is above
@@ -356,6 +357,9 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
         raise ValueError("identify_pooled needs at least one window")
     if disturbance not in ("gated", "none", "ar_iv"):
         raise ValueError(f"disturbance must be 'gated', 'none' or 'ar_iv', got {disturbance!r}")
+    if iv_estimator not in get_args(IvEstimator) or iv_whitening not in get_args(IvWhitening):
+        raise ValueError(f"iv_estimator must be one of {get_args(IvEstimator)} and iv_whitening one of "
+                         f"{get_args(IvWhitening)}, got {iv_estimator!r}, {iv_whitening!r}")
     if disturbance == "ar_iv" and shared_static:
         raise ValueError("disturbance='ar_iv' estimates each window's static part in its instrument space: "
                          "not with shared_static")

@@ -97,6 +97,8 @@ def test_pooled_iv_takes_no_shared_static_part(own_bus):
         identify_pooled(own_bus[0][:2], disturbance="ar_iv", shared_static=True)
     with pytest.raises(ValueError):
         identify_pooled(own_bus[0][:2], disturbance="ar")
+    with pytest.raises(ValueError, match="iv_estimator"):
+        identify_pooled(own_bus[0][:2], iv_estimator="gmm")
 
 
 @pytest.mark.parametrize("options", [{"iv_estimator": "2sls"}, {"iv_whitening": "residual"}, {}])
