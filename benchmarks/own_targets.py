@@ -30,9 +30,10 @@ from benchmarks.own_cover import path_of
 from benchmarks.own_gate import WARNING_FLAGS
 
 #: The runs of record pooled per set: (JSON name under docs/results, candidate name holding the default).  Every seed
-#: was fixed before its first run (benchmarks.own_fluctuation_andes.CONFIRM_OWN_SEEDS; own_fluctuation_bound's
-#: CONFIRM_SEED, LIML_CONFIRM_SEED, WHITEN_CONFIRM_SEED, BOTH_CONFIRM_SEED).  ANDES own seeds 11–31 are left out: run
-#: before the bench superposed each window's own run from the window's start (``--horizon 0``, stop 36).
+#: was fixed before its first run (benchmarks.own_fluctuation_andes.CONFIRM_OWN_SEEDS; for the synthetic bench
+#: own_fluctuation.CONFIRM_SEEDS' 247, own_fluctuation_bound's LIML_CONFIRM_SEED and BOTH_CONFIRM_SEED, own_iv_noise's
+#: CONFIRM_SEED 253).  ANDES own seeds 11–31 are left out: run before the bench superposed each window's own run from the
+#: window's start (``--horizon 0``, stop 36).
 SETS = {
     "andes": [("own_fluctuation_andes_horizon0_own41", "default, coupled channels"),
               ("own_fluctuation_andes_liml_own51", "default, coupled channels"),
@@ -42,14 +43,10 @@ SETS = {
                   ("own_fluctuation_bound_liml_seed251", "default"),
                   ("own_fluctuation_bound_whiten_seed253", "default"),
                   ("own_fluctuation_bound_liml_own_seed257", "default")],
-    "andes_coh0.7": [("own_fluctuation_andes_horizon0_own41_coh0.7", "default, coupled channels"),
-                     ("own_fluctuation_andes_liml_own51_coh0.7", "default, coupled channels"),
-                     ("own_fluctuation_andes_whiten_own61_coh0.7", "default, coupled channels"),
-                     ("own_fluctuation_andes_liml_own_own71_coh0.7", "default, coupled channels")],
-    "synthetic_coh0.7": [("own_fluctuation_bound_liml_seed251_coh0.7", "default"),
-                         ("own_fluctuation_bound_whiten_seed253_coh0.7", "default"),
-                         ("own_fluctuation_bound_liml_own_seed257_coh0.7", "default")],
 }
+#: The same runs below full P–Q coherence (ρ = 0.7; seed 247's bound bench ran at ρ = 1 only).
+SETS["andes_coh0.7"] = [(name + "_coh0.7", cand) for name, cand in SETS["andes"]]
+SETS["synthetic_coh0.7"] = [(name + "_coh0.7", cand) for name, cand in SETS["synthetic"][1:]]
 #: Issue 20's targets per own/total ratio: (statistic, bound) with bound an upper limit or a (low, high) range.
 TARGETS = {
     0.5: (("median_abs_err", 0.03), ("worst_abs_err", 0.15), ("abs_bias", 0.01)),

@@ -67,15 +67,20 @@ def test_no_window_is_an_error():
         identify_pooled([])
 
 
-@pytest.fixture(scope="module")
-def own_bus():
-    """Four windows of one bus whose load's own constant-power part fluctuates (2 Hz low-passed, ~0.6 of P's std)."""
+def _own_bus(own_sigma: float) -> tuple[list, np.ndarray]:
+    """Four windows of one bus whose load's own constant-power part fluctuates (2 Hz low-passed, std ``own_sigma``)."""
     rng = np.random.default_rng([78, 0])
     truth = random_truth(rng)
     net = draw_network(rng, truth, 50.0)
     cases = make_cases(4, level=2, seed=7800, input_noise=False, truths=[truth] * 4, networks=[net] * 4,
-                       own_sigma=0.0015)
+                       own_sigma=own_sigma)
     return [c.window for c in cases], truth.d
+
+
+@pytest.fixture(scope="module")
+def own_bus():
+    """The own fluctuation ~0.6 of P's std (own ratio ~0.24 at the white pool)."""
+    return _own_bus(0.0015)
 
 
 def test_pooled_iv_is_the_window_fit_for_one_window_and_shrinks_its_errors_with_more(own_bus):
@@ -124,13 +129,8 @@ def test_pooled_iv_options_reach_the_pooled_fit_and_stay_within_the_errors(own_b
 
 @pytest.fixture(scope="module")
 def own_dominated_bus():
-    """Four windows of one bus whose own constant-power part dominates P's ambient variation (own ratio ~0.8)."""
-    rng = np.random.default_rng([78, 0])
-    truth = random_truth(rng)
-    net = draw_network(rng, truth, 50.0)
-    cases = make_cases(4, level=2, seed=7800, input_noise=False, truths=[truth] * 4, networks=[net] * 4,
-                       own_sigma=0.008)
-    return [c.window for c in cases], truth.d
+    """The own fluctuation dominating P's ambient variation (own ratio ~0.8)."""
+    return _own_bus(0.008)
 
 
 def test_the_gated_pool_takes_the_iv_where_the_own_fluctuation_dominates(own_dominated_bus):
