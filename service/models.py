@@ -295,6 +295,10 @@ class TrackedModel(TrackedSummary):
         "mean", description="How dynamic and stderr were pooled: joint (one fit of D to the pool's windows, "
         "track_joint_fit; n_windows: the windows fitted, a winsorised outlier left out) or mean (the "
         "information-weighted mean of the windows' estimates, until the joint fit of this pool arrives)")
+    disturbance: Literal["none", "ar_iv"] | None = Field(
+        None, description="With estimator joint: the pool's disturbance model, none (white noise per window) or "
+        "ar_iv (the load's own fluctuation dominates P: the pooled instrumental-variable fit, docs/tracking.md); "
+        "null with the mean")
 
 
 class ChangeEvidence(BaseModel):

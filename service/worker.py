@@ -88,7 +88,8 @@ def pooled_window(task: WindowTask) -> dict:
     -------
     dict
         ``dynamic``, ``stderr`` (as D's), ``cov`` (4×4 in the order a, b, H2, Tm), ``n_windows``,
-        ``iterations``, ``status``, ``flags``, ``objective``.
+        ``iterations``, ``status``, ``flags``, ``objective``, ``disturbance`` (``none`` or ``ar_iv``: which of the
+        gated pool's estimates answered) and ``own_ratio_p`` (what the gate read).
     """
     from aslm_core import IdentifyConfig
     from aslm_core.pooled import identify_pooled
@@ -96,7 +97,8 @@ def pooled_window(task: WindowTask) -> dict:
     fit = identify_pooled([w.window() for w in task.pool or []], start=task.warm_start,
                           config=IdentifyConfig(**task.options))
     return {"dynamic": fit.dynamic, "stderr": fit.stderr, "cov": fit.cov, "n_windows": fit.n_windows,
-            "iterations": fit.iterations, "status": fit.status, "flags": fit.flags, "objective": fit.objective}
+            "iterations": fit.iterations, "status": fit.status, "flags": fit.flags, "objective": fit.objective,
+            "disturbance": fit.disturbance, "own_ratio_p": fit.own_ratio_p}
 
 
 _FN_CACHE: dict[str, Callable[[WindowTask], dict]] = {}

@@ -132,7 +132,8 @@ class TrackingSink:
             stderr={k: None if v is None else _finite_or_none(v) for k, v in pooled["stderr"].items()},
             n_windows=pooled["n_windows"], static=static, static_local=static_local,
             pool_windows=tr.config.pool_windows, threshold=tr.config.threshold,
-            estimator="mean" if joint is None else "joint").model_dump_json()
+            estimator="mean" if joint is None else "joint",
+            disturbance=None if joint is None else joint.get("disturbance")).model_dump_json()
 
     def _joint_arrived(self, bus: str) -> None:
         """A joint fit of the bus's current pool arrived (executor thread): store and publish the model."""

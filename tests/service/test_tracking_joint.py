@@ -116,6 +116,7 @@ def test_the_ring_holds_the_pool_and_stays_bounded_and_a_change_empties_it(tmp_p
         _period(sink, T * i)
     assert storage.changes("b1") and list(joint.buses["b1"].ring.windows) == [T * 60, T * 61]
     assert json.loads(storage.tracked("b1"))["estimator"] == "mean"  # no fit has run
+    assert json.loads(storage.tracked("b1"))["disturbance"] is None
     storage.close()
 
 
@@ -206,6 +207,7 @@ def test_the_joint_fit_replaces_the_mean_and_equals_identify_pooled(tmp_path, wi
     model = lambda: TrackedModel.model_validate_json(storage.tracked("bus-j"))  # noqa: E731
     _wait(lambda: model().estimator == "joint" and model().n_windows == 4)
     got = model()
+    assert got.disturbance == "none"  # grid-excited: the white-noise pool
     assert puts[-1][1] == json.loads(got.model_dump_json())  # published as stored
     ring = joint.buses["bus-j"].ring
     ref = identify_pooled([w.window() for w in ring.get(sorted(ring.windows))], start=fits[-1].d)
@@ -245,6 +247,7 @@ def test_the_tracked_model_of_an_own_dominated_bus_is_the_pooled_iv(tmp_path, po
     model = lambda: TrackedModel.model_validate_json(storage.tracked("bus-o"))  # noqa: E731
     _wait(lambda: model().estimator == "joint" and model().n_windows == 4)
     got = model()
+    assert got.disturbance == "ar_iv"
     ring = joint.buses["bus-o"].ring
     pooled = [w.window() for w in ring.get(sorted(ring.windows))]
     iv = identify_pooled(pooled, start=fits[-1].d, disturbance="ar_iv")
