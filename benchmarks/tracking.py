@@ -9,7 +9,9 @@ service does (3 random starts plus the previous window's D as warm start); the t
 
 1. ``pooled``: σ of D/D_true over buses at 14 dB for the joint pooled fit
    (:func:`aslm_core.pooled.identify_pooled`) on k = 1, 4, 16 windows, and for the information-weighted
-   mean of the k per-window estimates (what the service's tracked model is), against σ_1/√k × 1.2.
+   mean of the k per-window estimates (what the service's tracked model is), against σ_1/√k × 1.2.  With
+   ``--input-noise V_REL THETA_RAD`` the windows carry white PMU noise on V and θ, and the fit's and the mean's bias
+   and coverage of ±1.96 SE are kept too (``calibration``).
 2. ``step``: 16 stationary windows, then the step; the share of buses whose change is confirmed within 2
    periods of it (22 dB).
 3. ``false_alarms``: stationary sequences at T = 15 min (22 dB and 14 dB); alarms per bus and week.
@@ -61,6 +63,7 @@ from aslm_sim.cases import make_cases  # noqa: E402
 from aslm_sim.network import draw_network  # noqa: E402
 from aslm_sim.truth import random_truth  # noqa: E402
 from benchmarks import common  # noqa: E402
+from benchmarks.input_noise import with_input_noise  # noqa: E402
 
 if TYPE_CHECKING:
     from aslm_sim.andes.scenario import BusLoad
@@ -91,15 +94,24 @@ ANDES_STEP = {"seed": 1805, "n_before": 8, "n_after": 4, "window_s": 10.0, "lead
               "share": STEP - 1.0, "snr_db": 22.0, "tstep": 0.01, "amp": 0.15}
 
 
-def bus_windows(seed: int, bus: int, factors: np.ndarray, snr_db: float) -> tuple[list, np.ndarray]:
-    """Windows of one bus whose motor count is ``factors[i]`` × its drawn truth in window i; and D_true."""
+def bus_windows(seed: int, bus: int, factors: np.ndarray, snr_db: float,
+                input_noise: tuple[float, float] = (0.0, 0.0)) -> tuple[list, np.ndarray]:
+    """Windows of one bus whose motor count is ``factors[i]`` × its drawn truth in window i; and D_true.
+
+    ``input_noise``: white PMU noise on V (std as a fraction of mean V) and θ [rad] (none by default: Table I's
+    setting), drawn from ``[seed, bus, 1]``.
+    """
     rng = np.random.default_rng([seed, bus])
     truth = random_truth(rng)
     net = draw_network(rng, truth, 50.0)
     truths = [truth.scaled_motor(float(f)) for f in factors]
     cases = make_cases(len(truths), snr_db=snr_db, seed=seed * 100_000 + bus, input_noise=False,
                        truths=truths, networks=[net] * len(truths))
-    return [c.window for c in cases], np.array([t.d for t in truths])
+    windows = [c.window for c in cases]
+    if any(input_noise):
+        noise = np.random.default_rng([seed, bus, 1])
+        windows = [with_input_noise(c.window, c.clean, *input_noise, noise) for c in cases]
+    return windows, np.array([t.d for t in truths])
 
 
 def estimates(windows: list) -> tuple[np.ndarray, np.ndarray]:
@@ -133,19 +145,31 @@ def track(d: np.ndarray, se: np.ndarray, config: TrackerConfig) -> tuple[np.ndar
     return out, events
 
 
-def _sigma(ratios: np.ndarray) -> dict:
+def _sigma(ratios: np.ndarray, rel_se: np.ndarray | None = None) -> dict:
+    """σ and robust σ of D/D_true; with ``rel_se`` (SE/D_true per row) also the bias and the ±1.96 SE coverage."""
     r = np.asarray(ratios).reshape(-1, 4)
     mad = 1.4826 * np.median(np.abs(r - np.median(r, axis=0)), axis=0)
-    return {"n": int(r.shape[0]), "sigma": dict(zip(common.PARAMS, np.std(r, axis=0, ddof=1).tolist(), strict=True)),
-            "robust_sigma": dict(zip(common.PARAMS, mad.tolist(), strict=True))}
+    out = {"n": int(r.shape[0]), "sigma": dict(zip(common.PARAMS, np.std(r, axis=0, ddof=1).tolist(), strict=True)),
+           "robust_sigma": dict(zip(common.PARAMS, mad.tolist(), strict=True))}
+    if rel_se is not None:
+        cover = np.mean(np.abs(r - 1.0) < 1.96 * np.asarray(rel_se).reshape(-1, 4), axis=0)
+        out.update({"bias": dict(zip(common.PARAMS, (r.mean(axis=0) - 1.0).tolist(), strict=True)),
+                    "coverage_95": dict(zip(common.PARAMS, cover.tolist(), strict=True))})
+    return out
 
 
-def part_pooled(n_buses: int, ks: tuple[int, ...], seed: int = SEEDS["pooled"]) -> dict:
-    """σ of the pooled fit and of the information-weighted mean for each k (14 dB); bus i from ``[seed, i]``."""
+def part_pooled(n_buses: int, ks: tuple[int, ...], seed: int = SEEDS["pooled"],
+                input_noise: tuple[float, float] = (0.0, 0.0)) -> dict:
+    """σ of the pooled fit and of the information-weighted mean for each k (14 dB); bus i from ``[seed, i]``.
+
+    With ``input_noise`` (V's std over mean V, θ's [rad]) the windows carry that PMU noise, and the fit's and the
+    mean's bias and coverage of ±1.96 SE are kept too (``calibration``).
+    """
     kmax = max(ks)
     per = {(kind, k): [] for kind in ("fit", "mean", "tracker") for k in ks}
+    rel_se = {(kind, k): [] for kind in ("fit", "mean") for k in ks}
     cost = {k: [] for k in ks}
-    for windows, truth, d, se in _stationary_buses(seed, n_buses, kmax):
+    for windows, truth, d, se in _stationary_buses(seed, n_buses, kmax, input_noise):
         for k in ks:
             for g0 in range(0, kmax, k):
                 sl = slice(g0, g0 + k)
@@ -158,8 +182,10 @@ def part_pooled(n_buses: int, ks: tuple[int, ...], seed: int = SEEDS["pooled"]) 
                     continue
                 cost[k].append(time.perf_counter() - t0)
                 per[("fit", k)].append(fit.d / truth)
-                mean, _ = combine([Estimate(0.0, list(a), list(b)) for a, b in zip(d[sl], se[sl], strict=True)])
+                rel_se[("fit", k)].append(np.array([fit.stderr[p] for p in common.PARAMS]) / truth)
+                mean, mean_se = combine([Estimate(0.0, list(a), list(b)) for a, b in zip(d[sl], se[sl], strict=True)])
                 per[("mean", k)].append(mean / truth)
+                rel_se[("mean", k)].append(mean_se / truth)
                 # What the service reports: the tracker's pool (suspects winsorised, a change restarts it).
                 tracked, _ = track(d[sl], se[sl], TrackerConfig(pool_windows=k, period_s=PERIOD_S))
                 per[("tracker", k)].append(tracked[-1] / truth)
@@ -167,6 +193,10 @@ def part_pooled(n_buses: int, ks: tuple[int, ...], seed: int = SEEDS["pooled"]) 
     for (kind, k), rows in per.items():
         out.setdefault(kind, {})[str(k)] = _sigma(np.array(rows))
     out["fit_time_s_median"] = {str(k): float(np.median(v)) for k, v in cost.items()}
+    if any(input_noise):
+        out["input_noise"] = list(input_noise)
+        out["calibration"] = {kind: {str(k): _sigma(np.array(per[(kind, k)]), np.array(rel_se[(kind, k)]))
+                                     for k in ks} for kind in ("fit", "mean")}
     s1 = out["fit"]["1"]["sigma"]
     out["target"] = {str(k): {p: s1[p] / math.sqrt(k) * 1.2 for p in common.PARAMS} for k in ks}
     out["seed"] = seed
@@ -494,11 +524,12 @@ def part_joint_cost(n_buses: int, k: int) -> dict:
 
 
 @functools.cache
-def _stationary_buses(seed: int, n_buses: int, n_windows: int) -> list[tuple[list, np.ndarray, np.ndarray, np.ndarray]]:
+def _stationary_buses(seed: int, n_buses: int, n_windows: int, input_noise: tuple[float, float] = (0.0, 0.0)
+                      ) -> list[tuple[list, np.ndarray, np.ndarray, np.ndarray]]:
     """Each bus's stationary 14 dB windows, its D_true and per-window D and SEs (kept for a second variant)."""
     out = []
     for bus in range(n_buses):
-        windows, truth = bus_windows(seed, bus, np.ones(n_windows), 14.0)
+        windows, truth = bus_windows(seed, bus, np.ones(n_windows), 14.0, input_noise)
         d, se = estimates(windows)
         out.append((windows, truth[0], d, se))
     return out
@@ -774,6 +805,8 @@ def main() -> None:
     p.add_argument("--pooled-seed", type=int, default=SEEDS["pooled"],
                    help="seed of pooled and service_joint (POOLED_DEV_SEED, POOLED_CONFIRM_SEED)")
     p.add_argument("--buses", type=int, default=None, help="buses of pooled and service_joint (default 100)")
+    p.add_argument("--input-noise", type=float, nargs=2, default=[0.0, 0.0], metavar=("V_REL", "THETA_RAD"),
+                   help="white PMU noise on V (std over mean V) and θ [rad] in pooled's windows (default none)")
     p.add_argument("--compare-suspects", action="store_true",
                    help="service_joint also without fitting unconfirmed suspects (service_joint_without_suspects)")
     p.add_argument("--json", default=None,
@@ -792,7 +825,8 @@ def main() -> None:
     path = common.RESULTS / f"{name}.json"
     out = json.loads(path.read_text()) if set(args.parts) != {*SEEDS, "service_cost"} and path.exists() else {}
     runs = {
-        "pooled": lambda: part_pooled(8 if q else args.buses or 100, (1, 4, 16), seed=args.pooled_seed),
+        "pooled": lambda: part_pooled(8 if q else args.buses or 100, (1, 4, 16), seed=args.pooled_seed,
+                                      input_noise=tuple(args.input_noise)),
         "step": lambda: part_step(10 if q else 100, config, 22.0),
         "false_alarms": lambda: [part_false_alarms(4 if q else 30, 100 if q else 200, config, snr)
                                  for snr in (22.0, 14.0)],
