@@ -229,7 +229,7 @@ def test_the_joint_fit_replaces_the_mean_and_equals_identify_pooled(tmp_path, wi
 def test_the_tracked_model_of_an_own_dominated_bus_is_the_pooled_iv(tmp_path, pool):
     """Where the load's own fluctuation dominates P (own ratio ~0.8: a closed loop through the network), the worker's
     joint fit is the pooled IV's answer (identify_pooled's gated default), within 3 SE of the truth; the white-noise
-    pool it replaced since stop 38 is off by more than 10 % in a on the same windows."""
+    pool (the joint fit until stop 38) is off by more than 10 % in a on the same windows."""
     rng = np.random.default_rng([78, 0])
     truth = random_truth(rng)
     net = draw_network(rng, truth, 50.0)
