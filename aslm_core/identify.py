@@ -151,29 +151,58 @@ def _score_variances(problem: Problem) -> np.ndarray:
     """
     pb = problem
     k0, l = pb.k0, pb.l
-    width = max(1, int(round(SE_SMOOTH_HZ * l * pb.dt)))
-    kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
     x = np.column_stack([pb.p_meas - pb._p[k0:], pb._dp[k0:], pb.q_meas - pb._q[k0:], pb._dq[k0:]])
     x -= pb.basis @ (pb.basis.T @ x)  # residuals and Jacobians projected off the static regressors
     f = np.fft.rfft(x, axis=0)
+    kernel, mult = _score_smoothing(l, pb.dt)
+    out = np.empty((2, 4, 4))
+    for c in range(2):
+        out[c] = _score_variance_of_dft(f[:, 5 * c], f[:, 5 * c + 1:5 * c + 5], x[:, 5 * c + 1:5 * c + 5], kernel,
+                                        mult)
+    return out
+
+
+def score_variance(r: np.ndarray, jac: np.ndarray, dt: float) -> np.ndarray:
+    """The covariance of one channel's score Jᵀr from the residual's smoothed spectrum (4×4), as the single window's.
+
+    Parameters
+    ----------
+    r : ndarray
+        The channel's residual over the regression samples, projected off the static regressors [pu].
+    jac : ndarray
+        Its Jacobian in D over the same samples, projected the same way (l×4) [pu per unit of D].
+    dt : float
+        Sample step [s].
+    """
+    kernel, mult = _score_smoothing(r.size, dt)
+    return _score_variance_of_dft(np.fft.rfft(r), np.fft.rfft(jac, axis=0), jac, kernel, mult)
+
+
+def _score_smoothing(l: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """The periodogram's smoothing kernel over ``SE_SMOOTH_HZ`` and the one-sided bins' multiplicities."""
+    width = max(1, int(round(SE_SMOOTH_HZ * l * dt)))
+    kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
     # One-sided spectrum: the bins between DC and Nyquist stand for two of the full DFT's.
-    mult = np.full(f.shape[0], 2.0)
+    mult = np.full(l // 2 + 1, 2.0)
     mult[0] = 1.0
     if l % 2 == 0:
         mult[-1] = 1.0
-    out = np.empty((2, 4, 4))
-    for c in range(2):
-        fr, fj, jc = f[:, 5 * c], f[:, 5 * c + 1:5 * c + 5], x[:, 5 * c + 1:5 * c + 5]
-        # The fit takes the residual's power where J has its own (4 degrees of freedom, concentrated in J's
-        # band, not spread evenly): divide it back per frequency by 1 − the leverage of D's directions.
-        try:
-            inv = np.linalg.inv(jc.T @ jc)
-        except np.linalg.LinAlgError:
-            inv = np.linalg.pinv(jc.T @ jc)
-        lev = np.sum((fj @ inv) * fj.conj(), axis=1).real / l
-        sr = reflected_mean(fr.real**2 + fr.imag**2, kernel) / np.maximum(1.0 - reflected_mean(lev, kernel), 0.25)
-        out[c] = (fj.conj().T @ ((mult * sr)[:, None] * fj)).real / (l * l)
-    return out
+    return kernel, mult
+
+
+def _score_variance_of_dft(fr: np.ndarray, fj: np.ndarray, jc: np.ndarray, kernel: np.ndarray,
+                           mult: np.ndarray) -> np.ndarray:
+    """Var(Jᵀr) = Σ_f Ĵ(f)ᴴ·S_r(f)·Ĵ(f) / l² from the residual's and the Jacobian's DFTs (``jc``: the Jacobian)."""
+    l = jc.shape[0]
+    # The fit takes the residual's power where J has its own (4 degrees of freedom, concentrated in J's
+    # band, not spread evenly): divide it back per frequency by 1 − the leverage of D's directions.
+    try:
+        inv = np.linalg.inv(jc.T @ jc)
+    except np.linalg.LinAlgError:
+        inv = np.linalg.pinv(jc.T @ jc)
+    lev = np.sum((fj @ inv) * fj.conj(), axis=1).real / l
+    sr = reflected_mean(fr.real**2 + fr.imag**2, kernel) / np.maximum(1.0 - reflected_mean(lev, kernel), 0.25)
+    return (fj.conj().T @ ((mult * sr)[:, None] * fj)).real / (l * l)
 
 
 def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None = None,

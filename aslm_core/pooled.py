@@ -7,7 +7,8 @@ one static part serves all windows (one weighted regression over the stacked sam
 is a box- and equilibrium-constrained Levenberg–Marquardt over D on the stacked residuals of all windows,
 each window and channel weighted by the inverse of its noise variance (re-estimated at the optimum), so
 the pool is the Gaussian maximum-likelihood estimate when windows differ in SNR.  Standard errors come
-from the stacked Jacobians (sandwich form with the per-window residual autocorrelation).
+from the stacked Jacobians (sandwich form with each window's residual spectrum, as the single window's; its lag-1
+autocorrelation with ``stderr_method="ar1"``).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from aslm_core.identify import (
     Problem,
     _transient_skip,
     identify,
+    score_variance,
 )
 from aslm_core.params import DYNAMIC_NAMES, dynamic_bounds
 from aslm_core.preprocess import prepare
@@ -240,16 +242,22 @@ def _lm(pool: _Pool, d0: np.ndarray, max_iter: int, xtol: float) -> dict:
 
 
 def _covariance(pool: _Pool, blocks) -> np.ndarray:
-    """A⁻¹·M·A⁻¹ with A = Σ w·JᵀJ and M = Σ w·g·JᵀJ, g = (1+ρ)/(1−ρ) the lag-1 inflation per block.
+    """A⁻¹·M·A⁻¹ with A = Σ w·JᵀJ and M the summed variances of the blocks' weighted scores w·Jᵀr.
 
-    With w = 1/σ² the noise term w²·σ² reduces to w; inf on the diagonal where A is singular.
+    With ``stderr_method="spectral"`` (the default, as the single window's) each block's score variance comes from its
+    residual's smoothed spectrum (:func:`aslm_core.identify.score_variance`, times l/(l − static columns)); with
+    ``"ar1"`` it is w·g·JᵀJ, g = (1+ρ)/(1−ρ) the lag-1 inflation (w = 1/σ²: the noise term w²·σ² reduces to w).  inf
+    on the diagonal where A is singular.
     """
     a, m = np.zeros((4, 4)), np.zeros((4, 4))
-    for (rp, rq, jp, jq), (wp, wq) in zip(blocks, pool.weights, strict=True):
+    for prob, (rp, rq, jp, jq), (wp, wq) in zip(pool.problems, blocks, pool.weights, strict=True):
         for r, j, w in ((rp, jp, wp), (rq, jq, wq)):
-            rho = min(max(float(r[1:] @ r[:-1]) / max(float(r @ r), 1e-300), 0.0), 0.95)
             jj = j.T @ j
             a += w * jj
+            if prob.config.stderr_method == "spectral":
+                m += (w * w * r.size / max(r.size - prob.basis.shape[1], 1)) * score_variance(r, j, prob.prep.dt)
+                continue
+            rho = min(max(float(r[1:] @ r[:-1]) / max(float(r @ r), 1e-300), 0.0), 0.95)
             m += w * (1.0 + rho) / (1.0 - rho) * jj
     try:
         ainv = np.linalg.inv(a)

@@ -54,6 +54,21 @@ def test_one_window_pooled_matches_the_window_fit_and_se_shrink(buses):
     assert np.all(np.abs(four.d / d_true - 1.0) < 5 * np.array([four.stderr[k] for k in PARAMS]) / d_true)
 
 
+def test_pooled_standard_errors_read_the_residuals_spectrum_as_the_window_fits_do(buses):
+    """After a 2 Hz low-pass the residuals are coloured well beyond their first lag: a one-window pool's spectral SEs
+    are the window fit's (within 15 %), where the lag-1 rule's are over 1.2 × them."""
+    from dataclasses import replace
+
+    config = IdentifyConfig(lowpass_hz=2.0, input_weighting="none", disturbance="none")
+    for w in buses[0][0][:2]:
+        alone = identify(w, config=config)
+        se = np.array([alone.stderr[k] for k in PARAMS])
+        pooled = identify_pooled([w], config=config, start=alone.d)
+        lag1 = identify_pooled([w], config=replace(config, stderr_method="ar1"), start=alone.d)
+        np.testing.assert_allclose([pooled.stderr[k] for k in PARAMS], se, rtol=0.15)
+        assert np.all(np.array([lag1.stderr[k] for k in PARAMS]) > 1.2 * se)
+
+
 def test_shared_static_gives_one_static_part_close_to_the_per_window_pool(buses):
     windows, _ = buses[1]
     per = identify_pooled(windows[:4])
