@@ -9,9 +9,9 @@ service does (3 random starts plus the previous window's D as warm start); the t
 
 1. ``pooled``: σ of D/D_true over buses at 14 dB for the joint pooled fit
    (:func:`aslm_core.pooled.identify_pooled`) on k = 1, 4, 16 windows, and for the information-weighted
-   mean of the k per-window estimates (what the service's tracked model is), against σ_1/√k × 1.2.  With
-   ``--input-noise V_REL THETA_RAD`` the windows carry white PMU noise on V and θ, and the fit's and the mean's bias
-   and coverage of ±1.96 SE are kept too (``calibration``).
+   mean of the k per-window estimates (what the service's tracked model is), against σ_1/√k × 1.2; and their bias
+   and coverage of ±1.96 SE (``calibration``).  With ``--input-noise V_REL THETA_RAD`` the windows carry white PMU
+   noise on V and θ.
 2. ``step``: 16 stationary windows, then the step; the share of buses whose change is confirmed within 2
    periods of it (22 dB).
 3. ``false_alarms``: stationary sequences at T = 15 min (22 dB and 14 dB); alarms per bus and week.
@@ -162,8 +162,8 @@ def part_pooled(n_buses: int, ks: tuple[int, ...], seed: int = SEEDS["pooled"],
                 input_noise: tuple[float, float] = (0.0, 0.0)) -> dict:
     """σ of the pooled fit and of the information-weighted mean for each k (14 dB); bus i from ``[seed, i]``.
 
-    With ``input_noise`` (V's std over mean V, θ's [rad]) the windows carry that PMU noise, and the fit's and the
-    mean's bias and coverage of ±1.96 SE are kept too (``calibration``).
+    With ``input_noise`` (V's std over mean V, θ's [rad]) the windows carry that PMU noise.  The fit's and the mean's
+    bias and coverage of ±1.96 SE are kept too (``calibration``).
     """
     kmax = max(ks)
     per = {(kind, k): [] for kind in ("fit", "mean", "tracker") for k in ks}
@@ -193,10 +193,9 @@ def part_pooled(n_buses: int, ks: tuple[int, ...], seed: int = SEEDS["pooled"],
     for (kind, k), rows in per.items():
         out.setdefault(kind, {})[str(k)] = _sigma(np.array(rows))
     out["fit_time_s_median"] = {str(k): float(np.median(v)) for k, v in cost.items()}
-    if any(input_noise):
-        out["input_noise"] = list(input_noise)
-        out["calibration"] = {kind: {str(k): _sigma(np.array(per[(kind, k)]), np.array(rel_se[(kind, k)]))
-                                     for k in ks} for kind in ("fit", "mean")}
+    out["input_noise"] = list(input_noise)
+    out["calibration"] = {kind: {str(k): _sigma(np.array(per[(kind, k)]), np.array(rel_se[(kind, k)]))
+                                 for k in ks} for kind in ("fit", "mean")}
     s1 = out["fit"]["1"]["sigma"]
     out["target"] = {str(k): {p: s1[p] / math.sqrt(k) * 1.2 for p in common.PARAMS} for k in ks}
     out["seed"] = seed
