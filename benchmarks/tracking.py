@@ -11,7 +11,7 @@ service does (3 random starts plus the previous window's D as warm start); the t
    (:func:`aslm_core.pooled.identify_pooled`) on k = 1, 4, 16 windows, and for the information-weighted
    mean of the k per-window estimates (what the service's tracked model is), against σ_1/√k × 1.2; and their bias
    and coverage of ±1.96 SE (``calibration``).  With ``--input-noise V_REL THETA_RAD`` the windows carry white PMU
-   noise on V and θ.
+   noise on V and θ (as the ``false_alarms`` part's).
 2. ``step``: 16 stationary windows, then the step; the share of buses whose change is confirmed within 2
    periods of it (22 dB).
 3. ``false_alarms``: stationary sequences at T = 15 min (22 dB and 14 dB); alarms per bus and week.
@@ -230,18 +230,20 @@ def poisson_upper(count: int, level: float = 0.95) -> float:
 
 
 def part_false_alarms(n_buses: int, n_periods: int, config: TrackerConfig, snr_db: float,
-                      seed: int = SEEDS["false_alarms"], other_rates: tuple[float, ...] = ()) -> dict:
+                      seed: int = SEEDS["false_alarms"], other_rates: tuple[float, ...] = (),
+                      input_noise: tuple[float, float] = (0.0, 0.0)) -> dict:
     """Alarms on stationary sequences at T = 15 min: per bus and week, with the Poisson 95 % upper bound.
 
     Bus i's windows come from seed ``seed + int(snr_db)``; each finished bus is printed to stderr (a long
     run shows its progress).  ``other_rates``: the same estimates tracked again with these
     ``false_alarms_per_day`` (a sensitivity, not a calibration: the configuration reported is ``config``).
+    ``input_noise``: white PMU noise on V and θ (:func:`bus_windows`).
     """
     alarms, periods = 0, 0
     per_bus, periods_per_bus = [], []
     others = {r: 0 for r in other_rates}
     for bus in range(n_buses):
-        windows, _ = bus_windows(seed + int(snr_db), bus, np.ones(n_periods), snr_db)
+        windows, _ = bus_windows(seed + int(snr_db), bus, np.ones(n_periods), snr_db, input_noise)
         d, se = estimates(windows)
         del windows
         _, events = track(d, se, config)
@@ -254,7 +256,8 @@ def part_false_alarms(n_buses: int, n_periods: int, config: TrackerConfig, snr_d
         print(f"false_alarms {snr_db:g} dB: bus {bus + 1}/{n_buses}: {len(events)} alarm(s); {alarms} in "
               f"{periods} periods so far (load {os.getloadavg()[0]:.1f})", file=sys.stderr, flush=True)
     weeks = periods / (7 * PERIODS_PER_DAY)
-    return {"snr_db": snr_db, "seed": seed + int(snr_db), "n_buses": n_buses, "periods": periods, "bus_weeks": weeks,
+    return {"snr_db": snr_db, "seed": seed + int(snr_db), "input_noise": list(input_noise), "n_buses": n_buses,
+            "periods": periods, "bus_weeks": weeks,
             "alarms": alarms, "alarms_per_bus_week": alarms / weeks,
             "alarms_per_bus_week_upper95": poisson_upper(alarms) / weeks, "threshold": config.threshold,
             "design_per_bus_week": config.false_alarms_per_day * 7, "alarms_per_bus": per_bus,
@@ -805,7 +808,8 @@ def main() -> None:
                    help="seed of pooled and service_joint (POOLED_DEV_SEED, POOLED_CONFIRM_SEED)")
     p.add_argument("--buses", type=int, default=None, help="buses of pooled and service_joint (default 100)")
     p.add_argument("--input-noise", type=float, nargs=2, default=[0.0, 0.0], metavar=("V_REL", "THETA_RAD"),
-                   help="white PMU noise on V (std over mean V) and θ [rad] in pooled's windows (default none)")
+                   help="white PMU noise on V (std over mean V) and θ [rad] in pooled's and false_alarms' windows "
+                        "(default none)")
     p.add_argument("--compare-suspects", action="store_true",
                    help="service_joint also without fitting unconfirmed suspects (service_joint_without_suspects)")
     p.add_argument("--json", default=None,
@@ -827,7 +831,8 @@ def main() -> None:
         "pooled": lambda: part_pooled(8 if q else args.buses or 100, (1, 4, 16), seed=args.pooled_seed,
                                       input_noise=tuple(args.input_noise)),
         "step": lambda: part_step(10 if q else 100, config, 22.0),
-        "false_alarms": lambda: [part_false_alarms(4 if q else 30, 100 if q else 200, config, snr)
+        "false_alarms": lambda: [part_false_alarms(4 if q else 30, 100 if q else 200, config, snr,
+                                                   input_noise=tuple(args.input_noise))
                                  for snr in (22.0, 14.0)],
         "drift": lambda: part_drift(3 if q else 10, (4, 16), 22.0, config.false_alarms_per_day),
         "service_cost": lambda: part_service_cost(50 if q else 500, 20),
