@@ -88,12 +88,18 @@ class TrackerConfig:
     se_scale : float
         Factor on the per-window standard errors in the innovations [-]: the windows' spread beyond
         what their standard errors say (set on development seeds, docs/tracking.md).
+    pool_scatter : bool
+        Scale each parameter's innovations by √ of the pool's own reduced χ² (its estimates' scatter about their mean
+        over their standard errors, at least 1) once the pool holds :data:`MIN_SCATTER_POOL` estimates: a bus whose
+        standard errors are too small for its estimates' spread (Tm under PMU noise on V and θ) stops raising
+        alarms on it, one whose are right is left nearly as it is.
     """
 
     pool_windows: int = 16
     false_alarms_per_day: float = 0.05
     period_s: float = 900.0
     se_scale: float = 1.0
+    pool_scatter: bool = False
 
     @property
     def threshold(self) -> float:
@@ -162,6 +168,24 @@ def combine(pool: list[Estimate]) -> tuple[np.ndarray, np.ndarray]:
     return mean, se_out
 
 
+#: Estimates a pool needs before its scatter scales the innovations (``TrackerConfig.pool_scatter``).
+MIN_SCATTER_POOL = 4
+
+
+def pool_scatter(pool: list[Estimate], mean: np.ndarray) -> np.ndarray:
+    """Per parameter, max(1, √ of the pool's reduced χ²): Σ_i (d_i − mean)² / se_i² / (n − 1) [-].
+
+    Windows without a finite positive standard error are left out (none left: 1).
+    """
+    d = np.array([e.d for e in pool], dtype=np.float64)
+    se = np.array([e.se for e in pool], dtype=np.float64)
+    ok = np.isfinite(se) & (se > 0.0)
+    z2 = np.where(ok, (d - mean) ** 2 / np.where(ok, se * se, 1.0), 0.0)
+    n = ok.sum(axis=0)
+    chi2 = np.where(n > 1, z2.sum(axis=0) / np.maximum(n - 1, 1), 1.0)
+    return np.sqrt(np.maximum(chi2, 1.0))
+
+
 def _plain(est: Estimate) -> dict:
     return {"t": est.t, "d": est.d, "se": est.se}
 
@@ -202,6 +226,8 @@ class Tracker:
         mean, se_pool = combine(self.pool)
         d, se = np.asarray(est.d, dtype=np.float64), np.asarray(est.se, dtype=np.float64)
         scale = self.config.se_scale * np.sqrt(np.where(np.isfinite(se), se, np.inf) ** 2 + se_pool**2)
+        if self.config.pool_scatter and len(self.pool) >= MIN_SCATTER_POOL:
+            scale = scale * pool_scatter(self.pool, mean)
         return np.where(np.isfinite(scale) & (scale > 0.0), (d - mean) / np.where(scale > 0, scale, 1.0), 0.0)
 
     def update(self, t: float, d, se) -> ChangeEvent | None:

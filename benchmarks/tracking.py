@@ -79,6 +79,10 @@ FALSE_ALARMS_CONFIRM_SEED = 1807
 #: is fitted was chosen on the development seed (``--pooled-seed 1811 --buses 200``), then run once on the
 #: confirmation seed, fixed before that run: ``--parts pooled service_joint --pooled-seed 1812 --buses 200``.
 POOLED_DEV_SEED, POOLED_CONFIRM_SEED = 1811, 1812
+#: The confirmation of the tracker's pool scatter (``TrackerConfig.pool_scatter``, stop 38; its development run was the
+#: false_alarms part's own seed 1803 with and without PMU noise), fixed before any run on it: ``--parts false_alarms
+#: --false-alarms-seed 1830 [--pool-scatter] [--input-noise 1e-3 1e-3]``.
+SCATTER_CONFIRM_SEED = 1830
 #: Development seeds: the calibration of the standard errors' scale (``--calibrate``), never reported on.
 DEV_SEED = 2801
 #: Parts run only when named in ``--parts``.
@@ -285,7 +289,8 @@ def drift_factor(t: np.ndarray) -> np.ndarray:
     return 1.0 + DRIFT_AMPLITUDE * np.sin(2 * np.pi * np.asarray(t) / PERIODS_PER_DAY)
 
 
-def part_drift(n_buses: int, ks: tuple[int, ...], snr_db: float, false_alarms_per_day: float) -> dict:
+def part_drift(n_buses: int, ks: tuple[int, ...], snr_db: float, false_alarms_per_day: float,
+               pool_scatter: bool = False) -> dict:
     """Lag of the tracked Tm behind a daily cycle of motor share, per pool length."""
     n = 2 * PERIODS_PER_DAY
     f = drift_factor
@@ -298,7 +303,7 @@ def part_drift(n_buses: int, ks: tuple[int, ...], snr_db: float, false_alarms_pe
         tm0 = truth[0, 3]
         for k in ks:
             tracked, events = track(d, se, TrackerConfig(pool_windows=k, false_alarms_per_day=false_alarms_per_day,
-                                                         period_s=PERIOD_S))
+                                                         period_s=PERIOD_S, pool_scatter=pool_scatter))
             lags[k].append(_lag(tracked[:, 3], lambda t, tm0=tm0: tm0 * f(t), skip=PERIODS_PER_DAY // 2))
             changes[k] += len(events)
     return {"snr_db": snr_db, "n_buses": n_buses, "periods": n,
@@ -810,6 +815,10 @@ def main() -> None:
     p.add_argument("--input-noise", type=float, nargs=2, default=[0.0, 0.0], metavar=("V_REL", "THETA_RAD"),
                    help="white PMU noise on V (std over mean V) and θ [rad] in pooled's and false_alarms' windows "
                         "(default none)")
+    p.add_argument("--false-alarms-seed", type=int, default=SEEDS["false_alarms"],
+                   help="seed of the false_alarms part (bus i of SNR s: windows from [seed + s, i]; SCATTER_CONFIRM_SEED)")
+    p.add_argument("--pool-scatter", action="store_true",
+                   help="the tracker scales its innovations by the pool's own scatter (TrackerConfig.pool_scatter)")
     p.add_argument("--compare-suspects", action="store_true",
                    help="service_joint also without fitting unconfirmed suspects (service_joint_without_suspects)")
     p.add_argument("--json", default=None,
@@ -823,7 +832,7 @@ def main() -> None:
         if not args.no_write:
             print(common.write_json("tracking_calibration", {"machine": common.machine(), "calibration": cal}))
         return
-    config = TrackerConfig(pool_windows=16, period_s=PERIOD_S)  # the service's default rate
+    config = TrackerConfig(pool_windows=16, period_s=PERIOD_S, pool_scatter=args.pool_scatter)  # the service's default rate
     name = args.json or ("tracking_quick" if q else "tracking")
     path = common.RESULTS / f"{name}.json"
     out = json.loads(path.read_text()) if set(args.parts) != {*SEEDS, "service_cost"} and path.exists() else {}
@@ -832,9 +841,9 @@ def main() -> None:
                                       input_noise=tuple(args.input_noise)),
         "step": lambda: part_step(10 if q else 100, config, 22.0),
         "false_alarms": lambda: [part_false_alarms(4 if q else 30, 100 if q else 200, config, snr,
-                                                   input_noise=tuple(args.input_noise))
+                                                   seed=args.false_alarms_seed, input_noise=tuple(args.input_noise))
                                  for snr in (22.0, 14.0)],
-        "drift": lambda: part_drift(3 if q else 10, (4, 16), 22.0, config.false_alarms_per_day),
+        "drift": lambda: part_drift(3 if q else 10, (4, 16), 22.0, config.false_alarms_per_day, config.pool_scatter),
         "service_cost": lambda: part_service_cost(50 if q else 500, 20),
         "andes_step": lambda: part_andes_step(args.andes_runs or (2 if q else 20), config),
         "joint_cost": lambda: part_joint_cost(3 if q else 20, 16),
