@@ -92,14 +92,14 @@ class TrackerConfig:
         Scale each parameter's innovations by √ of the pool's own reduced χ² (its estimates' scatter about their mean
         over their standard errors, at least 1) once the pool holds :data:`MIN_SCATTER_POOL` estimates: a bus whose
         standard errors are too small for its estimates' spread (Tm under PMU noise on V and θ) stops raising
-        alarms on it, one whose are right is left nearly as it is.
+        alarms on it, one whose are right is left nearly as it is (docs/tracking.md, "False alarms").
     """
 
     pool_windows: int = 16
     false_alarms_per_day: float = 0.05
     period_s: float = 900.0
     se_scale: float = 1.0
-    pool_scatter: bool = False
+    pool_scatter: bool = True
 
     @property
     def threshold(self) -> float:

@@ -44,6 +44,7 @@ import os
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
+import argparse  # noqa: E402
 import functools  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
@@ -817,8 +818,9 @@ def main() -> None:
                         "(default none)")
     p.add_argument("--false-alarms-seed", type=int, default=SEEDS["false_alarms"],
                    help="seed of the false_alarms part (bus i of SNR s: windows from [seed + s, i]; SCATTER_CONFIRM_SEED)")
-    p.add_argument("--pool-scatter", action="store_true",
-                   help="the tracker scales its innovations by the pool's own scatter (TrackerConfig.pool_scatter)")
+    p.add_argument("--pool-scatter", action=argparse.BooleanOptionalAction, default=TrackerConfig.pool_scatter,
+                   help="the tracker scales its innovations by the pool's own scatter (TrackerConfig.pool_scatter; "
+                        "default on since stop 38, --no-pool-scatter: the tracker before)")
     p.add_argument("--compare-suspects", action="store_true",
                    help="service_joint also without fitting unconfirmed suspects (service_joint_without_suspects)")
     p.add_argument("--json", default=None,

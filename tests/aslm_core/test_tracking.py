@@ -56,9 +56,11 @@ def test_a_step_is_confirmed_at_the_second_window_and_the_pool_restarts():
     assert tr.model()["n_windows"] + tr.model()["suspect"] == 3  # pooled, or held out as a suspect
 
 
-def test_a_single_outlying_window_raises_no_alarm_and_rejoins_the_pool_winsorised():
-    # At 0.1 per day (h = 2.35) window 7 of these draws is itself held as a suspect, so the pool ends at the outlier.
-    tr = Tracker(TrackerConfig(pool_windows=16, false_alarms_per_day=0.1))
+@pytest.mark.parametrize("scatter", [False, True])
+def test_a_single_outlying_window_raises_no_alarm_and_rejoins_the_pool_winsorised(scatter):
+    # At 0.1 per day (h = 2.35) and unscaled innovations window 7 of these draws is itself held as a suspect, so the
+    # pool ends at the outlier; with the pool's scatter it joins the pool.
+    tr = Tracker(TrackerConfig(pool_windows=16, false_alarms_per_day=0.1, pool_scatter=scatter))
     rng = np.random.default_rng(4)
     draws = _draws(rng, 10)
     for i, d in enumerate(draws[:6]):
@@ -66,8 +68,8 @@ def test_a_single_outlying_window_raises_no_alarm_and_rejoins_the_pool_winsorise
     assert tr.update(6, D * 1.3, SE) is None and tr.model()["suspect"]
     assert tr.update(7, draws[7], SE) is None
     # The outlier rejoined winsorised: in the pool, but pulling it by < 1.5 % where it would have pulled 4 %.
-    assert len(tr.pool) == 7 and tr.pool[-1].t == 6
-    assert np.max(np.abs(combine(tr.pool)[0] / combine(tr.pool[:6])[0] - 1.0)) < 0.015
+    assert [e.t for e in tr.pool][6] == 6 and len(tr.pool) == (8 if scatter else 7)
+    assert np.max(np.abs(combine(tr.pool[:7])[0] / combine(tr.pool[:6])[0] - 1.0)) < 0.015
 
 
 def test_no_alarm_on_a_stationary_sequence_of_fixed_seeds():
