@@ -98,8 +98,7 @@ def cell_figures(c: dict, rng: np.random.Generator) -> dict:
     med_ci = np.percentile(np.median(np.abs(boot), axis=1), [2.5, 97.5], axis=0)
     bias_ci = np.percentile(boot.mean(axis=1), [2.5, 97.5], axis=0)
     covered = (np.abs(e) < 1.96 * s).sum(axis=0)
-    off = np.abs(err).max(axis=1) > 0.2
-    off |= ~ok
+    off = ok & (np.abs(np.where(ok[:, None], err, 0.0)).max(axis=1) > 0.2)  # a failed window is no number: counted apart
     unflagged = sum(1 for o, f in zip(off, c["flags"], strict=True)
                     if o and not any(x.startswith(WARNING_FLAGS) for x in f))
     crb = np.sqrt(np.mean(c["crb_var"], axis=0)) if c["crb_var"] else np.full(4, np.nan)
