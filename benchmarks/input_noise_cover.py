@@ -22,10 +22,10 @@ HEAD = ["run", "cell", "PMU class", "n", "coverage a / b / H2 / Tm [%] [Wilson 9
 
 def cells(run: dict) -> list[tuple[str, str, dict]]:
     """(cell label, PMU class, the default's statistics) of a rates or supplement run."""
-    by = ("rates", " frames/s") if "rates" in run else ("levels", "DL ")
+    rates = bool(run.get("rates"))
     out = []
-    for key, classes in run[by[0]].items():
-        label = f"{key}{by[1]}" if by[0] == "rates" else f"DL {key}"
+    for key, classes in (run["rates"] if rates else run["levels"]).items():
+        label = f"{key} frames/s" if rates else f"DL {key}"
         for cls, per in classes.items():
             out.append((label, cls, per["default"]))
     return out
@@ -39,7 +39,7 @@ def main(argv: list[str] | None = None) -> dict:
     for name in args.runs:
         counts = {"met": 0, "open": 0, "missed": 0}
         for label, cls, st in cells(common.read_json(name)):
-            n, cov = st["n"] - st.get("failed", 0), st["coverage_95"]
+            n, cov = st["n"], st["coverage_95"]  # both over the windows identified (failures apart)
             fig = {p: (cov[p], *wilson(round(cov[p] * n), n)) for p in common.PARAMS}
             verdicts = {p: verdict(*fig[p], TARGET) for p in common.PARAMS}
             if cls != "none":  # the target is under input noise
