@@ -61,9 +61,18 @@ def split(var_meas: float, var_resid: float, white_var: float) -> tuple[float, f
         own_std over the std of the measured ambient part [-] (0 without own fluctuation, → 1 when it
         dominates).
     """
-    amb = max(var_meas - white_var, 1e-300)
-    own_var = min(max(var_resid - white_var, 0.0), amb)
+    own_var, amb = variances(var_meas, var_resid, white_var)
     return 1.0 - own_var / amb, math.sqrt(own_var), math.sqrt(own_var / amb)
+
+
+def variances(var_meas: float, var_resid: float, white_var: float) -> tuple[float, float]:
+    """The own fluctuation's variance and the ambient variance of one channel [pu²], as :func:`split` reads them.
+
+    The ambient part is the measured variance less the white floor (at least 1e-300); the own fluctuation the
+    residual's variance less the floor, within [0, ambient].  Arguments as :func:`split`'s.
+    """
+    amb = max(var_meas - white_var, 1e-300)
+    return min(max(var_resid - white_var, 0.0), amb), amb
 
 
 def own_median_hz(resid: np.ndarray, fs: float, noise_std: float, lowpass_hz: float = 0.0,

@@ -294,18 +294,16 @@ def _static_parts(pool: _Pool, d: np.ndarray) -> list[dict[str, float]]:
 def pool_own_ratio(pool: _Pool, blocks) -> float:
     """The load's own fluctuation over the ambient part of P, pooled over a pool's windows [-].
 
-    Each window's split of its P channel as the single window's (:func:`aslm_core.excitation.split`): measured
-    variance over the regression samples less the white floor (the ambient part), the projected residual's variance
-    less the floor (the own fluctuation, within [0, ambient]); the pool's ratio is √(Σ own / Σ ambient), the windows
-    weighted by their ambient variance as a pool of one long window would weigh them.
+    Each window's split of its P channel as the single window's (:func:`aslm_core.excitation.variances`: the measured
+    variance over the regression samples and the projected residual's, each less the white floor); the pool's ratio is
+    √(Σ own / Σ ambient), the windows weighted by their ambient variance as a pool of one long window would weigh them.
     """
     own = amb = 0.0
     for prob, (rp, _, _, _) in zip(pool.problems, blocks, strict=True):
         white = excitation.white_variance(prob.prep.noise.get("noise_p", 0.0), 1.0 / prob.prep.dt,
                                           prob.prep.lowpass_hz)
-        a = max(float(np.var(prob.p_meas)) - white, 1e-300)
-        own += min(max(float(rp @ rp) / rp.size - white, 0.0), a)
-        amb += a
+        o, a = excitation.variances(float(np.var(prob.p_meas)), float(rp @ rp) / rp.size, white)
+        own, amb = own + o, amb + a
     return math.sqrt(own / amb)
 
 
