@@ -76,7 +76,7 @@ def run_one(job: tuple) -> dict:
     input_noise = bool(rest[0]) if rest else False
     base, ec, model, user = case(job)
     t0, c0 = time.perf_counter(), time.process_time()
-    rep = diagnose(ec.window, model)
+    rep = diagnose(ec.window, model, config=diagnosis_config())
     elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
     top = next((e for e in rep.missing_physics if e.tested), None)
     rec = {
@@ -236,9 +236,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-write", action="store_true")
     p.add_argument("--tag", default="", help="written as diagnosis[_input_noise]_<tag>.json (a rerun that must not "
                                              "overwrite the run of record)")
+    p.add_argument("--config", action="append", default=[], metavar="NAME=VALUE",
+                   help="a DiagnosisConfig option other than its default (repeatable; e.g. cross_fit=true)")
     args = p.parse_args(argv)
+    overrides = config_overrides(args.config)
     if args.timing:
-        return _timing(args.timing, args.input_noise)
+        return _timing(args.timing, args.input_noise, overrides)
     n_eff, n_clean, n_user = (1, 2, 1) if args.quick else (args.per_level, args.clean, max(4, args.clean // 3))
     jobs = _jobs(n_eff, n_clean, n_user, args.input_noise)
     if args.only:
@@ -248,14 +251,14 @@ def main(argv: list[str] | None = None) -> int:
         keep = set(args.cases.split(","))
         jobs = [j for j in jobs if f"{j[0]}/{j[1]}/{j[2]}" in keep]
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.workers, initializer=_init) as pool:
+    with ProcessPoolExecutor(max_workers=args.workers, initializer=_init, initargs=(overrides,)) as pool:
         recs = list(pool.map(run_one, jobs, chunksize=1))
     wall = time.perf_counter() - t0
     s = summarise(recs)
     s["wall_s"] = wall
     s["command"] = "benchmarks/diagnosis.py" + (" --quick" if args.quick else "") + (
         " --input-noise" if args.input_noise else "") + (f" --only {args.only}" if args.only else "") + (
-        f" --cases {args.cases}" if args.cases else "")
+        f" --cases {args.cases}" if args.cases else "") + "".join(f" --config {c}" for c in args.config)
     s["input_noise"] = args.input_noise
     s["machine"] = {"cpus": os.cpu_count(), "python": platform.python_version(), "workers": args.workers}
     print(markdown(s))
@@ -272,9 +275,9 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _timing(n: int, input_noise: bool) -> int:
+def _timing(n: int, input_noise: bool, overrides: dict | None = None) -> int:
     """N diagnoses in this process (effects and levels interleaved); CPU time per diagnosis."""
-    _init()
+    _init(overrides)
     effects = [*LIBRARY_EFFECTS, *OUTSIDE_EFFECTS, "none"]
     jobs = [(effects[k % len(effects)], 1 + k % 3, k // len(effects), input_noise) for k in range(n + 1)]
     recs = [run_one(j) for j in jobs][1:]  # the first one pays for loading compiled kernels
@@ -287,11 +290,44 @@ def _timing(n: int, input_noise: bool) -> int:
     return 0
 
 
-def _init() -> None:
+#: The diagnosis's options in this process (``--config``; None: its defaults), set by :func:`_init`.
+_CONFIG_OVERRIDES: dict | None = None
+
+
+def _init(overrides: dict | None = None) -> None:
+    global _CONFIG_OVERRIDES
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from aslm_core import warmup
 
+    _CONFIG_OVERRIDES = overrides
     warmup()
+
+
+def diagnosis_config():
+    """The :class:`~aslm_core.diagnosis.DiagnosisConfig` of this process: the defaults with ``--config``'s changes."""
+    from aslm_core.diagnosis.pipeline import DiagnosisConfig
+
+    return DiagnosisConfig(**(_CONFIG_OVERRIDES or {}))
+
+
+def config_overrides(items: list[str]) -> dict:
+    """``--config`` values ``NAME=VALUE`` (VALUE read as JSON where it parses, else as text) as a dict; a name
+    :class:`~aslm_core.diagnosis.DiagnosisConfig` does not have is a clear error."""
+    from dataclasses import fields
+
+    from aslm_core.diagnosis.pipeline import DiagnosisConfig
+
+    known = {f.name for f in fields(DiagnosisConfig)}
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or name not in known:
+            raise SystemExit(f"--config {item!r}: expected NAME=VALUE with NAME one of {sorted(known)}")
+        try:
+            out[name] = json.loads(value)
+        except json.JSONDecodeError:
+            out[name] = value
+    return out
 
 
 if __name__ == "__main__":

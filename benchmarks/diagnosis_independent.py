@@ -39,7 +39,7 @@ sys.path.insert(0, str(ROOT))
 
 from aslm_sim.andes.effects import KINDS, cache_dir  # noqa: E402
 from aslm_sim.noise import NOISE_LEVELS, SNR_SPREAD_DB  # noqa: E402
-from benchmarks.diagnosis import _init  # noqa: E402  (the self-test's worker warm-up)
+from benchmarks.diagnosis import _init, config_overrides, diagnosis_config  # noqa: E402  (the self-test's)
 
 RESULTS = ROOT / "docs" / "results"
 #: Scenario seeds per set.  Confirmation: 10 clean seeds (60 clean cases = 10 × 2 windows × 3 levels) and 4 per
@@ -162,7 +162,7 @@ def run_job(job: tuple) -> list[dict]:
                 w, snr = _window(rec, t0, t1, level, input_noise, f"{kind}/{seed}")
                 c0, w0 = time.process_time(), time.perf_counter()
                 try:
-                    rep = diagnose(w)
+                    rep = diagnose(w, config=diagnosis_config())
                 except ValueError as exc:  # WindowError included: the window was rejected
                     out.append({"kind": kind, "seed": seed, "window": [t0, t1], "level": level,
                                 "input_noise": input_noise, "failed": f"diagnosis: {exc!r}"})
@@ -294,7 +294,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="diagnose only the scenarios already in the recording cache (no ANDES run)")
     p.add_argument("--simulate-only", action="store_true",
                    help="only fill the recording cache (ANDES), diagnose and score nothing")
+    p.add_argument("--config", action="append", default=[], metavar="NAME=VALUE",
+                   help="a DiagnosisConfig option other than its default (repeatable; e.g. cross_fit=true)")
     args = p.parse_args(argv)
+    overrides = config_overrides(args.config)
     only = {int(x) for x in args.seeds.split(",") if x}
     todo_jobs = [(k, s) for k, s in jobs(args.set, [k for k in args.kinds.split(",") if k] or None)
                  if not only or s in only]
@@ -309,7 +312,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     recs: list[dict] = []
     failed: list[dict] = []
-    with ProcessPoolExecutor(max_workers=args.workers, initializer=_init) as pool, partial.open("w") as fh:
+    with ProcessPoolExecutor(max_workers=args.workers, initializer=_init, initargs=(overrides,)) as pool, \
+            partial.open("w") as fh:
         futs = {pool.submit(run_job, j): j for j in todo}
         for f in as_completed(futs):
             rows = f.result()

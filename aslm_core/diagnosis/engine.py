@@ -152,7 +152,7 @@ def fit_candidate(cand: Candidate, seg: Segment, ctx: Context, noise, *,
         lo, hi = np.concatenate([dlo, zlo]), np.concatenate([dhi, zhi])
     else:
         lo, hi = np.asarray(zlo, float), np.asarray(zhi, float)
-    n_tr = n_band(seg.ks - seg.k0, noise.fs, noise.band_hz)
+    n_tr = n_band(seg.train.stop - seg.train.start, noise.fs, noise.band_hz)
     proj = Projector(seg, noise, _lstsq)
 
     def unpack(x):

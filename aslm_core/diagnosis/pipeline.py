@@ -134,6 +134,12 @@ class DiagnosisConfig:
         given the window (Wiener smoother; :func:`segment.conditional_mean`, docs/diagnosis.md, "Stop 32"), their
         error drawn white at the measured floors; False: the measured inputs, their white noise propagated
         (before stop 32).
+    cross_fit : bool
+        Judge every candidate on both folds of each window: the time-ordered split (fit on the first
+        ``train_fraction``, judge on the rest) and its mirror (judge on as many samples right after the skip, fit
+        on the rest), the held-out statistics of the two combined as those of two windows (score and paired
+        statistics by Stouffer's rule, gains summed, the parameters' standard error widened for the training
+        samples the folds share).  The held-out samples double (3.4 s → 6.8 s of a 10 s window).  False: one fold.
     challengers : bool
         When the top candidate is not separated from a rival, try the unseparated rivals (in the order of
         their gain) as the cause: one that is significant, explains the mismatch and is separated from every
@@ -156,6 +162,7 @@ class DiagnosisConfig:
     bound_rule: bool = True
     challengers: bool = True
     input_mean: bool = True
+    cross_fit: bool = False
 
 
 @dataclass
@@ -173,6 +180,7 @@ class _WindowAnalysis:
     floors: dict | None = None
     weights: NoiseModel | None = None  # the fits' noise model (test_noise is ``noise``)
     probes: dict = field(default_factory=dict)  # candidate → its input-noise draws (None: not modelled)
+    window: int = 0  # which of the diagnosed windows (a cross-fitted window has two analyses)
 
 
 def _plain_d(seg: Segment, previous, config: DiagnosisConfig) -> np.ndarray:
@@ -212,7 +220,6 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
         noise = estimate_noise(seg, lambda s: engine.output(_PLAIN, s, ctx, plain), win, band_hz=config.band_hz)
         plain = engine.fit_candidate(_PLAIN, seg, ctx, noise, d_start=plain.d)
     test_noise = _through(seg, noise, _PLAIN, ctx, plain)
-    sig = (test_noise.total_sigma("P", win), test_noise.total_sigma("Q", win))
     # Location uses the model identified from the whole window (the playback of DESIGN §3): a model fitted
     # on the training part alone carries its extrapolation error into the held-out part.
     full = replace(seg, ks=seg.ke)
@@ -223,7 +230,24 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
     rp, rq = (a[win] for a in loc_fit.residuals(seg))
     drivers = {"V": seg.V[win], "dVdt": seg.dvdt[win], "df": seg.dfreq[win]}
     located = Location.from_locate(locate(rp, rq, seg.t[win], seg.fs, drivers, floors))
+    out = _fold(seg, ctx, plain, noise, test_noise, located, floors, config)
+    if not ctx.free:
+        ictx = Context("identified", _plain_d(seg, None, config))
+        re = engine.fit_candidate(_PLAIN, seg, ictx, noise)
+        out.reidentified = re
+        g0 = (test_noise.probes_p, test_noise.probes_q) if test_noise.has_inputs else None
+        g1 = _probes(seg, noise, _PLAIN, ictx, re) if g0 is not None else None
+        pcov = engine.prediction_cov(_PLAIN, seg, ctx, plain, noise) if config.prediction_variance else None
+        out.refit_comp = engine.compare(seg, plain, re, 4 + 5, test_noise, config.lag_s,
+                                        probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
+    return out
+
+
+def _fold(seg: Segment, ctx: Context, plain: engine.Fit, noise: NoiseModel, test_noise: NoiseModel,
+          located: Location, floors: dict, config: DiagnosisConfig) -> _WindowAnalysis:
+    """Every candidate fitted on ``seg.train`` and compared with the plain fit on ``seg.test``."""
     g0 = (test_noise.probes_p, test_noise.probes_q) if test_noise.has_inputs else None
+    sig = (test_noise.total_sigma("P", slice(seg.k0, seg.ke)), test_noise.total_sigma("Q", slice(seg.k0, seg.ke)))
     pcov = engine.prediction_cov(_PLAIN, seg, ctx, plain, noise) if config.prediction_variance else None
     fits, comps, probes = {}, {}, {}
     for name in config.candidates:
@@ -236,15 +260,21 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
         probes[name] = g1
         comps[name] = engine.compare(seg, plain, f, cand.n_params, test_noise, config.lag_s,
                                      probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
-    out = _WindowAnalysis(seg, ctx, sig, plain, located, fits, comps, noise=test_noise, floors=floors,
-                          weights=noise, probes=probes)
-    if not ctx.free:
-        ictx = Context("identified", _plain_d(seg, None, config))
-        re = engine.fit_candidate(_PLAIN, seg, ictx, noise)
-        out.reidentified = re
-        g1 = _probes(seg, noise, _PLAIN, ictx, re) if g0 is not None else None
-        out.refit_comp = engine.compare(seg, plain, re, 4 + 5, test_noise, config.lag_s,
-                                        probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
+    return _WindowAnalysis(seg, ctx, sig, plain, located, fits, comps, noise=test_noise, floors=floors,
+                           weights=noise, probes=probes)
+
+
+def _second_fold(a: _WindowAnalysis, config: DiagnosisConfig) -> _WindowAnalysis | None:
+    """The window's other fold (held-out samples first, :attr:`Segment.held_out_first`): the plain model and
+    every candidate refitted on the later samples from the first fold's plain fit, with its weights; the
+    location is the whole window's, shared.  None when the plain fit fails there."""
+    seg = replace(a.seg, held_out_first=True)
+    plain = engine.fit_candidate(_PLAIN, seg, a.ctx, a.weights, d_start=a.plain.d)
+    if not plain.ok:
+        return None
+    test_noise = _through(seg, a.weights, _PLAIN, a.ctx, plain)
+    out = _fold(seg, a.ctx, plain, a.weights, test_noise, a.located, a.floors, config)
+    out.window = a.window
     return out
 
 
@@ -341,24 +371,48 @@ def _mean_fit(fits: list[HeldOutFit]) -> HeldOutFit:
     return HeldOutFit(**{k: float(np.mean([getattr(f, k) for f in fits])) for k in ("fd_p", "fd_q", "rms_p", "rms_q")})
 
 
+def _fold_overlap(seg: Segment) -> float:
+    """Share of a fold's training samples the window's other fold trains on too [-]: the correlation of the
+    two folds' estimates, to first order (least squares on overlapping samples of stationary data)."""
+    n_train = seg.ks - seg.k0
+    return max(0, n_train - (seg.ke - seg.ks)) / n_train
+
+
+def _inverse_variance(v: np.ndarray, s: np.ndarray) -> tuple[float, float]:
+    """Inverse-variance mean of estimates ``v`` with standard errors ``s`` and its standard error (inf: none)."""
+    ok = np.isfinite(s) & (s > 1e-150)
+    w = np.zeros_like(s)
+    w[ok] = 1.0 / s[ok] ** 2
+    if w.sum() > 0:
+        return float(np.sum(w * v) / w.sum()), float(1.0 / math.sqrt(w.sum()))
+    return float(np.nanmean(v)), float("inf")
+
+
 def _combine_params(analyses: list[_WindowAnalysis], name: str) -> tuple[dict, dict]:
-    """Inverse-variance mean of a candidate's parameters over windows."""
+    """Inverse-variance mean of a candidate's parameters over windows.
+
+    A cross-fitted window's two folds are combined first, their standard error widened by √(1 + ρ) for the
+    training samples they share (ρ, :func:`_fold_overlap`; exact for equal variances), then the windows.
+    """
     keys = [k for k in analyses[0].fits[name].params if not k.startswith("D.")]
+    by_window: dict[int, list[_WindowAnalysis]] = {}
+    for a in analyses:
+        by_window.setdefault(a.window, []).append(a)
     val, se = {}, {}
     for k in keys:
         v = np.array([a.fits[name].params.get(k, np.nan) for a in analyses])
         if all(k not in a.fits[name].stderr for a in analyses):  # a scanned parameter: no standard error
             val[k] = float(np.nanmean(v))
             continue
-        s = np.array([a.fits[name].stderr.get(k, np.inf) for a in analyses])
-        ok = np.isfinite(s) & (s > 1e-150)
-        w = np.zeros_like(s)
-        w[ok] = 1.0 / s[ok] ** 2
-        if w.sum() > 0:
-            val[k] = float(np.sum(w * v) / w.sum())
-            se[k] = float(1.0 / math.sqrt(w.sum()))
-        else:
-            val[k], se[k] = float(np.nanmean(v)), float("inf")
+        per_window = []
+        for group in by_window.values():
+            gv = np.array([a.fits[name].params.get(k, np.nan) for a in group])
+            gs = np.array([a.fits[name].stderr.get(k, np.inf) for a in group])
+            mean, err = _inverse_variance(gv, gs)
+            if len(group) > 1:
+                err *= math.sqrt(1.0 + _fold_overlap(group[0].seg))
+            per_window.append((mean, err))
+        val[k], se[k] = _inverse_variance(*(np.array(x) for x in zip(*per_window, strict=True)))
     return val, se
 
 
@@ -435,8 +489,12 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
     wins = [windows] if isinstance(windows, Window) else list(windows)
     if not wins:
         raise ValueError("no window to diagnose")
-    analyses = [_analyse(w, model, previous, config) for w in wins]
-    m = len(analyses)
+    firsts = [_analyse(w, model, previous, config) for w in wins]
+    for i, a in enumerate(firsts):
+        a.window = i
+    analyses = list(firsts)
+    if config.cross_fit:
+        analyses += [b for a in firsts if (b := _second_fold(a, config)) is not None]
     names = list(config.candidates)
     tested = [n for n in names if not LIBRARY[n].not_applicable(analyses[0].ctx)]
     zcrit = engine.dm_critical(config.alpha, max(len(tested), 1))
@@ -447,7 +505,7 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
         if e.penalised_gain is not None and not math.isfinite(e.penalised_gain):
             e.penalised_gain = None
     before = _mean_fit([_held_out_fit(a.seg, a.plain) for a in analyses])
-    located = _locations(analyses)
+    located = _locations(firsts)
     mismatch = bool(located.channels)
     significant = [e for e in entries if e.significant]
     best = significant[0] if significant else None
@@ -514,7 +572,7 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
             improvement=PerChannel(p=rc.reduction_p, q=rc.reduction_q),
             reidentified=Motor(dynamic=_dynamic(a0.reidentified.d)),
         )
-    series = [_series(a, cause) for a in analyses]
+    series = [_series(a, cause) for a in firsts]
     return DiagnosisReport(
         verdict=verdict, cause=cause, causes=causes, located=located, missing_physics=entries, fit_before=before,
         fit_after=after, model=plain_model,
@@ -524,9 +582,9 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
             sigma_theta=float(np.mean([a.noise.sigma_theta for a in analyses])),
             input_share_p=float(np.mean([a.floors["P"]["input_share"] for a in analyses])),
             input_share_q=float(np.mean([a.floors["Q"]["input_share"] for a in analyses]))),
-        held_out=HeldOutInfo(windows=m, t_start=[float(a.seg.t[a.seg.ks]) for a in analyses],
-                             t_end=[float(a.seg.t[a.seg.ke - 1]) for a in analyses],
-                             n=int(sum(a.seg.ke - a.seg.ks for a in analyses)), dm_critical=zcrit),
+        held_out=HeldOutInfo(windows=len(firsts), t_start=[float(a.seg.t[a.seg.test.start]) for a in analyses],
+                             t_end=[float(a.seg.t[a.seg.test.stop - 1]) for a in analyses],
+                             n=int(sum(a.seg.test.stop - a.seg.test.start for a in analyses)), dm_critical=zcrit),
         message=message, elapsed_s=time.perf_counter() - t0, mode=a0.ctx.mode,
         parameter_mismatch=mismatch_info, series=series,
     )

@@ -56,6 +56,10 @@ class Segment:
     input_error : (ndarray, ndarray) or None
         With the conditional mean: frequencies [Hz] and covariance spectrum (m, 2, 2) of its error x − x̂
         (:func:`error_spectrum`, per-sample units).
+    held_out_first : bool
+        The second fold of a cross-fitted diagnosis: the held-out samples are the ``ke − ks`` right after the
+        skip and the parameters are fitted on the rest (``k0 + ke − ks`` to ``ke``); False: the time-ordered
+        split, fit first, judge after.
     """
 
     t: np.ndarray
@@ -75,6 +79,7 @@ class Segment:
     V_raw: np.ndarray | None = None
     theta_raw: np.ndarray | None = None
     input_error: tuple[np.ndarray, np.ndarray] | None = None
+    held_out_first: bool = False
 
     def __post_init__(self) -> None:
         self.omega0 = motor.omega0_of(self.f0)
@@ -103,11 +108,15 @@ class Segment:
     @property
     def train(self) -> slice:
         """Samples the parameters are fitted on."""
+        if self.held_out_first:
+            return slice(self.k0 + self.ke - self.ks, self.ke)
         return slice(self.k0, self.ks)
 
     @property
     def test(self) -> slice:
         """Held-out samples the candidates are judged on."""
+        if self.held_out_first:
+            return slice(self.k0, self.k0 + self.ke - self.ks)
         return slice(self.ks, self.ke)
 
     @property
