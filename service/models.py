@@ -197,10 +197,11 @@ class HeldOutInfoModel(BaseModel):
     """The held-out samples every comparison is made on."""
 
     windows: int = Field(description="Windows diagnosed together.")
-    t_start: list[float] = Field(description="Per window, time of the first held-out sample [s].")
-    t_end: list[float] = Field(description="Per window, time of the last held-out sample [s].")
-    n: int = Field(description="Held-out samples over all windows.")
+    t_start: list[float] = Field(description="Per fold, time of the first held-out sample [s]: each window's time-ordered fold (held out after the training samples), then, when cross-fitted, each window's mirrored fold (held out first).")
+    t_end: list[float] = Field(description="Per fold, time of the last held-out sample [s] (the order of ``t_start``).")
+    n: int = Field(description="Held-out samples over all folds.")
     dm_critical: float = Field(description="One-sided critical value of the score statistic, 1 % Bonferroni-corrected over the tested candidates [-].")
+    folds: int = Field(1, description="Held-out folds per window: 2 when cross-fitted (``DiagnosisConfig.cross_fit``), 1 otherwise or when a window's mirrored fold could not be fitted (``t_start`` then lists the folds judged) [-].")
 
 
 class MotorModel(BaseModel):

@@ -362,13 +362,17 @@ class HeldOutInfo(_Part):
     windows : int
         Windows diagnosed together.
     t_start : list of float
-        Per window, time of the first held-out sample [s].
+        Per fold, time of the first held-out sample [s]: each window's time-ordered fold (held out after the
+        training samples), then, when cross-fitted, each window's mirrored fold (held out first).
     t_end : list of float
-        Per window, time of the last held-out sample [s].
+        Per fold, time of the last held-out sample [s] (the order of ``t_start``).
     n : int
-        Held-out samples over all windows.
+        Held-out samples over all folds.
     dm_critical : float
         One-sided critical value of the score statistic, 1 % Bonferroni-corrected over the tested candidates [-].
+    folds : int
+        Held-out folds per window: 2 when cross-fitted (``DiagnosisConfig.cross_fit``), 1 otherwise or when a
+        window's mirrored fold could not be fitted (``t_start`` then lists the folds judged) [-].
     """
 
     windows: int
@@ -376,6 +380,7 @@ class HeldOutInfo(_Part):
     t_end: list[float]
     n: int
     dm_critical: float
+    folds: int = 1
 
 
 @dataclass

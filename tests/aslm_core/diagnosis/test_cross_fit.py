@@ -61,7 +61,8 @@ def test_cross_fitting_doubles_the_held_out_samples_and_keeps_the_report_per_win
     one = diagnose(ec.window)
     two = diagnose(ec.window, config=DiagnosisConfig(cross_fit=True))
     assert two.verdict == "explained" and two.cause == "measurement_skew"
-    assert two.held_out.windows == 1 and len(two.held_out.t_start) == 2
+    assert two.held_out.windows == 1 and len(two.held_out.t_start) == 2 and two.held_out.folds == 2
+    assert one.held_out.folds == 1
     assert two.held_out.n == 2 * one.held_out.n
     assert two.held_out.t_start[1] < two.held_out.t_end[1] < two.held_out.t_start[0]
     assert len(two.series) == 1 and two.located == one.located
