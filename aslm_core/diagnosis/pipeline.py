@@ -140,6 +140,10 @@ class DiagnosisConfig:
         on the rest), the held-out statistics of the two combined as those of two windows (score and paired
         statistics by Stouffer's rule, gains summed, the parameters' standard error widened for the training
         samples the folds share).  The held-out samples double (3.4 s → 6.8 s of a 10 s window).  False: one fold.
+    mirror_gap_s : float
+        With ``cross_fit``, time between the skip and the mirrored fold's held-out samples [s]: its training
+        samples then start later (4.5 s of a 10 s window), and its held-out ones are clear of what the model's
+        steady-state start leaves in slow states (a lag of seconds, a relay's initial state).
     challengers : bool
         When the top candidate is not separated from a rival, try the unseparated rivals (in the order of
         their gain) as the cause: one that is significant, explains the mismatch and is separated from every
@@ -162,7 +166,8 @@ class DiagnosisConfig:
     bound_rule: bool = True
     challengers: bool = True
     input_mean: bool = True
-    cross_fit: bool = False
+    cross_fit: bool = True
+    mirror_gap_s: float = 1.0
 
 
 @dataclass
@@ -252,7 +257,7 @@ def _fold(seg: Segment, ctx: Context, plain: engine.Fit, noise: NoiseModel, test
     fits, comps, probes = {}, {}, {}
     for name in config.candidates:
         cand = LIBRARY[name]
-        if cand.not_applicable(ctx):
+        if cand.not_applicable(ctx) or (seg.held_out_first and cand.time_ordered_only):
             continue
         f = engine.fit_candidate(cand, seg, ctx, noise, d_start=plain.d)
         fits[name] = f
@@ -268,7 +273,10 @@ def _second_fold(a: _WindowAnalysis, config: DiagnosisConfig) -> _WindowAnalysis
     """The window's other fold (held-out samples first, :attr:`Segment.held_out_first`): the plain model and
     every candidate refitted on the later samples from the first fold's plain fit, with its weights; the
     location is the whole window's, shared.  None when the plain fit fails there."""
-    seg = replace(a.seg, held_out_first=True)
+    s = a.seg
+    # The gap never takes the mirrored fold's training below half the first fold's (short windows).
+    room = s.ke - s.k0 - (s.ke - s.ks) - max(50, (s.ks - s.k0) // 2)
+    seg = replace(s, held_out_first=True, mirror_gap=max(0, min(int(round(config.mirror_gap_s / s.dt)), room)))
     plain = engine.fit_candidate(_PLAIN, seg, a.ctx, a.weights, d_start=a.plain.d)
     if not plain.ok:
         return None
@@ -371,29 +379,42 @@ def _mean_fit(fits: list[HeldOutFit]) -> HeldOutFit:
     return HeldOutFit(**{k: float(np.mean([getattr(f, k) for f in fits])) for k in ("fd_p", "fd_q", "rms_p", "rms_q")})
 
 
-def _fold_overlap(seg: Segment) -> float:
-    """Share of a fold's training samples the window's other fold trains on too [-]: the correlation of the
-    two folds' estimates, to first order (least squares on overlapping samples of stationary data)."""
-    n_train = seg.ks - seg.k0
-    return max(0, n_train - (seg.ke - seg.ks)) / n_train
+def _having(analyses: list[_WindowAnalysis], *names: str) -> list[_WindowAnalysis]:
+    """The analyses (windows, folds) in which every one of ``names`` was fitted: a time-ordered-only candidate
+    (``Candidate.time_ordered_only``) has no mirrored fold, and its statistics, and the paired ones with it,
+    are those of its time-ordered folds."""
+    return [a for a in analyses if all(n in a.fits for n in names)]
 
 
-def _inverse_variance(v: np.ndarray, s: np.ndarray) -> tuple[float, float]:
-    """Inverse-variance mean of estimates ``v`` with standard errors ``s`` and its standard error (inf: none)."""
+def _fold_overlap(a: Segment, b: Segment) -> float:
+    """Correlation of two folds' estimates from the training samples they share [-]: n_shared/√(n_a·n_b), exact
+    for means of overlapping samples of white data, a first-order figure for least squares on them."""
+    ta, tb = a.train, b.train
+    shared = max(0, min(ta.stop, tb.stop) - max(ta.start, tb.start))
+    return shared / math.sqrt((ta.stop - ta.start) * (tb.stop - tb.start))
+
+
+def _inverse_variance(v: np.ndarray, s: np.ndarray, rho: float = 0.0) -> tuple[float, float]:
+    """Inverse-variance mean of estimates ``v`` with standard errors ``s``, pairwise correlated by ``rho``, and
+    its standard error (inf: none)."""
     ok = np.isfinite(s) & (s > 1e-150)
     w = np.zeros_like(s)
     w[ok] = 1.0 / s[ok] ** 2
     if w.sum() > 0:
-        return float(np.sum(w * v) / w.sum()), float(1.0 / math.sqrt(w.sum()))
+        cov = rho * np.outer(s, s)
+        np.fill_diagonal(cov, s**2)
+        wk, sk = w[ok], cov[np.ix_(ok, ok)]
+        return float(np.sum(w * v) / w.sum()), float(math.sqrt(wk @ sk @ wk) / w.sum())
     return float(np.nanmean(v)), float("inf")
 
 
 def _combine_params(analyses: list[_WindowAnalysis], name: str) -> tuple[dict, dict]:
     """Inverse-variance mean of a candidate's parameters over windows.
 
-    A cross-fitted window's two folds are combined first, their standard error widened by √(1 + ρ) for the
-    training samples they share (ρ, :func:`_fold_overlap`; exact for equal variances), then the windows.
+    A cross-fitted window's two folds are combined first, with the correlation of the training samples they
+    share (:func:`_fold_overlap`) in their standard error, then the windows.
     """
+    analyses = _having(analyses, name)
     keys = [k for k in analyses[0].fits[name].params if not k.startswith("D.")]
     by_window: dict[int, list[_WindowAnalysis]] = {}
     for a in analyses:
@@ -408,10 +429,8 @@ def _combine_params(analyses: list[_WindowAnalysis], name: str) -> tuple[dict, d
         for group in by_window.values():
             gv = np.array([a.fits[name].params.get(k, np.nan) for a in group])
             gs = np.array([a.fits[name].stderr.get(k, np.inf) for a in group])
-            mean, err = _inverse_variance(gv, gs)
-            if len(group) > 1:
-                err *= math.sqrt(1.0 + _fold_overlap(group[0].seg))
-            per_window.append((mean, err))
+            rho = _fold_overlap(group[0].seg, group[1].seg) if len(group) == 2 else 0.0
+            per_window.append(_inverse_variance(gv, gs, rho))
         val[k], se[k] = _inverse_variance(*(np.array(x) for x in zip(*per_window, strict=True)))
     return val, se
 
@@ -440,10 +459,9 @@ def _entry(analyses: list[_WindowAnalysis], name: str, zcrit: float) -> Candidat
             improvement_band=PerChannel(None, None), excess_reduction=PerChannel(None, None), penalised_gain=-math.inf,
             score_z=0.0, dm_z=0.0, magnitude_z=None, n_params=cand.n_params, significant=False,
             signature=cand.signature, tested=False, note=reason)
-    m = len(analyses)
-    comps = [a.comps[name] for a in analyses]
-    z = float(sum(c.score_z for c in comps) / math.sqrt(m))
-    dmz = float(sum(c.dm_z for c in comps) / math.sqrt(m))
+    comps = [a.comps[name] for a in _having(analyses, name)]
+    z = float(sum(c.score_z for c in comps) / math.sqrt(len(comps)))
+    dmz = float(sum(c.dm_z for c in comps) / math.sqrt(len(comps)))
     pg = float(sum(c.penalised_gain for c in comps))
     params, se = _combine_params(analyses, name)
     a0 = analyses[0]
@@ -546,7 +564,7 @@ def diagnose(windows: Window | Sequence[Window], model=None, *, previous=None,
                            f"{best.name}, so no cause is named")
             elif len(tied) == 1:
                 verdict, cause = "explained", best.name
-                after = _mean_fit([_held_out_fit(a.seg, a.fits[cause]) for a in analyses])
+                after = _mean_fit([_held_out_fit(a.seg, a.fits[cause]) for a in _having(analyses, cause)])
                 message = f"{cause} explains {100 * frac:.0f} % of the held-out excess residual variance"
             else:
                 verdict = "ambiguous"
@@ -607,7 +625,7 @@ def _kept_on_bound(analyses: list[_WindowAnalysis], best: CandidateEntry, outsid
     binds = rival.score_z is not None and rival.score_z > zcrit and (rival.penalised_gain or 0.0) > 0
     if binds or not LIBRARY[best.name].motor_form:
         return {}
-    kept = {k: v for a in analyses for k, v in a.fits[best.name].at_bound.items()
+    kept = {k: v for a in _having(analyses, best.name) for k, v in a.fits[best.name].at_bound.items()
             if a.plain.at_bound.get(k) == v and k in outside[1]}
     return kept if kept and best.remaining_excess_channels else {}
 
@@ -664,7 +682,7 @@ def paired_comparisons(analyses: list[_WindowAnalysis], best: str, rival: str,
     when either fit failed): its ``score_z`` is :func:`_separation_z`'s, its ``gain`` what ``best`` adds to
     ``rival`` on the held-out data [nats]."""
     out = []
-    for a in analyses:
+    for a in _having(analyses, best, rival):
         fb, fr = a.fits[best], a.fits[rival]
         if not (fb.ok and fr.ok):
             return None
@@ -774,7 +792,7 @@ def off_peak_gain(analyses: list[_WindowAnalysis], name: str) -> float:
     data outside the peak bear out more than half of the fitted correction there (ΣR·D/v > ½ΣD²/v).
     """
     total = 0.0
-    for a in analyses:
+    for a in _having(analyses, name):
         te = a.seg.test
         vp, vq, _ = a.noise.coefficients(te)
         f1 = a.fits[name]
@@ -807,7 +825,7 @@ def _explained_fraction(analyses: list[_WindowAnalysis], name: str) -> float:
     """Share of the held-out ambient-band residual above the noise expectation that a candidate removes
     (noise-weighted sums of squares of the DCT coefficients; m per channel expected from noise alone)."""
     s0 = s1 = expected = 0.0
-    for a in analyses:
+    for a in _having(analyses, name):
         te = a.seg.test
         vp, vq, _ = a.noise.coefficients(te)
         f1 = a.fits[name]
@@ -825,7 +843,7 @@ def _explained_fraction(analyses: list[_WindowAnalysis], name: str) -> float:
 def _remaining(analyses: list[_WindowAnalysis], name: str) -> list[str]:
     """Channels whose residual still exceeds the noise floor materially after the candidate."""
     left = set()
-    for a in analyses:
+    for a in _having(analyses, name):
         win = slice(a.seg.k0, a.seg.ke)
         rp, rq = (r[win] for r in a.fits[name].residuals(a.seg))
         loc = locate(rp, rq, a.seg.t[win], a.seg.fs, {}, a.floors)

@@ -57,9 +57,13 @@ class Segment:
         With the conditional mean: frequencies [Hz] and covariance spectrum (m, 2, 2) of its error x − x̂
         (:func:`error_spectrum`, per-sample units).
     held_out_first : bool
-        The second fold of a cross-fitted diagnosis: the held-out samples are the ``ke − ks`` right after the
-        skip and the parameters are fitted on the rest (``k0 + ke − ks`` to ``ke``); False: the time-ordered
-        split, fit first, judge after.
+        The second fold of a cross-fitted diagnosis: the held-out samples are ``ke − ks`` samples from
+        ``k0 + mirror_gap`` and the parameters are fitted on the samples after them, to ``ke``; False: the
+        time-ordered split, fit first, judge after.
+    mirror_gap : int
+        Samples between the skip and the second fold's held-out samples (``held_out_first`` only): the model's
+        states start from a steady state the recording is not in, and what that leaves decays with the slowest
+        state's time constant, which the skip alone does not cover for a lag of seconds.
     """
 
     t: np.ndarray
@@ -80,6 +84,7 @@ class Segment:
     theta_raw: np.ndarray | None = None
     input_error: tuple[np.ndarray, np.ndarray] | None = None
     held_out_first: bool = False
+    mirror_gap: int = 0
 
     def __post_init__(self) -> None:
         self.omega0 = motor.omega0_of(self.f0)
@@ -109,14 +114,14 @@ class Segment:
     def train(self) -> slice:
         """Samples the parameters are fitted on."""
         if self.held_out_first:
-            return slice(self.k0 + self.ke - self.ks, self.ke)
+            return slice(self.k0 + self.mirror_gap + self.ke - self.ks, self.ke)
         return slice(self.k0, self.ks)
 
     @property
     def test(self) -> slice:
         """Held-out samples the candidates are judged on."""
         if self.held_out_first:
-            return slice(self.k0, self.k0 + self.ke - self.ks)
+            return slice(self.k0 + self.mirror_gap, self.k0 + self.mirror_gap + self.ke - self.ks)
         return slice(self.ks, self.ke)
 
     @property

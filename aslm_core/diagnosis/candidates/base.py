@@ -156,6 +156,11 @@ class Candidate:
         The candidate is a linear response to V at every frequency (a droop), so a real one improves the held-out
         fit wherever V moves: its held-out gain outside the narrow band where its correction peaks must be positive,
         else it is refuted like an implausible fit (:func:`aslm_core.diagnosis.pipeline.off_peak_gain`).
+    time_ordered_only : bool
+        The candidate's law is learnt from discrete events in its training samples (a relay's switchings and its
+        state before them), so it is judged on the time-ordered fold only: a cross-fitted window's mirrored fold
+        trains on the window's later part, which need not hold an event its held-out samples hold
+        (``DiagnosisConfig.cross_fit``).
     """
 
     name = "plain"
@@ -171,6 +176,7 @@ class Candidate:
     confusable: tuple[str, ...] = ()
     motor_form = False
     broadband = False
+    time_ordered_only = False
     max_nfev = 40  # upper-stage function evaluations per start (each iteration adds a Jacobian)
 
     @property

@@ -521,6 +521,7 @@ class SwitchedShunt(Candidate):
     nl_names = ("Vc", "dv", "tau", "t_op", "s0", "dV")
     nl_units = ("pu", "pu", "s", "s", "-", "pu")
     scanned = nl_names
+    time_ordered_only = True
     lin_q = ("B",)
     lin_units = {"B": "pu"}
     signature = ("steps of Q ∝ V² (not of P) after V stays beyond a threshold for a delay, or at V's own steps: "

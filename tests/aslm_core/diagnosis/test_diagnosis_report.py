@@ -105,7 +105,10 @@ def test_report_parts_match_the_diagnosis_mode(reports):
     assert set(user.parameter_mismatch.reidentified.dynamic) == {"a", "b", "H2", "Tm"}
     assert one.located.windows is None and set(one.located.noise_floor) == {"P", "Q"}
     assert two.located.noise_floor is None and len(two.located.windows) == two.held_out.windows == 2
-    assert one.held_out.windows == 1 and len(one.held_out.t_start) == 1
+    # Cross-fitted by default: each window's time-ordered fold, then its mirrored one.
+    assert one.held_out.windows == 1 and one.held_out.folds == 2 and len(one.held_out.t_start) == 2
+    assert len(two.held_out.t_start) == two.held_out.windows * two.held_out.folds == 4
+    assert two.held_out.t_start[0] > two.held_out.t_start[2] and two.held_out.t_start[1] > two.held_out.t_start[3]
 
 
 def test_a_failed_diagnosis_as_the_service_stores_it_validates():
