@@ -136,8 +136,8 @@ class DiagnosisConfig:
         (before stop 32).
     cross_fit : bool
         Judge every candidate on both folds of each window: the time-ordered split (fit on the first
-        ``train_fraction``, judge on the rest) and its mirror (judge on as many samples right after the skip, fit
-        on the rest), the held-out statistics of the two combined as those of two windows (score and paired
+        ``train_fraction``, judge on the rest) and its mirror (judge on as many samples from ``mirror_gap_s``
+        after the skip, fit on the samples after them), the held-out statistics of the two combined as those of two windows (score and paired
         statistics by Stouffer's rule, gains summed, the parameters' standard error widened for the training
         samples the folds share).  The held-out samples double (3.4 s → 6.8 s of a 10 s window).  False: one fold.
     mirror_gap_s : float
@@ -401,10 +401,9 @@ def _inverse_variance(v: np.ndarray, s: np.ndarray, rho: float = 0.0) -> tuple[f
     w = np.zeros_like(s)
     w[ok] = 1.0 / s[ok] ** 2
     if w.sum() > 0:
-        cov = rho * np.outer(s, s)
-        np.fill_diagonal(cov, s**2)
-        wk, sk = w[ok], cov[np.ix_(ok, ok)]
-        return float(np.sum(w * v) / w.sum()), float(math.sqrt(wk @ sk @ wk) / w.sum())
+        cov = rho * np.outer(s[ok], s[ok])
+        np.fill_diagonal(cov, s[ok] ** 2)
+        return float(np.sum(w * v) / w.sum()), float(math.sqrt(w[ok] @ cov @ w[ok]) / w.sum())
     return float(np.nanmean(v)), float("inf")
 
 

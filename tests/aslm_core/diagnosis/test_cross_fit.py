@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -59,6 +60,13 @@ def test_two_folds_of_one_window_count_the_training_samples_they_share(cases):
     c = np.array([[0.01, rho * 0.03], [rho * 0.03, 0.09]])
     assert val["k"] == pytest.approx((100.0 * 1.0 + 3.0 / 0.09) / w.sum())
     assert se["k"] == pytest.approx(math.sqrt(w @ c @ w) / w.sum())
+    # A fold or window without a standard error drops out of the mean, and nothing warns.
+    for parts in ([_analysis(0, 1.0, 0.1, seg), _analysis(0, 3.0, math.inf, mirror)],
+                  [_analysis(0, 1.0, 0.1, seg), _analysis(1, 3.0, math.inf, seg)]):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            val, se = _combine_params(parts, "c")
+        assert (val["k"], se["k"]) == (pytest.approx(1.0), pytest.approx(0.1))
     # Two windows are independent: the plain inverse-variance standard error, as before cross-fitting.
     windows = [_analysis(0, 1.0, 0.2, seg), _analysis(1, 3.0, 0.2, seg)]
     assert _combine_params(windows, "c")[1]["k"] == pytest.approx(0.2 / math.sqrt(2.0))
