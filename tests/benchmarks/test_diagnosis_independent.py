@@ -63,3 +63,20 @@ def test_scores_count_wrong_names_ambiguous_and_unknown_verdicts_apart():
     assert s["right_named_where_the_cause_is_a_candidate"][1] == 0.5  # only the second motors count
     assert s["confusion"]["double_cage"] == {"ambiguous": 1, "double_cage_rotor": 1}
     assert "double_cage_rotor" in di.markdown(s, "test")
+
+
+def test_config_overrides_reach_the_diagnosis_and_a_wrong_name_is_a_clear_error():
+    from benchmarks import diagnosis as selftest
+
+    over = selftest.config_overrides(["cross_fit=false", "mirror_gap_s=0.5", "candidates=[\"second_motor\"]"])
+    assert over == {"cross_fit": False, "mirror_gap_s": 0.5, "candidates": ["second_motor"]}
+    selftest._init(over)
+    try:
+        cfg = selftest.diagnosis_config()
+        assert (cfg.cross_fit, cfg.mirror_gap_s, cfg.alpha) == (False, 0.5, 0.01)
+    finally:
+        selftest._init(None)
+    assert selftest.diagnosis_config().cross_fit is True
+    for bad in ("crossfit=true", "cross_fit"):
+        with pytest.raises(SystemExit, match="NAME=VALUE"):
+            selftest.config_overrides([bad])
