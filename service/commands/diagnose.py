@@ -23,7 +23,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--report", metavar="DIR", default=None, help="write a Markdown report with PNG figures to DIR")
     p.add_argument("--f0", type=float, default=None, help="nominal frequency [Hz] (default: file's, else 50)")
     add_mapping_flags(p)
-    p.add_argument("--train-fraction", type=float, default=0.65, help="share of the window fitted on (rest held out)")
+    p.add_argument("--train-fraction", type=float, default=0.65,
+                   help="share of the window the time-ordered fold is fitted on (the rest held out)")
+    p.add_argument("--one-fold", action="store_true",
+                   help="judge on the time-ordered fold only (default: cross-fitted, a mirrored fold judged too)")
     p.set_defaults(func=run)
 
 
@@ -34,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
         if args.model:
             model = json.loads(Path(args.model).read_text())
         warmup()
-        report = diagnose(window, model, config=DiagnosisConfig(train_fraction=args.train_fraction))
+        config = DiagnosisConfig(train_fraction=args.train_fraction, cross_fit=not args.one_fold)
+        report = diagnose(window, model, config=config)
     except (OSError, ValueError, WindowError, KeyError) as exc:
         if args.json:
             print(json.dumps({"file": args.file, "error": str(exc), "reason": getattr(exc, "reason", "input")}))

@@ -49,6 +49,12 @@ def test_cli_json_fields_and_report_files(skewed):
         assert f.exists() and f.stat().st_size > 500, name
     assert (out / "overlay.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "measurement_skew" in (out / "report.md").read_text()
+    assert res["held_out"]["folds"] == 2 and len(res["held_out"]["t_start"]) == 2
+    one = run_cli("diagnose", str(path), "--json", "--one-fold")
+    assert one.returncode == 0, one.stderr
+    res1 = json.loads(one.stdout)
+    assert res1["held_out"]["folds"] == 1 and res1["held_out"]["n"] * 2 == res["held_out"]["n"]
+    assert res1["cause"] == "measurement_skew"
 
 
 def test_cli_with_user_model_and_bad_file(skewed):
