@@ -461,7 +461,9 @@ def _entry(analyses: list[_WindowAnalysis], name: str, zcrit: float) -> Candidat
     comps = [a.comps[name] for a in _having(analyses, name)]
     z = float(sum(c.score_z for c in comps) / math.sqrt(len(comps)))
     dmz = float(sum(c.dm_z for c in comps) / math.sqrt(len(comps)))
-    pg = float(sum(c.penalised_gain for c in comps))
+    # Gains are sums over the folds: a candidate judged on fewer of them (time-ordered-only) is ranked by its
+    # mean per fold times the others' count, not by a sum over half the held-out data.
+    pg = float(sum(c.penalised_gain for c in comps)) * len(analyses) / len(comps)
     params, se = _combine_params(analyses, name)
     a0 = analyses[0]
     derived = cand.describe(a0.fits[name].params, a0.seg, a0.ctx)

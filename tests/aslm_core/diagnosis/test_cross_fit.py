@@ -109,6 +109,10 @@ def test_a_relay_is_judged_on_the_time_ordered_fold_only(cases):
     assert pipeline._having([a, b], "switched_shunt") == [a]
     e = pipeline._entry([a, b], "switched_shunt", 3.0)
     assert e.score_z == pytest.approx(a.comps["switched_shunt"].score_z)
+    # Ranked against sums over two folds, its one fold's gain counts twice (its mean per fold × the folds).
+    assert e.penalised_gain == pytest.approx(2.0 * a.comps["switched_shunt"].penalised_gain)
     e = pipeline._entry([a, b], "frequency_dependence", 3.0)
     z = (a.comps["frequency_dependence"].score_z + b.comps["frequency_dependence"].score_z) / math.sqrt(2.0)
     assert e.score_z == pytest.approx(z)
+    g = a.comps["frequency_dependence"].penalised_gain + b.comps["frequency_dependence"].penalised_gain
+    assert e.penalised_gain == pytest.approx(g)
