@@ -57,6 +57,8 @@ have no standard error (left out of ``stderr``; ``Candidate.scanned``).  Magnitu
 
 Signature: steps of Q — not of P — proportional to V², following V's excursions beyond a threshold by a
 fixed delay, or at V's own steps; a continuous droop (``inverter_der``) has no threshold and moves P too.
+Implausible (never significant, no rival): a state switching fewer than ``MIN_TRAIN_SWITCHINGS`` times in the
+training samples (a threshold each way is not learnt from one step), and one whose switchings step P as much as Q.
 """
 
 from __future__ import annotations
@@ -81,6 +83,9 @@ STEP_SAMPLES = 2
 #: How many standard errors P's mean step at a fitted state's switchings must reach before "P steps as much as
 #: Q" makes the fit implausible (:meth:`SwitchedShunt.implausible`) [-]; 3, a plain significance level, not tuned.
 P_STEP_Z = 3.0
+#: Switchings the fitted state must show in the training samples before its law is a relay's (one in, one out):
+#: :meth:`SwitchedShunt.implausible`.
+MIN_TRAIN_SWITCHINGS = 2
 #: Scan of the V-step threshold dV in units of the step statistic's robust (MAD) noise scale.
 STEP_SCALES = (3.0, 4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 16.0)
 #: dV below this [pu] selects the relay law: the upper stage's box clipping nudges a scanned 0 to ~1e-9.
@@ -696,6 +701,16 @@ class SwitchedShunt(Candidate):
         z = np.array([float(params.get(k, 0.0)) for k in self.nl_names])
         s = _state(self._relay_v(seg), z, seg.dt, self._steps(seg), self._two(seg))
         k = np.flatnonzero(np.diff(s)) + 1
+        # A relay's law is a threshold each way: the training samples must show the bank switched in and out.  One
+        # step of Q at one instant is what any load's own switching leaves (ANDES `confirm15`, a load with its own
+        # noise: one switching, named; every bank named on `confirm13`-`17` switched at least 4 times before its
+        # held-out samples).
+        tr = seg.train
+        n_train = int(np.sum((k > tr.start) & (k < tr.stop)))
+        if n_train < MIN_TRAIN_SWITCHINGS:
+            return (f"its state switches {n_train} time{'s' if n_train != 1 else ''} in the training samples: a relay's "
+                    f"thresholds are not learnt from fewer than {MIN_TRAIN_SWITCHINGS} switchings (in and out), and one "
+                    "step of Q is what any load's own switching leaves")
         k = k[(k >= 2 * STEP_SAMPLES) & (k <= seg.n - 2 * STEP_SAMPLES)]
         if k.size:
             sg = s[k] - s[k - 1]

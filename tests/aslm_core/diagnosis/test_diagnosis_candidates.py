@@ -148,6 +148,33 @@ def test_switched_shunt_recovers_the_banks_susceptance_and_relay():
     assert not {"Vc", "dv", "tau", "t_op", "s0"} & set(e.stderr) and "B" in e.stderr
 
 
+def test_a_relay_that_switches_once_in_training_is_no_relay():
+    from dataclasses import replace
+
+    from aslm_core.diagnosis.candidates import LIBRARY
+    from aslm_core.diagnosis.candidates.switched_shunt import relay_state
+    from aslm_core.diagnosis.segment import make_segment
+
+    cand = LIBRARY["switched_shunt"]
+    seg = make_segment(_case(16).window)
+    tr = seg.train
+    vc, dv, tau = float(np.mean(seg.V)), 0.001, 0.1
+    law = {"Vc": vc, "dv": dv, "tau": tau, "t_op": 0.0, "s0": 0.0, "dV": 0.0}
+    # V sinks through the in-threshold once, early in training, and stays there: one switching in, none out.
+    once = np.full(seg.n, vc + 0.003)
+    once[tr.start + 100:] = vc - 0.003
+    one = replace(seg, V=once)
+    assert np.sum(np.diff(relay_state(cand._relay_v(one), vc, dv, tau, seg.dt, 0.0)) != 0) == 1
+    assert "switches 1 time in the training samples" in cand.implausible(law, one, None)
+    # Swinging through both thresholds every second: a law learnt from switchings each way; this rule passes it.
+    swing = vc + 0.003 * np.sign(np.sin(2 * np.pi * 0.5 * (seg.t - seg.t[0])))
+    many = replace(seg, V=swing)
+    s = relay_state(cand._relay_v(many), vc, dv, tau, seg.dt, 0.0)
+    k = np.flatnonzero(np.diff(s)) + 1
+    assert np.sum((k > tr.start) & (k < tr.stop)) >= 4
+    assert "in the training samples" not in (cand.implausible(law, many, None) or "")
+
+
 def test_implausible_frequency_sensitivity_is_never_significant():
     from aslm_core.diagnosis.candidates import LIBRARY
     from aslm_core.diagnosis.segment import make_segment
