@@ -65,7 +65,7 @@ def best_law_state(v: np.ndarray, target: np.ndarray, train: slice, dt: float) -
     """An oracle of the candidate's relay family: the law (Vc, dv, τ, t_op, s0) whose state on ``v`` (V low-passed
     as the candidate reads it) agrees with the true ``target`` state on the most training samples, on a fine grid;
     its state over the whole window.  What the family can re-enact from this V given the truth to aim at."""
-    from aslm_core.diagnosis.candidates.switched_shunt import T_OP_MAX_S, relay_state
+    from aslm_core.diagnosis.candidates.switched_shunt import T_OP_MAX_S, delayed, relay_state
 
     sd = max(float(np.std(v)), 1e-9)
     best, arg = -1.0, None
@@ -75,7 +75,7 @@ def best_law_state(v: np.ndarray, target: np.ndarray, train: slice, dt: float) -
                 for s0 in (0.0, 1.0):
                     r = relay_state(v, float(vc), float(dv), float(tau), dt, s0)
                     for k in range(int(T_OP_MAX_S / dt + 1e-9) + 1):
-                        sh = np.concatenate([np.full(k, r[0]), r[:r.size - k]]) if k else r
+                        sh = delayed(r, k)
                         a = float(np.mean(sh[train] == target[train]))
                         if a > best:
                             best, arg = a, sh
@@ -87,7 +87,7 @@ def best_two_state(window, target: np.ndarray, test: slice) -> tuple[np.ndarray,
     white scale), least dwell (0–0.2 s) and breaker delay (0–0.1 s) that agree best with the true ``target`` state on
     the held-out samples ``test``; the path and h over V's white scale.  The form's best from this V, the truth
     choosing its settings."""
-    from aslm_core.diagnosis.candidates.switched_shunt import T_OP_MAX_S, two_state, white_sigma
+    from aslm_core.diagnosis.candidates.switched_shunt import T_OP_MAX_S, delayed, two_state, white_sigma
     from aslm_core.diagnosis.segment import make_segment
 
     seg = make_segment(window)
@@ -98,7 +98,7 @@ def best_two_state(window, target: np.ndarray, test: slice) -> tuple[np.ndarray,
         for dwell in (0.0, 0.05, 0.1, 0.2):
             path = two_state(vm, q * sig, int(round(dwell / seg.dt)), 1.0 / seg.dt)
             for k in range(int(T_OP_MAX_S / seg.dt + 1e-9) + 1):
-                sh = np.concatenate([np.full(k, path[0]), path[:path.size - k]]) if k else path
+                sh = delayed(path, k)
                 a = float(np.mean(sh[test] == target[test]))
                 if a > best:
                     best, arg = a, (sh, q)

@@ -511,8 +511,12 @@ def _state(v: np.ndarray, z, dt: float, d: np.ndarray | None = None, two=None) -
         r = two(-float(z[5]), int(round(float(z[2]) / dt)))
     else:
         r = relay_state(v, float(z[0]), float(z[1]), float(z[2]), dt, float(z[4]))
-    k = int(round(float(z[3]) / dt))
-    return np.concatenate([np.full(k, r[0]), r[:r.size - k]]) if k else r
+    return delayed(r, int(round(float(z[3]) / dt)))
+
+
+def delayed(s: np.ndarray, k: int) -> np.ndarray:
+    """The state path ``s`` k samples later (the breaker's operating time), its first value held before."""
+    return np.concatenate([np.full(k, s[0]), s[:s.size - k]]) if k else s
 
 
 def _better(ssr, best: float, z: tuple, trial: tuple) -> tuple[float, tuple]:
