@@ -19,7 +19,7 @@ import numpy as np
 
 from aslm_core import disturbance, excitation, input_weighting, instrumental, motor, optimize, static
 from aslm_core.errors import NoEquilibriumError, WindowError
-from aslm_core.noise import reflected_mean
+from aslm_core.noise import InputSpectrum, reflected_mean
 from aslm_core.params import DYNAMIC_NAMES
 from aslm_core.preprocess import Prepared, prepare
 from aslm_core.problem import EQUILIBRIUM_MARGIN, Problem  # re-exported: Problem's users import it from here
@@ -207,7 +207,7 @@ def _score_variance_of_dft(fr: np.ndarray, fj: np.ndarray, jc: np.ndarray, kerne
 
 def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None = None,
              config: IdentifyConfig | None = None,
-             input_spectrum: tuple[np.ndarray, np.ndarray] | None = None) -> IdentificationResult:
+             input_spectrum: InputSpectrum | None = None) -> IdentificationResult:
     """Identify the composite ZIP (or exponential) + induction-motor load of one window.
 
     Parameters
@@ -218,10 +218,11 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
         A previous D = [a, b, H2, Tm] tried first (clipped into the feasible set).
     config : IdentifyConfig, optional
         Integrator, objective, static model, starts, preprocessing.
-    input_spectrum : (ndarray, ndarray), optional
-        V's and θ's signal cross-spectrum from the bus's previous windows, frequencies [Hz] and (m, 2, 2)
-        per-sample units (:func:`aslm_core.noise.pooled_input_spectrum`): the S-weighted refinement's Wiener
-        smoother uses it instead of the window's own estimate.  Absent: the window's own (the default).
+    input_spectrum : aslm_core.noise.InputSpectrum, optional
+        V's and θ's signal cross-spectrum from the bus's previous windows (:func:`aslm_core.noise.pooled_spectrum`,
+        kept by :class:`aslm_core.input_history.InputHistory`): the S-weighted refinement's Wiener smoother uses
+        it instead of the window's own estimate, and ``quality["input_spectrum_windows"]`` says from how many
+        windows.  Absent: the window's own (the default of a single window).
 
     Returns
     -------
@@ -280,6 +281,8 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
             final_problem, prep, cov_d = w["problem"], w["problem"].prep, w["cov"]
             final = {"d": w["d"], "cost": w["objective"], "iterations": w["iterations"] + it}
             extra["weighted_chi2"] = w["chi2"]
+            if w["spectrum_windows"]:
+                extra["input_spectrum_windows"] = float(w["spectrum_windows"])
     if config.disturbance == "gated":
         # Output error (or its S-weighted refinement) unless output error's own fluctuation share says it is not
         # consistent; then the IV fit from the output-error optimum, unless its instruments are rejected

@@ -30,7 +30,7 @@ import numpy as np
 from scipy import signal
 
 from aslm_core import motor, optimize, static
-from aslm_core.noise import reflected_mean
+from aslm_core.noise import InputSpectrum, reflected_mean
 from aslm_core.preprocess import Prepared, prepare, white_floor
 from aslm_core.problem import Problem
 from aslm_core.window import Window
@@ -382,7 +382,7 @@ def noisy_inputs(floors: dict[str, float]) -> bool:
 
 
 def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: dict[str, float],
-                 margin: float, input_spectrum: tuple[np.ndarray, np.ndarray] | None = None) -> dict | None:
+                 margin: float, input_spectrum: InputSpectrum | None = None) -> dict | None:
     """The S-weighted refinement of an identification, or None where it does not apply or fails.
 
     Parameters
@@ -399,15 +399,16 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
         (:func:`noisy_inputs`).
     margin : float
         Equilibrium margin of the feasible set.
-    input_spectrum : (ndarray, ndarray), optional
-        The inputs' signal spectrum from the bus's previous windows (:func:`aslm_core.noise.pooled_input_spectrum`)
+    input_spectrum : aslm_core.noise.InputSpectrum, optional
+        The inputs' signal spectrum from the bus's previous windows (:func:`aslm_core.noise.pooled_spectrum`)
         for the refinement's Wiener smoother instead of the window's own estimate.
 
     Returns
     -------
     dict or None
         :func:`refine`'s dict plus ``objective``, the configured objective at the refined D on the
-        refinement's data.
+        refinement's data, and ``spectrum_windows``, the windows ``input_spectrum`` was pooled from where the
+        smoother used it (both inputs noisy: an exact input passes whole), else 0.
     """
     if not noisy_inputs(floors):
         return None
@@ -422,4 +423,7 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
     if res is None:
         return None
     out["objective"] = out["problem"].cost(res[0], res[1])
+    used = input_spectrum is not None and all(white_floor(prep.noise, c) and prep.noise.get(f"noise_{c}", 0.0) > 0.0
+                                              for c in ("v", "theta"))
+    out["spectrum_windows"] = input_spectrum.n_windows if used else 0
     return out

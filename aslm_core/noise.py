@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -225,17 +226,99 @@ def _extend(x: np.ndarray, pad: int, m: int) -> np.ndarray:
     return np.concatenate((2.0 * x0 - x[pad:0:-1], x, 2.0 * x1 - x[-2:-pad - 2:-1]))
 
 
-def pooled_input_spectrum(windows: Sequence[np.ndarray], fs: float, smooth_hz: float = WIENER_SMOOTH_HZ,
-                          top_hz: float = FLOOR_FROM_HZ) -> tuple[np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class InputPeriodogram:
+    """One window's tapered periodogram matrix of its inputs (V, θ) below the band a pooled spectrum uses,
+    and their white floors: what a bus's history keeps of a window (:func:`pooled_spectrum`).
+
+    Attributes
+    ----------
+    fs : float
+        Sample rate [Hz].
+    n : int
+        The window's samples (bins are fs / n apart).
+    p : ndarray, shape (m, c, c)
+        The periodogram matrix of bins 0 … m − 1 (of the linearly detrended, 10 % Tukey-tapered channels) in
+        per-sample units (white noise of variance σ² is flat at σ²) [unit of x squared].
+    floor : ndarray, shape (c,)
+        Each channel's white-noise variance, :func:`noise_floor` ``sigma`` squared [unit of x squared].
+    """
+
+    fs: float
+    n: int
+    p: np.ndarray
+    floor: np.ndarray
+
+    @property
+    def df(self) -> float:
+        """Bin spacing [Hz]."""
+        return self.fs / self.n
+
+    @property
+    def freqs(self) -> np.ndarray:
+        """Frequencies of the bins kept [Hz]."""
+        return np.fft.rfftfreq(self.n, 1.0 / self.fs)[:self.p.shape[0]]
+
+
+@dataclass(frozen=True)
+class InputSpectrum:
+    """The inputs' signal cross-spectrum known from beyond the window, for :func:`wiener_smooth`.
+
+    Attributes
+    ----------
+    freqs : ndarray, shape (m,)
+        Frequencies [Hz].
+    s : ndarray, shape (m, c, c)
+        The signal's cross-spectral matrix in per-sample units [unit of x squared]; zero beyond ``freqs[-1]``.
+    n_windows : int
+        Windows it was pooled from.
+    """
+
+    freqs: np.ndarray
+    s: np.ndarray
+    n_windows: int
+
+
+def input_periodogram(x: np.ndarray, fs: float, keep_hz: float = FLOOR_FROM_HZ + WIENER_SMOOTH_HZ) -> InputPeriodogram:
+    """The periodogram matrix and white floors of one window's noisy inputs, for :func:`pooled_spectrum`.
+
+    Parameters
+    ----------
+    x : ndarray, shape (c, n)
+        Measured signals on a uniform grid (V [pu], θ [rad] unwrapped), c ≤ 2.
+    fs : float
+        Sample rate [Hz].
+    keep_hz : float
+        Bins up to this frequency are kept [Hz]: a pooled spectrum is zero from ``top_hz`` up and smoothed over
+        ``smooth_hz``, so ``top_hz + smooth_hz`` keeps every bin it reads.
+
+    Returns
+    -------
+    InputPeriodogram
+    """
+    x = np.atleast_2d(np.asarray(x, dtype=np.float64))
+    c, n = x.shape
+    if c > 2 or n < 8:
+        raise ValueError(f"input_periodogram takes one or two channels of at least 8 samples, got shape {x.shape}")
+    taper, ww = _taper(n)
+    spec = np.fft.rfft(_detrend(x) * taper, axis=1)
+    m = min(spec.shape[1], int(math.floor(keep_hz * n / fs)) + 1)
+    spec = spec[:, :m]
+    p = np.einsum("if,jf->fij", spec, spec.conj()) / ww
+    floor = np.array([noise_floor(xi, fs)["sigma"] ** 2 for xi in x])
+    return InputPeriodogram(float(fs), n, p, floor)
+
+
+def pooled_spectrum(periodograms: Sequence[InputPeriodogram], smooth_hz: float = WIENER_SMOOTH_HZ,
+                    top_hz: float = FLOOR_FROM_HZ) -> InputSpectrum:
     """The inputs' signal cross-spectrum from several noisy windows of the same bus, for :func:`wiener_smooth`.
 
     Parameters
     ----------
-    windows : sequence of ndarray, each shape (c, n)
-        Measured signals of K windows on the same uniform grid and length (e.g. V [pu] and θ [rad] of the
-        bus's previous windows), c ≤ 2, each carrying white measurement noise.
-    fs : float
-        Sample rate [Hz].
+    periodograms : sequence of InputPeriodogram
+        :func:`input_periodogram` of K windows of the bus (e.g. its previous ones), one sample rate and
+        channel count; their bin spacings may differ by a few per cent (windows with missing frames): each is
+        interpolated onto the last one's bins.
     smooth_hz : float
         Width of the moving average over the averaged periodogram matrix [Hz].
     top_hz : float
@@ -243,11 +326,7 @@ def pooled_input_spectrum(windows: Sequence[np.ndarray], fs: float, smooth_hz: f
 
     Returns
     -------
-    freqs : ndarray, shape (n // 2 + 1,)
-        Frequencies [Hz].
-    s : ndarray, shape (n // 2 + 1, c, c)
-        The signal's cross-spectral matrix in per-sample units (white noise of variance σ² is flat at σ²)
-        [unit of x squared].
+    InputSpectrum
 
     Notes
     -----
@@ -259,23 +338,29 @@ def pooled_input_spectrum(windows: Sequence[np.ndarray], fs: float, smooth_hz: f
     ``top_hz`` the floor band's premise (no signal there) holds the spectrum at zero; without it the floor's
     residual scatter opened the gain there.  Measurements: docs/numerics.md.
     """
-    xs = [np.atleast_2d(np.asarray(w, dtype=np.float64)) for w in windows]
-    if not xs:
-        raise ValueError("pooled_input_spectrum needs at least one window")
-    c, n = xs[0].shape
-    if c > 2 or any(x.shape != (c, n) for x in xs):
-        raise ValueError(f"windows must share one shape (c, n) with c ≤ 2, got {[x.shape for x in xs]}")
-    taper, ww = _taper(n)
-    acc = np.zeros((n // 2 + 1, c, c), dtype=complex)
-    floor = np.zeros(c)
-    for x in xs:
-        spec = np.fft.rfft(_detrend(x) * taper, axis=1)
-        acc += np.einsum("if,jf->fij", spec, spec.conj()) / ww
-        floor += [noise_floor(xi, fs)["sigma"] ** 2 for xi in x]
-    acc /= len(xs)
-    floor /= len(xs)
-    freqs = np.fft.rfftfreq(n, 1.0 / fs)
-    width = max(1, int(round(smooth_hz * n / fs)))
+    if not periodograms:
+        raise ValueError("pooled_spectrum needs at least one window")
+    last = periodograms[-1]
+    c = last.p.shape[1]
+    for g in periodograms:
+        if g.p.shape[1] != c or abs(g.fs - last.fs) > 1e-6 * last.fs or abs(g.df - last.df) > 0.05 * last.df:
+            raise ValueError(f"periodograms must share one sample rate, channel count and (within 5 %) bin spacing: "
+                             f"{[(g.fs, g.df, g.p.shape[1]) for g in periodograms]}")
+    m = min(g.p.shape[0] if g.n == last.n else int((g.p.shape[0] - 1) * g.df / last.df) + 1
+            for g in periodograms)
+    freqs = last.freqs[:m]
+    acc = np.zeros((m, c, c), dtype=complex)
+    for g in periodograms:
+        if g.n == last.n:
+            acc += g.p[:m]
+        else:
+            own = g.freqs
+            for i in range(c):
+                for j in range(c):
+                    acc[:, i, j] += np.interp(freqs, own, g.p[:, i, j].real) + 1j * np.interp(freqs, own, g.p[:, i, j].imag)
+    acc /= len(periodograms)
+    floor = np.mean([g.floor for g in periodograms], axis=0)
+    width = max(1, int(round(smooth_hz * last.n / last.fs)))
     sm = np.empty_like(acc)
     for i in range(c):
         for j in range(c):
@@ -283,12 +368,40 @@ def pooled_input_spectrum(windows: Sequence[np.ndarray], fs: float, smooth_hz: f
     lam, vec = np.linalg.eigh(sm - np.diag(floor))
     s = (vec * np.maximum(lam, 0.0)[:, None, :]) @ vec.conj().transpose(0, 2, 1)
     s[freqs >= top_hz] = 0.0
-    return freqs, s
+    return InputSpectrum(freqs, s, len(periodograms))
 
 
-def _given_spectrum(spectrum: tuple[np.ndarray, np.ndarray], freqs: np.ndarray) -> np.ndarray:
-    """A signal spectrum (frequencies [Hz], (m, c, c)) interpolated onto ``freqs``, zero beyond its last one."""
-    f, s = spectrum
+def pooled_input_spectrum(windows: Sequence[np.ndarray], fs: float, smooth_hz: float = WIENER_SMOOTH_HZ,
+                          top_hz: float = FLOOR_FROM_HZ) -> InputSpectrum:
+    """The inputs' signal cross-spectrum from several noisy windows of the same bus (:func:`pooled_spectrum` of
+    their :func:`input_periodogram`).
+
+    Parameters
+    ----------
+    windows : sequence of ndarray, each shape (c, n)
+        Measured signals of K windows on the same uniform grid and length (e.g. V [pu] and θ [rad] of the
+        bus's previous windows), c ≤ 2, each carrying white measurement noise.
+    fs : float
+        Sample rate [Hz].
+    smooth_hz, top_hz : float
+        As :func:`pooled_spectrum` [Hz].
+
+    Returns
+    -------
+    InputSpectrum
+    """
+    xs = [np.atleast_2d(np.asarray(w, dtype=np.float64)) for w in windows]
+    if not xs:
+        raise ValueError("pooled_input_spectrum needs at least one window")
+    c, n = xs[0].shape
+    if c > 2 or any(x.shape != (c, n) for x in xs):
+        raise ValueError(f"windows must share one shape (c, n) with c ≤ 2, got {[x.shape for x in xs]}")
+    return pooled_spectrum([input_periodogram(x, fs, keep_hz=top_hz + smooth_hz) for x in xs], smooth_hz, top_hz)
+
+
+def _given_spectrum(spectrum: InputSpectrum, freqs: np.ndarray) -> np.ndarray:
+    """A signal spectrum interpolated onto ``freqs``, zero beyond its last frequency."""
+    f, s = spectrum.freqs, spectrum.s
     out = np.empty((freqs.size,) + s.shape[1:], dtype=complex)
     for i in range(s.shape[1]):
         for j in range(s.shape[2]):
@@ -299,7 +412,7 @@ def _given_spectrum(spectrum: tuple[np.ndarray, np.ndarray], freqs: np.ndarray) 
 
 def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float = WIENER_SMOOTH_HZ,
                   return_cutoffs: bool = False, return_error: bool = False,
-                  spectrum: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray | tuple:
+                  spectrum: InputSpectrum | None = None) -> np.ndarray | tuple:
     """Conditional mean of jointly stationary signals observed in white noise of known std: a non-causal
     multichannel Wiener smoother.
 
@@ -318,12 +431,11 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         Also return each channel's signal cut-off.
     return_error : bool
         Also return the smoothed signals' error spectrum (after the cut-offs, whether or not they were asked).
-    spectrum : (ndarray, ndarray), optional
-        The signals' cross-spectrum known from elsewhere, frequencies [Hz] and shape (m, c, c) in per-sample
-        units (:func:`pooled_input_spectrum`): used instead of the window's own estimate and its cut-off rule,
-        a channel's cut-off then where that spectrum ends, if every channel carries noise (σ > 0: an exact
-        channel must pass whole, which the given spectrum, zero in places, would not ensure).  Absent: the
-        window's estimate.
+    spectrum : InputSpectrum, optional
+        The signals' cross-spectrum known from elsewhere (:func:`pooled_spectrum`): used instead of the
+        window's own estimate and its cut-off rule, a channel's cut-off then where that spectrum ends, if
+        every channel carries noise (σ > 0: an exact channel must pass whole, which the given spectrum, zero
+        in places, would not ensure).  Absent: the window's estimate.
 
     Returns
     -------

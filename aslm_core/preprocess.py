@@ -117,7 +117,7 @@ def _step_shaped(floors: dict[str, float], channel: str) -> bool:
 
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,
             lowpass_hz: float | None = None, floors: bool = False, input_smoother: str = "none",
-            input_cutoff_hz: float = 3.0, input_spectrum: tuple[np.ndarray, np.ndarray] | None = None) -> Prepared:
+            input_cutoff_hz: float = 3.0, input_spectrum: noise.InputSpectrum | None = None) -> Prepared:
     """Check a window and bring it onto a clean uniform grid.
 
     Parameters
@@ -145,9 +145,9 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         backwards.  P and Q are not smoothed: only the inputs' noise is propagated by the model.
     input_cutoff_hz : float
         Cut-off of the ``zero_phase`` smoother [Hz].
-    input_spectrum : (ndarray, ndarray), optional
-        For the Wiener smoothers: V's and θ's signal cross-spectrum known from elsewhere, frequencies [Hz] and
-        (m, 2, 2) per-sample units (:func:`aslm_core.noise.pooled_input_spectrum`), instead of the window's own.
+    input_spectrum : aslm_core.noise.InputSpectrum, optional
+        For the Wiener smoothers: V's and θ's signal cross-spectrum known from elsewhere (the bus's previous
+        windows, :func:`aslm_core.noise.pooled_spectrum`), instead of the window's own.
 
     Returns
     -------
@@ -244,3 +244,27 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     tg = t[0] + dt * np.arange(n_grid)
     return Prepared(tg, V, theta, P, Q, dt, flags, est, float(lowpass_hz or 0.0),
                     tuple(input_error) if input_error else None)
+
+
+def input_periodogram(window: Window, max_gap_samples: int = 5) -> noise.InputPeriodogram:
+    """The periodogram matrix and white floors of a window's V and θ, on the grid :func:`prepare` puts it on:
+    what a bus's history keeps of the window for the inputs' spectrum (:func:`aslm_core.noise.pooled_spectrum`).
+
+    Parameters
+    ----------
+    window : Window
+        Raw measurements (V [pu], θ [rad], possibly wrapped, a few frames missing).
+    max_gap_samples : int
+        As :func:`prepare`.
+
+    Returns
+    -------
+    aslm_core.noise.InputPeriodogram
+
+    Raises
+    ------
+    WindowError
+        As :func:`prepare`.
+    """
+    prep = prepare(window, max_gap_samples=max_gap_samples, min_duration_s=0.0)
+    return noise.input_periodogram(np.stack([prep.V, prep.theta]), 1.0 / prep.dt)

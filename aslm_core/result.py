@@ -183,7 +183,9 @@ class IdentificationResult:
         (the over-identification statistic over its degrees of freedom, Hansen's with the innovations'
         spectrum: ~1 for valid instruments) [-], ``iv_overid_p`` (its χ² upper-tail probability) [-] and
         ``iv_overid_white`` (Sargan's, which assumes white innovations) [-]; where the S-weighted refinement
-        answered, ``weighted_shift_z`` (the largest |D − output error's D| / SE over the parameters) [-]; where the
+        answered, ``weighted_shift_z`` (the largest |D − output error's D| / SE over the parameters) [-] and, where
+        its smoother was given the inputs' spectrum of the bus's previous windows, ``input_spectrum_windows`` (how
+        many) [-]; where the
         gated estimator's IV answered, ``halves_z`` (the largest |D₁ − D₂| / √(SE₁² + SE₂²) of the two
         half-window IV fits; NaN when a half cannot be identified) [-].
     flags : list of str

@@ -31,10 +31,12 @@ standardised spread (JSON ``input_noise_weighting``).
     .venv/bin/python -m benchmarks.input_noise_bound --weighting [--n 300] [--reps 2] [--seed 41] [--pooled 6]
 
 ``--pooled K`` adds the row ``spectral_pooled``: the default given the inputs' spectrum pooled over K previous noisy
-windows of the bus (:func:`pooled_spectrum`; JSON name suffix ``_pooled{K}``; docs/numerics.md, stop 32).
+windows of the bus, as the service's history gives it (:func:`history_spectrum`; JSON name suffix ``_pooled{K}``;
+docs/numerics.md, stop 32 and stop 41).
 
 The default's re-measurement runs ``--weighting --seed 45`` (:data:`FLIP_SEED`, fixed before that run; the stored
-bounds are seed 43's, so its table has no σ / bound column).
+bounds are seed 43's, so its table has no σ / bound column); the service history's confirmation ``--weighting
+--pooled 6 --seed 51`` (:data:`HISTORY_SEED`).
 """
 
 from __future__ import annotations
@@ -61,6 +63,8 @@ from aslm_core.information import (  # noqa: E402
     model_response,
     stationary_input_covariance,
 )
+from aslm_core.input_history import InputHistory  # noqa: E402
+from aslm_core.noise import InputSpectrum  # noqa: E402
 from aslm_core.preprocess import prepare  # noqa: E402
 from aslm_sim.cases import make_cases  # noqa: E402
 from benchmarks import common  # noqa: E402
@@ -301,22 +305,31 @@ WEIGHTING = {"none": IdentifyConfig(**common.OUTPUT_ERROR), "spectral": Identify
 FLIP_SEED = 45
 
 
-def pooled_spectrum(case, k: int, v_rel: float, th: float, rng: np.random.Generator) -> tuple:
-    """:func:`aslm_core.noise.pooled_input_spectrum` of k noisy 10 s windows of a long clean realisation of the
-    case's load and network (:func:`long_inputs`, k·10 s), white noise of the class on V and θ: the bus's previous
-    windows as a service would keep them."""
+#: ``--weighting --pooled 6``'s seed for the confirmation of the service's input history (stop 41), fixed before its
+#: run (2026-12-03), the decision rule with it (docs/numerics.md, "Stop 41: the service keeps the inputs' spectrum").
+HISTORY_SEED = 51
+
+
+def history_spectrum(case, k: int, v_rel: float, th: float, rng: np.random.Generator) -> InputSpectrum:
+    """The inputs' spectrum a service's :class:`~aslm_core.input_history.InputHistory` of k noisy 10 s windows
+    gives: k consecutive windows of a long clean realisation of the case's load and network (:func:`long_inputs`,
+    k·10 s), white noise of the class on V and θ, each window's :func:`aslm_core.noise.input_periodogram` added
+    as the scheduler adds it (the same numbers as ``pooled_input_spectrum`` of the k windows)."""
     n = case.clean.V.size
     fs = 1.0 / float(np.median(np.diff(case.clean.t)))
     lv, lth = long_inputs(case, k * n / fs)
     std = np.array([v_rel * float(np.mean(case.clean.V)), th])[:, None]
-    wins = [np.stack([lv[j * n:(j + 1) * n], lth[j * n:(j + 1) * n]]) for j in range(k)]
-    return noise.pooled_input_spectrum([x + std * rng.standard_normal(x.shape) for x in wins], fs)
+    history = InputHistory(k=k)
+    for j in range(k):
+        x = np.stack([lv[j * n:(j + 1) * n], lth[j * n:(j + 1) * n]])
+        history.add(j * n / fs, ((j + 1) * n - 1) / fs, noise.input_periodogram(x + std * rng.standard_normal(x.shape), fs))
+    return history.spectrum(k * n / fs)
 
 
 def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0) -> dict:
     """``--weighting`` (module docstring): per level, class and estimator the per-window D/D_real, SE/D_real
     and the minimum time [s], on the windows and draws of ``seed``; with ``pooled_k`` also the default given the
-    inputs' spectrum pooled over that many previous windows (:func:`pooled_spectrum`, ``spectral_pooled``)."""
+    inputs' spectrum pooled over that many previous windows (:func:`history_spectrum`, ``spectral_pooled``)."""
     cases = {level: common.cases(n, level=level, seed=seed) for level in LEVELS}
     rngs = {(level, k): np.random.default_rng([seed, level, k])  # as window_bounds
             for level in LEVELS for k in range(len(INPUT_NOISE))}
@@ -328,7 +341,7 @@ def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0
     for i in range(n):
         # One history per window and class, shared by the levels (the long realisation is the level-1 case's, as in
         # benchmarks.input_noise_decompose); its own draws, apart from the windows'.
-        spectra = ({cls: pooled_spectrum(cases[LEVELS[0]][i], pooled_k, v_rel, th,
+        spectra = ({cls: history_spectrum(cases[LEVELS[0]][i], pooled_k, v_rel, th,
                                          np.random.default_rng([seed, 7, i, k]))
                     for k, (cls, v_rel, th) in enumerate(INPUT_NOISE)} if pooled_k else {})
         for level in LEVELS:

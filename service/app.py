@@ -119,6 +119,7 @@ class Service:
             diagnose_every=s.diagnose_every, on_diagnosis=self._on_diagnosis, clock=self.clock,
             on_start=self._period_started, diagnose_in_flight=max(1, s.workers - 1),
             bus_idle_s=s.bus_idle_s, on_evicted=self.latest.forget_skipped,
+            input_history=(s.input_history_windows, s.input_history_s) if s.input_history_windows > 0 else None,
         )
         self.scheduler.start()
         if self.rest:

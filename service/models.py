@@ -35,7 +35,8 @@ class Identified(BaseModel):
                     "own_std_p|q (the load's own fluctuation: the residual's coloured part) [pu], own_ratio_p|q [-], "
                     "own_median_hz_p|q (half of the own fluctuation's variance lies below it; absent: none left) [Hz]; "
                     "where the AR/IV fit ran, own_q_per_p (ΔQ/ΔP of the own fluctuation, k of its second "
-                    "channel Q − k·P) [-]")
+                    "channel Q − k·P) [-]; input_spectrum_windows (noisy V and θ smoothed with their spectrum "
+                    "pooled from this many of the bus's previous windows; absent: from this window alone) [-]")
     flags: list[str] = Field(default_factory=list,
                              description="Quality flags, e.g. at_bound:H2, static_split_unidentifiable")
     static_stderr: dict[str, float | None] = Field(

@@ -83,6 +83,16 @@ class ServiceSettings(BaseSettings):
         "paper", description="Identifier objective: 'paper' (eq. 7, (‖r_P‖ + ‖r_Q‖)/l), 'ml' (Gaussian likelihood, "
                              "one noise variance per channel: efficient when P and Q differ in SNR), 'ssq'",
     )
+    input_history_windows: int = Field(
+        6, description="Noisy V and θ: the identifier's refinement smooths them with their spectrum pooled from the "
+                       "bus's last k non-overlapping noisy windows, once it has k begun within input_history_s before "
+                       "the window (0: each window alone; docs/numerics.md, \"Stop 41: the service keeps the inputs' "
+                       "spectrum\")",
+    )
+    input_history_s: float = Field(
+        300.0, description="Oldest start of a window the inputs' spectrum is pooled from, before the window identified "
+                           "[s]: with a period T above input_history_s / input_history_windows the history is never full",
+    )
     diagnose_every: int = Field(
         4, description="Discrepancy diagnosis of every identified bus each k-th period (0: off); ~0.7 s of one "
                        "core per bus and diagnosis, queued after the period's identifications: raise k (or 0) "
@@ -174,7 +184,8 @@ class ServiceSettings(BaseSettings):
         return tuple(sources)
 
     # --- validation ------------------------------------------------------------------------------
-    @field_validator("period_s", "window_s", "frame_rate", "task_timeout_s", "f0", "max_gap_s", "retention_days")
+    @field_validator("period_s", "window_s", "frame_rate", "task_timeout_s", "f0", "max_gap_s", "retention_days",
+                     "input_history_s")
     @classmethod
     def _positive(cls, v: float, info) -> float:
         if not v > 0:
@@ -203,7 +214,7 @@ class ServiceSettings(BaseSettings):
             raise ValueError(f"lowpass_hz must be > 0 Hz or null (got {v})")
         return v
 
-    @field_validator("workers", "n_starts", "n_starts_warm", "diagnose_every")
+    @field_validator("workers", "n_starts", "n_starts_warm", "diagnose_every", "input_history_windows")
     @classmethod
     def _count(cls, v: int, info) -> int:
         if v < (1 if info.field_name in ("workers", "n_starts") else 0):

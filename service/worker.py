@@ -10,24 +10,56 @@ import importlib
 import math
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from service.executors.base import TaskOutcome, WindowTask
 
 
-def identify_window(task: WindowTask) -> dict:
-    """Default worker function: :func:`aslm_core.identify` on the task's window.
+@dataclasses.dataclass
+class Returned:
+    """A worker function's value and what the scheduler keeps of the window besides it.
+
+    Attributes
+    ----------
+    value : dict
+        What :class:`TaskOutcome` carries as ``value``.
+    input_periodogram : aslm_core.noise.InputPeriodogram or None
+        The window's V and θ periodogram for the bus's input history.
+    """
+
+    value: dict
+    input_periodogram: Any = None
+
+
+def identify_window(task: WindowTask) -> dict | Returned:
+    """Default worker function: :func:`aslm_core.identify` on the task's window, with the inputs' spectrum
+    of the bus's previous windows where the task carries it.
 
     Returns
     -------
-    dict
-        ``IdentificationResult.to_dict()``.
+    dict or Returned
+        ``IdentificationResult.to_dict()``; with ``task.keep_inputs``, in a :class:`Returned` with the
+        window's input periodogram where the identifier found its inputs noisy (the refinement ran).
     """
     from aslm_core import IdentifyConfig, identify
 
     warm = np.asarray(task.warm_start, dtype=float) if task.warm_start is not None else None
-    return result_dict(identify(task.window, warm_start=warm, config=IdentifyConfig(**task.options)))
+    config = IdentifyConfig(**task.options)
+    result = identify(task.window, warm_start=warm, config=config, input_spectrum=task.input_spectrum)
+    if not task.keep_inputs:
+        return result_dict(result)
+    periodogram = None
+    if "weighted_chi2" in result.quality:  # the refinement ran: the inputs are noisy, the history has a use
+        from aslm_core import WindowError
+        from aslm_core.preprocess import input_periodogram
+
+        try:
+            periodogram = input_periodogram(task.window, max_gap_samples=config.max_gap_samples)
+        except (WindowError, ValueError):  # the identification stands; the history only misses this window
+            periodogram = None
+    return Returned(result_dict(result), periodogram)
 
 
 def result_dict(result) -> dict:
@@ -131,13 +163,17 @@ def finite(obj):
 def run_task(fn_path: str, task: WindowTask) -> TaskOutcome:
     """Run one task, turning every exception into a failed outcome with a reason.
 
-    The value's non-finite floats become None (:func:`finite`).  The outcome carries the task's wall
-    time and its thread's CPU time [s].
+    The value's non-finite floats become None (:func:`finite`); a :class:`Returned` value hands its
+    input periodogram to the outcome.  The outcome carries the task's wall time and its thread's CPU
+    time [s].
     """
     t0, c0 = time.perf_counter(), time.thread_time()
     try:
-        value = finite(resolve(task.fn or fn_path)(task))
-        return TaskOutcome(ok=True, value=value, elapsed_s=time.perf_counter() - t0, cpu_s=time.thread_time() - c0)
+        value, periodogram = resolve(task.fn or fn_path)(task), None
+        if isinstance(value, Returned):
+            value, periodogram = value.value, value.input_periodogram
+        return TaskOutcome(ok=True, value=finite(value), elapsed_s=time.perf_counter() - t0,
+                           cpu_s=time.thread_time() - c0, input_periodogram=periodogram)
     except Exception as exc:  # noqa: BLE001 - any failure fails this bus only
         reason = getattr(exc, "reason", None)
         reason = f"window:{reason}" if reason and type(exc).__name__ == "WindowError" else f"error:{type(exc).__name__}"

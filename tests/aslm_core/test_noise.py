@@ -248,8 +248,8 @@ def test_pooled_input_spectrum_resolves_the_signal_above_one_windows_cut_off():
     clean = np.stack([w[0], 0.5 * w[0] + w[1]])
     noisy = clean + sig[:, None] * rng.standard_normal(clean.shape)
     wins = [noisy[:, j * n:(j + 1) * n] for j in range(k)]
-    f, s_k = noise.pooled_input_spectrum(wins, fs)
-    _, s_1 = noise.pooled_input_spectrum(wins[:1], fs)
+    pooled = noise.pooled_input_spectrum(wins, fs)
+    f, s_k, s_1 = pooled.freqs, pooled.s, noise.pooled_input_spectrum(wins[:1], fs).s
     h2 = np.abs(signal.freqz(b, a, worN=f, fs=fs)[1]) ** 2
     true = np.stack([h2, 1.25 * h2])  # unit-variance white noise through H, and 0.5·that plus another
     _, cut = noise.wiener_smooth(wins[0], fs, sig, return_cutoffs=True)
@@ -265,10 +265,10 @@ def test_pooled_input_spectrum_resolves_the_signal_above_one_windows_cut_off():
     for j in range(k, k + later):
         x, xc = noisy[:, j * n:(j + 1) * n], clean[:, j * n:(j + 1) * n]
         e_own += np.mean((noise.wiener_smooth(x, fs, sig) - xc)[:, 100:-100] ** 2)
-        e_given += np.mean((noise.wiener_smooth(x, fs, sig, spectrum=(f, s_k)) - xc)[:, 100:-100] ** 2)
+        e_given += np.mean((noise.wiener_smooth(x, fs, sig, spectrum=pooled) - xc)[:, 100:-100] ** 2)
     assert e_given < e_own, (e_given, e_own)
     # An exact channel (σ = 0) passes whole: the given spectrum is then left aside.
     x = noisy[:, :n].copy()
     x[1] = clean[1, :n]
     exact = np.array([sig[0], 0.0])
-    np.testing.assert_array_equal(noise.wiener_smooth(x, fs, exact, spectrum=(f, s_k)), noise.wiener_smooth(x, fs, exact))
+    np.testing.assert_array_equal(noise.wiener_smooth(x, fs, exact, spectrum=pooled), noise.wiener_smooth(x, fs, exact))

@@ -32,7 +32,8 @@ class Bench:
     """A scheduler on a manual clock, fed by a MemorySource, writing to a SinkChain ending in ``sink``."""
 
     def __init__(self, *, period_s: float = 10.0, start: float = T0, fn: str = FAKE, sinks: tuple = (),
-                 rules: QualityRules = RULES, frame_rate: float = FS, options: dict | None = None) -> None:
+                 rules: QualityRules = RULES, frame_rate: float = FS, options: dict | None = None,
+                 input_history: tuple[int, float] | None = None) -> None:
         self.clock = ManualClock(start)
         self.store = BufferStore(rules.window_s, frame_rate, LATE_S)
         self.source = MemorySource()
@@ -46,6 +47,7 @@ class Bench:
             self.store, InlineExecutor(fn), rules, late_s=LATE_S, f0=50.0, period_s=lambda: self.period_s,
             on_results=self.chain.write_results, on_period=self.chain.write_period, warm_starts=self.warm,
             options=options if options is not None else {"n_starts": 3}, n_starts_warm=1, clock=self.clock,
+            input_history=input_history,
         )
 
     def start(self) -> Bench:
@@ -245,6 +247,34 @@ def test_the_real_identifier_runs_inline_and_is_warm_started(bench, eq_window):
     for res in (first, second):
         d = np.array([res.parameters.dynamic[k] for k in ("a", "b", "H2", "Tm")])
         assert np.all(np.abs(d / D_TRUE - 1) < 0.05), d
+
+
+def test_noisy_inputs_are_smoothed_with_the_spectrum_of_the_bus_s_previous_windows(bench):
+    """With a history of k = 3 windows (the service's default 6 makes the test longer, not different): the
+    first three noisy windows are identified alone, the later ones with the spectrum of the three before (the
+    identifier's own mark in ``quality``), and a bus whose V and θ are exact keeps no history."""
+    from conftest import equation_window
+
+    fs = 50.0
+    rules = QualityRules(10.0, fs, 0.9, 0.2, 1e-5)
+    b = bench(period_s=10.0, start=T0 + 1.0, fn="service.worker:identify_window", rules=rules, frame_rate=fs,
+              options={"n_starts": 1}, input_history=(3, 300.0)).start()
+    rec = equation_window(seed=6, fs=fs, fine=4, duration=50.0)
+    rng = np.random.default_rng(2)
+    v_noisy = rec.V + 1e-3 * rng.standard_normal(rec.t.size)
+    th_noisy = rec.theta + 1e-3 * rng.standard_normal(rec.t.size)
+    for k in range(1, 6):
+        end = T0 + 10 * k
+        b.run_to(end)
+        sel = (rec.t > 10 * (k - 1)) & (rec.t <= 10 * k)
+        b.source.push_window("noisy", rec.t[sel] + T0, v_noisy[sel], th_noisy[sel], rec.P[sel], rec.Q[sel])
+        b.source.push_window("exact", rec.t[sel] + T0, rec.V[sel], rec.theta[sel], rec.P[sel], rec.Q[sel])
+        b.run_to(end + LATE_S)
+    got = {bus: [r.parameters.quality.get("input_spectrum_windows") for r in b.sink.results if r.bus == bus]
+           for bus in ("noisy", "exact")}
+    assert got == {"noisy": [None, None, None, 3.0, 3.0], "exact": [None] * 5}
+    assert all(r.status == "ok" and "weighted_chi2" in r.parameters.quality for r in b.sink.results if r.bus == "noisy")
+    assert set(b.scheduler._inputs) == {"noisy"} and len(b.scheduler._inputs["noisy"]) == 3
 
 
 def test_the_service_runs_without_zenoh_on_a_manual_clock(tmp_path):

@@ -1,0 +1,100 @@
+"""A bus's history of input periodograms (aslm_core.input_history) and the identifier given its spectrum."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import D_TRUE, equation_window
+from scipy import signal
+
+from aslm_core import identify, noise
+from aslm_core.input_history import InputHistory
+from aslm_core.preprocess import input_periodogram
+from aslm_core.window import Window
+
+FS, N = 50.0, 500
+
+
+def _noisy_inputs(k: int, seed: int = 7) -> list[np.ndarray]:
+    """k consecutive 10 s pieces of two coherent 1 Hz low-passed channels with white noise."""
+    rng = np.random.default_rng(seed)
+    b, a = signal.butter(2, 1.0, fs=FS)
+    w = signal.lfilter(b, a, rng.standard_normal((2, k * N + 1000)), axis=1)[:, 1000:]
+    x = np.stack([w[0], 0.5 * w[0] + w[1]]) + 0.1 * rng.standard_normal((2, k * N))
+    return [x[:, j * N:(j + 1) * N] for j in range(k)]
+
+
+def test_the_history_pools_its_last_k_windows_as_pooling_the_windows_does():
+    wins = _noisy_inputs(8)
+    hist = InputHistory(k=6, max_age_s=300.0)
+    for j, x in enumerate(wins[:7]):
+        assert hist.spectrum(10.0 * j) is (None if j < 6 else hist.spectrum(10.0 * j))
+        assert hist.add(10.0 * j, 10.0 * j + 9.98, noise.input_periodogram(x, FS))
+    assert len(hist) == 6  # the oldest of the seven left
+    got = hist.spectrum(70.0)
+    want = noise.pooled_input_spectrum(wins[1:7], FS)
+    assert got.n_windows == 6
+    np.testing.assert_array_equal(got.freqs, want.freqs)
+    np.testing.assert_array_equal(got.s, want.s)
+    assert got is hist.spectrum(70.0)  # the same windows: the pooled spectrum is not computed again
+
+
+def test_overlapping_stale_and_later_windows_are_not_pooled():
+    wins = _noisy_inputs(7)
+    g = [noise.input_periodogram(x, FS) for x in wins]
+    hist = InputHistory(k=3, max_age_s=35.0)
+    assert hist.add(0.0, 9.98, g[0])
+    assert not hist.add(5.0, 14.98, g[1])  # overlaps the newest held: its noise would count twice
+    for j in (1, 2, 3):
+        assert hist.add(10.0 * j, 10.0 * j + 9.98, g[j])
+    assert len(hist) == 3
+    assert hist.spectrum(40.0).n_windows == 3  # windows starting at 10, 20, 30 s
+    assert hist.spectrum(30.0) is None  # the window starting at 30 s has not ended by then
+    assert hist.spectrum(50.0) is None  # the one starting at 10 s began more than 35 s before
+    # Another sample rate restarts the history.
+    other = noise.input_periodogram(signal.resample(wins[4], 2 * N, axis=1), 2 * FS)
+    assert hist.add(40.0, 49.99, other) and len(hist) == 1
+
+
+def test_windows_a_few_samples_short_pool_with_the_others():
+    """A window with missing frames has another bin spacing: it is interpolated, not refused."""
+    wins = _noisy_inputs(6)
+    full = noise.pooled_spectrum([noise.input_periodogram(x, FS) for x in wins])
+    short = noise.pooled_spectrum([noise.input_periodogram(x[:, :N - 3] if j % 2 == 0 else x, FS)
+                                   for j, x in enumerate(wins)])
+    m = min(full.freqs.size, short.freqs.size)
+    np.testing.assert_allclose(short.freqs[:m], full.freqs[:m])  # the last window's bins: a full one here
+    below = full.freqs[:m] < noise.FLOOR_FROM_HZ
+    assert short.n_windows == 6
+    rel = np.abs(short.s[:m][below, 0, 0] - full.s[:m][below, 0, 0]).sum() / np.abs(full.s[:m][below, 0, 0]).sum()
+    assert rel < 0.05, rel
+    with pytest.raises(ValueError, match="sample rate"):
+        noise.pooled_spectrum([noise.input_periodogram(wins[0], FS), noise.input_periodogram(wins[1], 2 * FS)])
+
+
+def _with_noise(w: Window, seed: int, v_rel: float = 1e-3, th_rad: float = 1e-3) -> Window:
+    rng = np.random.default_rng(seed)
+    return Window(w.t, w.V + v_rel * rng.standard_normal(w.t.size), w.theta + th_rad * rng.standard_normal(w.t.size),
+                  w.P, w.Q, f0=w.f0, bus=w.bus)
+
+
+def test_identify_says_when_its_refinement_used_the_history():
+    """Noisy V and θ: the refinement takes the history's spectrum and says so; exact inputs: the same D as
+    without it and no mark (the refinement does not run)."""
+    rec = equation_window(seed=4, fs=FS, fine=4, duration=70.0)
+    pieces = [slice(j * N, (j + 1) * N) for j in range(7)]
+    windows = [Window(rec.t[s], rec.V[s], rec.theta[s], rec.P[s], rec.Q[s], f0=rec.f0, bus="b") for s in pieces]
+    noisy = [_with_noise(w, seed=j) for j, w in enumerate(windows)]
+    hist = InputHistory()
+    for w in noisy[:6]:
+        assert hist.add(float(w.t[0]), float(w.t[-1]), input_periodogram(w))
+    spectrum = hist.spectrum(float(noisy[6].t[0]))
+    alone = identify(noisy[6])
+    pooled = identify(noisy[6], input_spectrum=spectrum)
+    assert "input_spectrum_windows" not in alone.quality and "weighted_chi2" in alone.quality
+    assert pooled.quality["input_spectrum_windows"] == 6.0
+    assert not np.array_equal(pooled.d, alone.d)  # the smoother's spectrum changed, so did D
+    assert np.all(np.abs(pooled.d / D_TRUE - 1) < 0.25), pooled.d
+    exact = identify(windows[6], input_spectrum=spectrum)
+    np.testing.assert_array_equal(exact.d, identify(windows[6]).d)
+    assert "input_spectrum_windows" not in exact.quality
