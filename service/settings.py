@@ -84,10 +84,10 @@ class ServiceSettings(BaseSettings):
                              "one noise variance per channel: efficient when P and Q differ in SNR), 'ssq'",
     )
     input_history_windows: int = Field(
-        6, description="Noisy V and θ: the identifier's refinement smooths them with their spectrum pooled from the "
-                       "bus's last k non-overlapping noisy windows, once it has k begun within input_history_s before "
-                       "the window (0: each window alone; docs/numerics.md, \"Stop 41: the service keeps the inputs' "
-                       "spectrum\")",
+        0, description="Noisy V and θ: k > 0 has the identifier's refinement smooth them with their spectrum pooled "
+                       "from the bus's last k non-overlapping noisy windows, once it has k begun within input_history_s "
+                       "before the window (6 is the measured choice); 0 (default): each window alone, as the CLI and "
+                       "the Python API (docs/numerics.md, \"Stop 41: the service keeps the inputs' spectrum\")",
     )
     input_history_s: float = Field(
         300.0, description="Oldest start of a window the inputs' spectrum is pooled from, before the window identified "
