@@ -25,8 +25,8 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-from aslm_core.input_history import InputHistory
 from aslm_core.params import DYNAMIC_NAMES
 from aslm_core.window import Window
 from service.buffers import BufferStore
@@ -36,6 +36,9 @@ from service.executors.base import Executor, TaskOutcome, WindowTask
 from service.models import BusResult, Identified, PeriodSummary
 from service.sinks.base import ResultBatch
 from service.timefmt import utc_text
+
+if TYPE_CHECKING:
+    from aslm_core.input_history import InputHistory
 
 log = logging.getLogger(__name__)
 
@@ -365,6 +368,9 @@ class Scheduler:
                         if outcome.input_periodogram is not None and self.input_history is not None:
                             held = self._inputs.get(bus)
                             if held is None:
+                                # Imported here: it loads scipy, which the service's process needs only for this.
+                                from aslm_core.input_history import InputHistory
+
                                 held = self._inputs[bus] = InputHistory(*self.input_history)
                             held.add(float(cut.t[0]), float(cut.t[-1]), outcome.input_periodogram)
                     else:
