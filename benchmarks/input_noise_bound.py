@@ -326,10 +326,11 @@ def history_spectrum(case, k: int, v_rel: float, th: float, rng: np.random.Gener
     return history.spectrum(k * n / fs)
 
 
-def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0) -> dict:
+def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0, history_of: int = 0) -> dict:
     """``--weighting`` (module docstring): per level, class and estimator the per-window D/D_real, SE/D_real
     and the minimum time [s], on the windows and draws of ``seed``; with ``pooled_k`` also the default given the
-    inputs' spectrum pooled over that many previous windows (:func:`history_spectrum`, ``spectral_pooled``)."""
+    inputs' spectrum pooled over that many previous windows (:func:`history_spectrum`, ``spectral_pooled``), of the
+    window's own load and network, or with ``history_of`` = j of case i + j's (a stale history: another network)."""
     cases = {level: common.cases(n, level=level, seed=seed) for level in LEVELS}
     rngs = {(level, k): np.random.default_rng([seed, level, k])  # as window_bounds
             for level in LEVELS for k in range(len(INPUT_NOISE))}
@@ -341,7 +342,7 @@ def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0
     for i in range(n):
         # One history per window and class, shared by the levels (the long realisation is the level-1 case's, as in
         # benchmarks.input_noise_decompose); its own draws, apart from the windows'.
-        spectra = ({cls: history_spectrum(cases[LEVELS[0]][i], pooled_k, v_rel, th,
+        spectra = ({cls: history_spectrum(cases[LEVELS[0]][(i + history_of) % n], pooled_k, v_rel, th,
                                          np.random.default_rng([seed, 7, i, k]))
                     for k, (cls, v_rel, th) in enumerate(INPUT_NOISE)} if pooled_k else {})
         for level in LEVELS:
@@ -438,7 +439,8 @@ def weighting_targets(summ: dict) -> list[list]:
 def weighting_main(args) -> dict:
     """``--weighting``: run (or ``--report``), summarise against the stored bounds, print, write."""
     name = ("input_noise_weighting" + ("" if args.seed == CONFIRM_SEED else f"_seed{args.seed}")
-            + (f"_pooled{args.pooled}" if args.pooled else "") + ("_quick" if args.quick else ""))
+            + (f"_pooled{args.pooled}" if args.pooled else "") + (f"_of{args.history_of}" if args.history_of else "")
+            + ("_quick" if args.quick else ""))
     bpath = common.RESULTS / "input_noise_bound.json"
     # The stored bounds are those of the confirmation seed's windows.
     bounds = ([{int(k): v for k, v in w.items()} for w in json.loads(bpath.read_text())["per_window_relative_variance"]]
@@ -452,7 +454,8 @@ def weighting_main(args) -> dict:
         load0 = list(os.getloadavg())
         out = {"machine": common.machine(), "n": n, "seed": args.seed, "reps": args.reps,
                "configs": {k: v.to_dict() for k, v in WEIGHTING.items()}, "load_avg_at_start": load0,
-               "pooled_k": args.pooled, "per_window": weighting_run(n, args.reps, args.seed, args.pooled)}
+               "pooled_k": args.pooled, "history_of": args.history_of,
+               "per_window": weighting_run(n, args.reps, args.seed, args.pooled, args.history_of)}
         out["total_s"] = time.perf_counter() - t_all
         out["load_avg_at_end"] = list(os.getloadavg())
     out["summary"] = weighting_summary(out["per_window"], bounds)
@@ -476,6 +479,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--reps", type=int, default=2, help="--weighting: runs per identification (time: minimum)")
     ap.add_argument("--pooled", type=int, default=0,
                     help="--weighting: also the default given the inputs' spectrum pooled over this many previous windows")
+    ap.add_argument("--history-of", type=int, default=0, metavar="J",
+                    help="--pooled: the history of case i + J's load and network for case i (a stale one; 0: its own)")
     ap.add_argument("--seed", type=int, default=CONFIRM_SEED,
                     help="--weighting: seed of the windows (41 development, 43 confirmation; no bounds but for 43)")
     args = ap.parse_args(argv)
