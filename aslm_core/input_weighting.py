@@ -413,7 +413,8 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
     if not noisy_inputs(floors):
         return None
     prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
-                   floors=True, input_smoother="wiener", input_spectrum=input_spectrum)
+                   floors=True, input_smoother="wiener", input_spectrum=input_spectrum,
+                   input_tail=config.input_spectrum_tail)
     if prep.input_error is None:
         return None
     out = refine(prep, window.f0, config, d0, skip_s, margin)

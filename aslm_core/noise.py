@@ -412,7 +412,7 @@ def _given_spectrum(spectrum: InputSpectrum, freqs: np.ndarray) -> np.ndarray:
 
 def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float = WIENER_SMOOTH_HZ,
                   return_cutoffs: bool = False, return_error: bool = False,
-                  spectrum: InputSpectrum | None = None) -> np.ndarray | tuple:
+                  spectrum: InputSpectrum | None = None, tail: bool = False) -> np.ndarray | tuple:
     """Conditional mean of jointly stationary signals observed in white noise of known std: a non-causal
     multichannel Wiener smoother.
 
@@ -436,6 +436,13 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         window's own estimate and its cut-off rule, a channel's cut-off then where that spectrum ends, if
         every channel carries noise (σ > 0: an exact channel must pass whole, which the given spectrum, zero
         in places, would not ensure).  Absent: the window's estimate.
+    tail : bool
+        With the window's own estimate: above each channel's cut-off, continue its signal spectrum up to
+        :data:`FLOOR_FROM_HZ` by the power law (slope at most −1) fitted to its log-spectrum over [cut-off / 2,
+        cut-off), the cross-spectrum at the coherence of that band, instead of zero, and hold it at zero from
+        :data:`FLOOR_FROM_HZ` up (the floor band's premise, as :func:`pooled_spectrum`); the cut-off returned is
+        then where that spectrum ends.  Only where every channel carries noise, as ``spectrum``.  The ambient signal does not stop where one window's estimate loses it in the
+        floor (docs/numerics.md, "Stop 41: the signal above the smoother's cut-off").
 
     Returns
     -------
@@ -468,8 +475,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     c, n = x.shape
     if c > 2:
         raise ValueError(f"wiener_smooth takes one or two channels, got {c}")
-    if spectrum is not None and np.any(var <= 0.0):
-        spectrum = None
+    if np.any(var <= 0.0):  # an exact channel passes whole: no spectrum from elsewhere, no tail
+        spectrum, tail = None, False
     if n < 8 or not np.any(var > 0.0):
         freqs = np.fft.rfftfreq(n, 1.0 / fs)
         return _returned(x.copy(), np.full(c, 0.5 * fs), freqs, np.zeros((freqs.size, c, c), complex),
@@ -508,6 +515,12 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         else:
             s = np.maximum(p[0] - r[0], 0.0)
             s[ends[0]:] = 0.0
+            if tail:
+                freqs = np.fft.rfftfreq(ne, 1.0 / fs)
+                top = int(np.searchsorted(freqs, FLOOR_FROM_HZ))
+                ends = [min(_power_tail(s, ends[0], k_min, freqs), top)]
+                s[top:] = 0.0
+                cutoffs = np.array(ends, dtype=np.float64) * fs / ne
         out = (np.fft.irfft(s / (s + r[0]) * spec[0], n=ne) + line[0])[None, pad:pad + n]
         px = (s / (s + r[0]) * var[0]).astype(complex)[:, None, None]
         return _returned(out, cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px, return_cutoffs, return_error)
@@ -527,6 +540,18 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     sa[ends[0]:] = 0.0
     sb[min(ends):] = 0.0
     sd[ends[1]:] = 0.0
+    if tail and spectrum is None:
+        first = min(ends)
+        coh = _band_coherence(sa, sb, sd, first, k_min)
+        freqs = np.fft.rfftfreq(ne, 1.0 / fs)
+        ends = [_power_tail(sa, ends[0], k_min, freqs), _power_tail(sd, ends[1], k_min, freqs)]
+        if coh is not None:
+            k = np.arange(first, min(ends))
+            sb[k] = coh * np.sqrt(sa[k] * sd[k])
+        top = int(np.searchsorted(freqs, FLOOR_FROM_HZ))  # the floor band's premise, as the pooled spectrum's
+        sa[top:], sb[top:], sd[top:] = 0.0, 0.0, 0.0
+        ends = [min(e, top) for e in ends]
+        cutoffs = np.array(ends, dtype=np.float64) * fs / ne
     if spectrum is not None:
         sa, sb, sd = given[:, 0, 0].real, given[:, 0, 1], given[:, 1, 1].real
     # gain = S·(S + R)⁻¹
@@ -540,6 +565,29 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     px[:, 0, 0], px[:, 0, 1] = g00 * var[0], g01 * var[1]
     px[:, 1, 0], px[:, 1, 1] = g10 * var[0], g11 * var[1]
     return _returned(out, cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px, return_cutoffs, return_error)
+
+
+def _power_tail(s: np.ndarray, end: int, k_min: int, freqs: np.ndarray) -> int:
+    """Continue a one-sided signal spectrum ``s`` (zero from bin ``end``) up to :data:`FLOOR_FROM_HZ` by the power law
+    fitted to its positive bins in [end / 2, end), slope at most −1, in place; the bin where it now ends."""
+    top = int(np.searchsorted(freqs, FLOOR_FROM_HZ))
+    band = np.arange(max(k_min, end // 2), end)
+    band = band[s[band] > 0.0]
+    if end >= top or band.size < 3:
+        return end
+    slope, level = np.polyfit(np.log(freqs[band]), np.log(s[band]), 1)
+    k = np.arange(end, top)
+    s[k] = np.exp(level + min(slope, -1.0) * np.log(freqs[k]))
+    return top
+
+
+def _band_coherence(sa: np.ndarray, sb: np.ndarray, sd: np.ndarray, end: int, k_min: int) -> complex | None:
+    """The complex coherence of two signals over the bins [end / 2, end) of their spectra, held below 1."""
+    band = np.arange(max(k_min, end // 2), end)
+    if band.size < 3 or sa[band].sum() <= 0.0 or sd[band].sum() <= 0.0:
+        return None
+    coh = sb[band].sum() / np.sqrt(sa[band].sum() * sd[band].sum())
+    return coh * min(1.0, 0.999 / max(abs(coh), 1e-12))
 
 
 def _returned(out: np.ndarray, cutoffs: np.ndarray, freqs: np.ndarray, px: np.ndarray, with_cutoffs: bool,

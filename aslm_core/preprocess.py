@@ -117,7 +117,8 @@ def _step_shaped(floors: dict[str, float], channel: str) -> bool:
 
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,
             lowpass_hz: float | None = None, floors: bool = False, input_smoother: str = "none",
-            input_cutoff_hz: float = 3.0, input_spectrum: noise.InputSpectrum | None = None) -> Prepared:
+            input_cutoff_hz: float = 3.0, input_spectrum: noise.InputSpectrum | None = None,
+            input_tail: bool = False) -> Prepared:
     """Check a window and bring it onto a clean uniform grid.
 
     Parameters
@@ -148,6 +149,9 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     input_spectrum : aslm_core.noise.InputSpectrum, optional
         For the Wiener smoothers: V's and θ's signal cross-spectrum known from elsewhere (the bus's previous
         windows, :func:`aslm_core.noise.pooled_spectrum`), instead of the window's own.
+    input_tail : bool
+        For the Wiener smoothers: continue the window's own estimate of the inputs' spectrum above its cut-off
+        (:func:`aslm_core.noise.wiener_smooth`'s ``tail``).
 
     Returns
     -------
@@ -225,7 +229,7 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     if wiener:
         (V, theta), cut, *input_error = noise.wiener_smooth(
             np.stack([V, theta]), 1.0 / dt, [white["noise_v"], white["noise_theta"]], return_cutoffs=True,
-            return_error=True, spectrum=input_spectrum)
+            return_error=True, spectrum=input_spectrum, tail=input_tail)
         if input_smoother == "wiener_lowpass" and lowpass_hz is None and cut.min() < 0.45 / dt:
             # Rounded to 0.1 Hz so the filter designs are cached.
             lowpass_hz = max(0.1, round(PREFILTER_FRACTION * float(cut.min()), 1))

@@ -109,6 +109,11 @@ class IdentifyConfig:
         (:mod:`aslm_core.input_weighting`), on the Wiener-smoothed V, θ and the unfiltered P, Q; standard errors
         from the weighted fit.  About twice the time on noisy windows.  ``none``: the output-error fit alone.
         See docs/numerics.md.
+    input_spectrum_tail : bool
+        The S-weighted refinement's Wiener smoother continues each input's signal spectrum above its cut-off (where
+        the window's estimate sinks into the PMU floor) by a power law fitted over the octave below it, up to 5 Hz,
+        instead of taking it as zero there (:func:`aslm_core.noise.wiener_smooth`'s ``tail``).  See docs/numerics.md,
+        "Stop 41: the signal above the smoother's cut-off".
     iv_estimator : {"2sls", "liml"}
         Criterion of the IV fit (``ar_iv``, and ``gated`` where the IV answers): two-stage least squares, or
         limited-information maximum likelihood, whose criterion divides by the structural residual's variance
@@ -143,6 +148,7 @@ class IdentifyConfig:
     couple_channels: bool = True
     stderr_method: StderrMethod = "spectral"
     input_weighting: InputWeighting = "spectral"
+    input_spectrum_tail: bool = False
     iv_estimator: IvEstimator = "2sls"
     iv_whitening: IvWhitening = "residual"
 

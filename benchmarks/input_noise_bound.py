@@ -36,7 +36,8 @@ docs/numerics.md, stop 32 and stop 41).
 
 The default's re-measurement runs ``--weighting --seed 45`` (:data:`FLIP_SEED`, fixed before that run; the stored
 bounds are seed 43's, so its table has no σ / bound column); the service history's confirmation ``--weighting
---pooled 6 --seed 51`` (:data:`HISTORY_SEED`).
+--pooled 6 --seed 51`` (:data:`HISTORY_SEED`); ``--tail`` adds the row ``spectral_tail``, the default with
+``input_spectrum_tail=True``, confirmed with ``--weighting --tail --seed 52`` (:data:`TAIL_SEED`).
 """
 
 from __future__ import annotations
@@ -301,6 +302,8 @@ def record(bounds: list[dict], ests: list[dict], args, t_all: float) -> dict:
 #: ``--weighting``: the output-error fit alone against the S-weighted refinement (the default since issue 11's
 #: follow-up).
 WEIGHTING = {"none": IdentifyConfig(**common.OUTPUT_ERROR), "spectral": IdentifyConfig()}
+#: ``--tail``: the S-weighted refinement with its smoother's spectrum continued above the cut-off.
+TAIL = dataclasses.replace(IdentifyConfig(), input_spectrum_tail=True)
 #: ``--weighting``'s seed for the re-measurement with the S-weighted default, fixed before its run (2026-11-24).
 FLIP_SEED = 45
 
@@ -308,6 +311,9 @@ FLIP_SEED = 45
 #: ``--weighting --pooled 6``'s seed for the confirmation of the service's input history (stop 41), fixed before its
 #: run (2026-12-03), the decision rule with it (docs/numerics.md, "Stop 41: the service keeps the inputs' spectrum").
 HISTORY_SEED = 51
+#: ``--weighting --tail``'s seed for the confirmation of the spectrum's tail (stop 41), fixed before its run
+#: (2026-12-03), the decision rule with it (docs/numerics.md, "Stop 41: the signal above the smoother's cut-off").
+TAIL_SEED = 52
 
 
 def history_spectrum(case, k: int, v_rel: float, th: float, rng: np.random.Generator) -> InputSpectrum:
@@ -326,7 +332,8 @@ def history_spectrum(case, k: int, v_rel: float, th: float, rng: np.random.Gener
     return history.spectrum(k * n / fs)
 
 
-def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0, history_of: int = 0) -> dict:
+def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0, history_of: int = 0,
+                  tail: bool = False) -> dict:
     """``--weighting`` (module docstring): per level, class and estimator the per-window D/D_real, SE/D_real
     and the minimum time [s], on the windows and draws of ``seed``; with ``pooled_k`` also the default given the
     inputs' spectrum pooled over that many previous windows (:func:`history_spectrum`, ``spectral_pooled``), of the
@@ -335,7 +342,7 @@ def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0
     rngs = {(level, k): np.random.default_rng([seed, level, k])  # as window_bounds
             for level in LEVELS for k in range(len(INPUT_NOISE))}
     identify(cases[2][0].window, config=WEIGHTING["spectral"])  # numba compilation outside the timings
-    names = list(WEIGHTING) + (["spectral_pooled"] if pooled_k else [])
+    names = list(WEIGHTING) + (["spectral_pooled"] if pooled_k else []) + (["spectral_tail"] if tail else [])
     per = {(level, cls, name): {"ratio": [], "se": [], "t": []} for level in LEVELS for cls, _, _ in INPUT_NOISE
            for name in names}
     t_all = time.perf_counter()
@@ -350,7 +357,7 @@ def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0
             for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
                 w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])
                 for name in names:
-                    cfg = WEIGHTING.get(name, WEIGHTING["spectral"])
+                    cfg = TAIL if name == "spectral_tail" else WEIGHTING.get(name, WEIGHTING["spectral"])
                     best, r = math.inf, None
                     for _ in range(reps):
                         t0 = time.perf_counter()
@@ -440,6 +447,7 @@ def weighting_main(args) -> dict:
     """``--weighting``: run (or ``--report``), summarise against the stored bounds, print, write."""
     name = ("input_noise_weighting" + ("" if args.seed == CONFIRM_SEED else f"_seed{args.seed}")
             + (f"_pooled{args.pooled}" if args.pooled else "") + (f"_of{args.history_of}" if args.history_of else "")
+            + ("_tail" if args.tail else "")
             + ("_quick" if args.quick else ""))
     bpath = common.RESULTS / "input_noise_bound.json"
     # The stored bounds are those of the confirmation seed's windows.
@@ -453,9 +461,11 @@ def weighting_main(args) -> dict:
         t_all = time.perf_counter()
         load0 = list(os.getloadavg())
         out = {"machine": common.machine(), "n": n, "seed": args.seed, "reps": args.reps,
-               "configs": {k: v.to_dict() for k, v in WEIGHTING.items()}, "load_avg_at_start": load0,
+               "configs": {k: v.to_dict() for k, v in {**WEIGHTING, "spectral_tail": TAIL}.items()},
+               "load_avg_at_start": load0,
                "pooled_k": args.pooled, "history_of": args.history_of,
-               "per_window": weighting_run(n, args.reps, args.seed, args.pooled, args.history_of)}
+               "tail": args.tail,
+               "per_window": weighting_run(n, args.reps, args.seed, args.pooled, args.history_of, args.tail)}
         out["total_s"] = time.perf_counter() - t_all
         out["load_avg_at_end"] = list(os.getloadavg())
     out["summary"] = weighting_summary(out["per_window"], bounds)
@@ -479,6 +489,8 @@ def main(argv=None) -> dict:
     ap.add_argument("--reps", type=int, default=2, help="--weighting: runs per identification (time: minimum)")
     ap.add_argument("--pooled", type=int, default=0,
                     help="--weighting: also the default given the inputs' spectrum pooled over this many previous windows")
+    ap.add_argument("--tail", action="store_true",
+                    help="--weighting: also the default with input_spectrum_tail=True (row spectral_tail)")
     ap.add_argument("--history-of", type=int, default=0, metavar="J",
                     help="--pooled: the history of case i + J's load and network for case i (a stale one; 0: its own)")
     ap.add_argument("--seed", type=int, default=CONFIRM_SEED,

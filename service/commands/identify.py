@@ -38,6 +38,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="spectral (default): refine D by weighting the residuals per frequency with the noise V and "
                         "θ carry through the model (noisy inputs only; about 2x the time there); none: the "
                         "output-error fit alone (docs/numerics.md)")
+    p.add_argument("--input-spectrum-tail", action=argparse.BooleanOptionalAction,
+                   default=IdentifyConfig.input_spectrum_tail,
+                   help="the refinement's smoother continues V's and θ's spectrum above its cut-off by a fitted power law "
+                        "up to 5 Hz (docs/numerics.md, \"Stop 41: the signal above the smoother's cut-off\")")
     p.add_argument("--couple-channels", action=argparse.BooleanOptionalAction, default=IdentifyConfig.couple_channels,
                    help="the AR and IV fits take Q − k·P as the second channel, k the own fluctuation's ΔQ/ΔP read "
                         "from the residuals (default on; docs/numerics.md, \"P and Q together\")")
@@ -57,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
         integrator=args.integrator, objective=args.objective, static=args.static,
         lowpass_hz=args.lowpass, input_smoother=args.input_smoother, n_starts=args.starts,
         disturbance=args.disturbance, input_weighting=args.input_weighting, couple_channels=args.couple_channels,
+        input_spectrum_tail=args.input_spectrum_tail,
         iv_estimator=args.iv_estimator, iv_whitening=args.iv_whitening,
     )
     warmup()  # load the compiled kernels first so elapsed_s measures the identification alone

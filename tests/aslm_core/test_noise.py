@@ -272,3 +272,31 @@ def test_pooled_input_spectrum_resolves_the_signal_above_one_windows_cut_off():
     x[1] = clean[1, :n]
     exact = np.array([sig[0], 0.0])
     np.testing.assert_array_equal(noise.wiener_smooth(x, fs, exact, spectrum=pooled), noise.wiener_smooth(x, fs, exact))
+
+
+def test_the_tail_continues_the_signal_above_one_windows_cut_off():
+    """Two coherent channels with a 1 Hz second-order roll-off (a power law, f⁻⁴, above it) in white noise: one
+    window's estimate loses the signal in the floor below 5 Hz; continued by the fitted power law the smoother
+    reports its cut-off at 5 Hz and leaves less error against the clean signal, over ten windows.  (Measured here:
+    cut-offs 1.6–3.5 Hz without it; mean-square error 2.7 % lower in all, lower in 8 of the 10 windows.)"""
+    rng = np.random.default_rng(5)
+    fs, n, k = 100.0, 1000, 10
+    b, a = signal.butter(2, 1.0, fs=fs)
+    w = signal.lfilter(b, a, rng.standard_normal((2, k * n + 2000)), axis=1)[:, 2000:]
+    clean = np.stack([w[0], 0.5 * w[0] + w[1]])
+    sig = np.array([0.2, 0.2])
+    noisy = clean + sig[:, None] * rng.standard_normal(clean.shape)
+    e_cut = e_tail = 0.0
+    for j in range(k):
+        x, xc = noisy[:, j * n:(j + 1) * n], clean[:, j * n:(j + 1) * n]
+        cut_x, cut = noise.wiener_smooth(x, fs, sig, return_cutoffs=True)
+        tail_x, tail_cut = noise.wiener_smooth(x, fs, sig, return_cutoffs=True, tail=True)
+        assert np.all(cut < noise.FLOOR_FROM_HZ) and np.allclose(tail_cut, noise.FLOOR_FROM_HZ, atol=0.1), (cut, tail_cut)
+        e_cut += np.mean((cut_x - xc)[:, 100:-100] ** 2)
+        e_tail += np.mean((tail_x - xc)[:, 100:-100] ** 2)
+    assert e_tail < e_cut, (e_tail, e_cut)
+    # An exact channel passes whole with the tail too.
+    x = noisy[:, :n].copy()
+    x[1] = clean[1, :n]
+    exact = np.array([sig[0], 0.0])
+    np.testing.assert_array_equal(noise.wiener_smooth(x, fs, exact, tail=True), noise.wiener_smooth(x, fs, exact))
