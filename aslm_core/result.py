@@ -112,8 +112,9 @@ class IdentifyConfig:
     input_spectrum_tail : bool
         The S-weighted refinement's Wiener smoother continues each input's signal spectrum above its cut-off (where
         the window's estimate sinks into the PMU floor) by a power law fitted over the octave below it, up to 5 Hz,
-        instead of taking it as zero there (:func:`aslm_core.noise.wiener_smooth`'s ``tail``).  See docs/numerics.md,
-        "Stop 41: the signal above the smoother's cut-off".
+        instead of taking it as zero there (:func:`aslm_core.noise.wiener_smooth`'s ``tail``).  On by default (one
+        default for the Python API, the CLI and the service) since its confirmation run; False: the refinement as
+        before.  See docs/numerics.md, "Stop 41: the signal above the smoother's cut-off".
     iv_estimator : {"2sls", "liml"}
         Criterion of the IV fit (``ar_iv``, and ``gated`` where the IV answers): two-stage least squares, or
         limited-information maximum likelihood, whose criterion divides by the structural residual's variance
@@ -148,7 +149,7 @@ class IdentifyConfig:
     couple_channels: bool = True
     stderr_method: StderrMethod = "spectral"
     input_weighting: InputWeighting = "spectral"
-    input_spectrum_tail: bool = False
+    input_spectrum_tail: bool = True
     iv_estimator: IvEstimator = "2sls"
     iv_whitening: IvWhitening = "residual"
 

@@ -301,8 +301,12 @@ def record(bounds: list[dict], ests: list[dict], args, t_all: float) -> dict:
 
 #: ``--weighting``: the output-error fit alone against the S-weighted refinement (the default since issue 11's
 #: follow-up).
-WEIGHTING = {"none": IdentifyConfig(**common.OUTPUT_ERROR), "spectral": IdentifyConfig()}
-#: ``--tail``: the S-weighted refinement with its smoother's spectrum continued above the cut-off.
+#: ``spectral`` is the refinement without the spectrum's tail (the default until stop 41), so that the runs recorded
+#: before the tail became the default reproduce and ``--tail`` compares against it.
+WEIGHTING = {"none": IdentifyConfig(**common.OUTPUT_ERROR),
+             "spectral": dataclasses.replace(IdentifyConfig(), input_spectrum_tail=False)}
+#: ``--tail``: the S-weighted refinement with its smoother's spectrum continued above the cut-off (the default since
+#: stop 41).
 TAIL = dataclasses.replace(IdentifyConfig(), input_spectrum_tail=True)
 #: ``--weighting``'s seed for the re-measurement with the S-weighted default, fixed before its run (2026-11-24).
 FLIP_SEED = 45
