@@ -281,6 +281,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--cost", action="store_true", help="time per identification: the default against before")
     ap.add_argument("--weighting", action="store_true",
                     help="with --rates: input_weighting='none' next to the default ('spectral')")
+    ap.add_argument("--tag", default=None, help="suffix of the JSON name (a rerun beside the run of record)")
     ap.add_argument("--seed", type=int, default=None,
                     help="seed of the cases (default: 41 for the comparison, 43 for --supplement and --rates)")
     args = ap.parse_args(argv)
@@ -327,7 +328,7 @@ def main(argv=None) -> dict:
             name += "_weighting"
         if args.seed is not None and seed != (SEED if mode == "compare" else CONFIRM_SEED):
             name += f"_seed{seed}"
-        common.write_json(name + ("_quick" if args.quick else ""), out)
+        common.write_json(name + (f"_{args.tag}" if args.tag else "") + ("_quick" if args.quick else ""), out)
     return out
 
 

@@ -18,7 +18,7 @@ PINNED: dict = {
     "input_cutoff_hz": 3.0, "max_iter": 60, "seed": 0, "max_gap_samples": 5, "min_duration_s": 5.0,
     "coarse_to_fine": True, "disturbance": "none", "ar_max_order": 30, "couple_channels": False,
     "stderr_method": "spectral",
-    "input_weighting": "none", "iv_estimator": "2sls",
+    "input_weighting": "none", "input_spectrum_tail": False, "iv_estimator": "2sls",
     "iv_whitening": "residual",
 }
 
