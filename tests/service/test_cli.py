@@ -114,12 +114,13 @@ def test_identify_says_in_words_when_the_loads_own_fluctuation_chose_the_estimat
 
 
 def test_identify_says_in_words_when_the_input_noise_correction_moved_d_far(tmp_path, capsys):
-    """The own bench's seed-245 window 28 (0.1 % / 1e-3 rad): the S-weighted answer is 2.7 SE from output error's."""
+    """The own bench's seed-245 window 28 (0.1 % / 1e-3 rad): the S-weighted answer is 2.7 SE from output error's
+    without the spectrum's tail (with it, the default, 2.3 SE and within 7 % of the truth: no such warning)."""
     from benchmarks.own_fluctuation import bench_window
     from service.cli import main
 
     w, _ = bench_window(28, 0.0, "lowpass", 2, seed=245)
     write_window(tmp_path / "w.npz", w)
-    assert main(["identify", str(tmp_path / "w.npz")]) == 0
+    assert main(["identify", "--no-input-spectrum-tail", str(tmp_path / "w.npz")]) == 0
     out = capsys.readouterr().out
     assert "input_noise_correction_large" in out and "the input-noise correction moved D by 2.7 of its standard" in out
