@@ -441,8 +441,9 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         :data:`FLOOR_FROM_HZ` by the power law (slope at most −1) fitted to its log-spectrum over [cut-off / 2,
         cut-off), the cross-spectrum at the coherence of that band, instead of zero, and hold it at zero from
         :data:`FLOOR_FROM_HZ` up (the floor band's premise, as :func:`pooled_spectrum`); the cut-off returned is
-        then where that spectrum ends.  Only where every channel carries noise, as ``spectrum``.  The ambient signal does not stop where one window's estimate loses it in the
-        floor (docs/numerics.md, "Stop 41: the signal above the smoother's cut-off").
+        then where that spectrum ends.  Only where every channel carries noise, as ``spectrum``.  The ambient
+        signal does not stop where one window's estimate loses it in the floor (docs/numerics.md, "Stop 41: the
+        signal above the smoother's cut-off").
 
     Returns
     -------
