@@ -300,3 +300,12 @@ def test_the_tail_continues_the_signal_above_one_windows_cut_off():
     x[1] = clean[1, :n]
     exact = np.array([sig[0], 0.0])
     np.testing.assert_array_equal(noise.wiener_smooth(x, fs, exact, tail=True), noise.wiener_smooth(x, fs, exact))
+
+
+def test_the_tail_changes_noisy_windows_only(cases, noisy):
+    """Exact inputs: the refinement does not run, so the tail leaves D bit for bit; noisy inputs: it moves D."""
+    no_tail = replace(IdentifyConfig(), input_spectrum_tail=False)
+    for c in cases[:3]:
+        np.testing.assert_array_equal(identify(c.window).d, identify(c.window, config=no_tail).d)
+    moved = [not np.array_equal(identify(w).d, identify(w, config=no_tail).d) for w in noisy[:3]]
+    assert all(moved), moved
