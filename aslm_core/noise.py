@@ -27,6 +27,9 @@ MIN_CUTOFF_HZ = 0.5
 CUTOFF_FACTOR = 1.0
 #: Length of the local line whose value at a window's end is the centre of the point reflection [s].
 EDGE_FIT_S = 0.1
+#: Windows pooled into one input spectrum may differ in length (bin spacing) by this fraction: a window missing frames
+#: at its ends is shorter (the service accepts 10 % missing), and its smoothed periodogram interpolates well [-].
+POOL_SPACING_TOL = 0.25
 
 
 @lru_cache(maxsize=32)
@@ -317,8 +320,8 @@ def pooled_spectrum(periodograms: Sequence[InputPeriodogram], smooth_hz: float =
     ----------
     periodograms : sequence of InputPeriodogram
         :func:`input_periodogram` of K windows of the bus (e.g. its previous ones), one sample rate and
-        channel count; their bin spacings may differ by a few per cent (windows with missing frames): each is
-        interpolated onto the last one's bins.
+        channel count; their bin spacings may differ by up to :data:`POOL_SPACING_TOL` (windows with missing frames):
+        each is interpolated onto the last one's bins.
     smooth_hz : float
         Width of the moving average over the averaged periodogram matrix [Hz].
     top_hz : float
@@ -343,8 +346,9 @@ def pooled_spectrum(periodograms: Sequence[InputPeriodogram], smooth_hz: float =
     last = periodograms[-1]
     c = last.p.shape[1]
     for g in periodograms:
-        if g.p.shape[1] != c or abs(g.fs - last.fs) > 1e-6 * last.fs or abs(g.df - last.df) > 0.05 * last.df:
-            raise ValueError(f"periodograms must share one sample rate, channel count and (within 5 %) bin spacing: "
+        if g.p.shape[1] != c or abs(g.fs - last.fs) > 1e-6 * last.fs or abs(g.df - last.df) > POOL_SPACING_TOL * last.df:
+            raise ValueError(f"periodograms must share one sample rate, channel count and (within {POOL_SPACING_TOL:.0%}) "
+                             f"bin spacing: "
                              f"{[(g.fs, g.df, g.p.shape[1]) for g in periodograms]}")
     m = min(g.p.shape[0] if g.n == last.n else int((g.p.shape[0] - 1) * g.df / last.df) + 1
             for g in periodograms)

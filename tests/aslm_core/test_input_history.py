@@ -56,11 +56,13 @@ def test_overlapping_stale_and_later_windows_are_not_pooled():
     assert hist.add(40.0, 49.99, other) and len(hist) == 1
 
 
-def test_windows_a_few_samples_short_pool_with_the_others():
-    """A window with missing frames has another bin spacing: it is interpolated, not refused."""
+def test_windows_short_of_frames_pool_with_the_others():
+    """A window missing frames at its ends (10 % here, what the service accepts) has another bin spacing: it is
+    interpolated, not refused, and kept by the history.  (Measured here: 3.6 % summed difference from the full
+    windows' spectrum below 5 Hz, where two independent sets of six windows differ by 20 %.)"""
     wins = _noisy_inputs(6)
     full = noise.pooled_spectrum([noise.input_periodogram(x, FS) for x in wins])
-    short = noise.pooled_spectrum([noise.input_periodogram(x[:, :N - 3] if j % 2 == 0 else x, FS)
+    short = noise.pooled_spectrum([noise.input_periodogram(x[:, :N - 50] if j % 2 == 0 else x, FS)
                                    for j, x in enumerate(wins)])
     m = min(full.freqs.size, short.freqs.size)
     np.testing.assert_allclose(short.freqs[:m], full.freqs[:m])  # the last window's bins: a full one here
@@ -68,6 +70,9 @@ def test_windows_a_few_samples_short_pool_with_the_others():
     assert short.n_windows == 6
     rel = np.abs(short.s[:m][below, 0, 0] - full.s[:m][below, 0, 0]).sum() / np.abs(full.s[:m][below, 0, 0]).sum()
     assert rel < 0.05, rel
+    hist = InputHistory(k=2)
+    assert hist.add(0.0, 8.98, noise.input_periodogram(wins[0][:, :N - 50], FS))
+    assert hist.add(10.0, 19.98, noise.input_periodogram(wins[1], FS)) and len(hist) == 2
     with pytest.raises(ValueError, match="sample rate"):
         noise.pooled_spectrum([noise.input_periodogram(wins[0], FS), noise.input_periodogram(wins[1], 2 * FS)])
 
