@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections import deque
 
-from aslm_core.noise import POOL_SPACING_TOL, InputPeriodogram, InputSpectrum, pooled_spectrum
+from aslm_core.noise import InputPeriodogram, InputSpectrum, poolable, pooled_spectrum
 
 #: Windows pooled into the inputs' spectrum (a minute of 10 s windows: the development runs' K = 6) [-].
 HISTORY_WINDOWS = 6
@@ -62,8 +62,7 @@ class InputHistory:
         """
         if self._held:
             _, e0, g0, _ = self._held[-1]
-            if g0.p.shape[1] != periodogram.p.shape[1] or abs(g0.fs - periodogram.fs) > 1e-6 * g0.fs \
-                    or abs(g0.df - periodogram.df) > POOL_SPACING_TOL * g0.df:
+            if not poolable(periodogram, g0):
                 self._held.clear()
             elif start <= e0:
                 return False

@@ -312,6 +312,13 @@ def input_periodogram(x: np.ndarray, fs: float, keep_hz: float = FLOOR_FROM_HZ +
     return InputPeriodogram(float(fs), n, p, floor)
 
 
+def poolable(a: InputPeriodogram, b: InputPeriodogram) -> bool:
+    """Whether two windows' periodograms can be pooled into one spectrum: the same channels and sample rate, bin
+    spacings within :data:`POOL_SPACING_TOL`."""
+    return (a.p.shape[1] == b.p.shape[1] and abs(a.fs - b.fs) <= 1e-6 * b.fs
+            and abs(a.df - b.df) <= POOL_SPACING_TOL * b.df)
+
+
 def pooled_spectrum(periodograms: Sequence[InputPeriodogram], smooth_hz: float = WIENER_SMOOTH_HZ,
                     top_hz: float = FLOOR_FROM_HZ) -> InputSpectrum:
     """The inputs' signal cross-spectrum from several noisy windows of the same bus, for :func:`wiener_smooth`.
@@ -345,11 +352,9 @@ def pooled_spectrum(periodograms: Sequence[InputPeriodogram], smooth_hz: float =
         raise ValueError("pooled_spectrum needs at least one window")
     last = periodograms[-1]
     c = last.p.shape[1]
-    for g in periodograms:
-        if g.p.shape[1] != c or abs(g.fs - last.fs) > 1e-6 * last.fs or abs(g.df - last.df) > POOL_SPACING_TOL * last.df:
-            raise ValueError(f"periodograms must share one sample rate, channel count and (within {POOL_SPACING_TOL:.0%}) "
-                             f"bin spacing: "
-                             f"{[(g.fs, g.df, g.p.shape[1]) for g in periodograms]}")
+    if not all(poolable(g, last) for g in periodograms):
+        raise ValueError(f"periodograms must share one sample rate, channel count and (within {POOL_SPACING_TOL:.0%}) "
+                         f"bin spacing: {[(g.fs, g.df, g.p.shape[1]) for g in periodograms]}")
     m = min(g.p.shape[0] if g.n == last.n else int((g.p.shape[0] - 1) * g.df / last.df) + 1
             for g in periodograms)
     freqs = last.freqs[:m]
@@ -523,7 +528,7 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
             if tail:
                 freqs = np.fft.rfftfreq(ne, 1.0 / fs)
                 top = int(np.searchsorted(freqs, FLOOR_FROM_HZ))
-                ends = [min(_power_tail(s, ends[0], k_min, freqs), top)]
+                ends = [min(_power_tail(s, ends[0], k_min, freqs, top), top)]
                 s[top:] = 0.0
                 cutoffs = np.array(ends, dtype=np.float64) * fs / ne
         out = (np.fft.irfft(s / (s + r[0]) * spec[0], n=ne) + line[0])[None, pad:pad + n]
@@ -549,11 +554,11 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         first = min(ends)
         coh = _band_coherence(sa, sb, sd, first, k_min)
         freqs = np.fft.rfftfreq(ne, 1.0 / fs)
-        ends = [_power_tail(sa, ends[0], k_min, freqs), _power_tail(sd, ends[1], k_min, freqs)]
+        top = int(np.searchsorted(freqs, FLOOR_FROM_HZ))  # the floor band's premise, as the pooled spectrum's
+        ends = [_power_tail(sa, ends[0], k_min, freqs, top), _power_tail(sd, ends[1], k_min, freqs, top)]
         if coh is not None:
             k = np.arange(first, min(ends))
             sb[k] = coh * np.sqrt(sa[k] * sd[k])
-        top = int(np.searchsorted(freqs, FLOOR_FROM_HZ))  # the floor band's premise, as the pooled spectrum's
         sa[top:], sb[top:], sd[top:] = 0.0, 0.0, 0.0
         ends = [min(e, top) for e in ends]
         cutoffs = np.array(ends, dtype=np.float64) * fs / ne
@@ -572,10 +577,9 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     return _returned(out, cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px, return_cutoffs, return_error)
 
 
-def _power_tail(s: np.ndarray, end: int, k_min: int, freqs: np.ndarray) -> int:
-    """Continue a one-sided signal spectrum ``s`` (zero from bin ``end``) up to :data:`FLOOR_FROM_HZ` by the power law
-    fitted to its positive bins in [end / 2, end), slope at most −1, in place; the bin where it now ends."""
-    top = int(np.searchsorted(freqs, FLOOR_FROM_HZ))
+def _power_tail(s: np.ndarray, end: int, k_min: int, freqs: np.ndarray, top: int) -> int:
+    """Continue a one-sided signal spectrum ``s`` (zero from bin ``end``) up to bin ``top`` by the power law fitted to
+    its positive bins in [end / 2, end), slope at most −1, in place; the bin where it now ends."""
     band = np.arange(max(k_min, end // 2), end)
     band = band[s[band] > 0.0]
     if end >= top or band.size < 3:

@@ -295,6 +295,14 @@ def test_the_tail_continues_the_signal_above_one_windows_cut_off():
         e_cut += np.mean((cut_x - xc)[:, 100:-100] ** 2)
         e_tail += np.mean((tail_x - xc)[:, 100:-100] ** 2)
     assert e_tail < e_cut, (e_tail, e_cut)
+    # A quieter PMU: the window's own cut-off lies above 5 Hz; the tail holds the signal at zero from 5 Hz (the floor
+    # band's premise), so the smoother passes nothing there, where without it it passes some.
+    quiet = clean[:, :n] + 0.05 * rng.standard_normal((2, n))
+    _, cut, f, px = noise.wiener_smooth(quiet, fs, [0.05, 0.05], return_cutoffs=True, return_error=True)
+    _, _, _, px_tail = noise.wiener_smooth(quiet, fs, [0.05, 0.05], return_cutoffs=True, return_error=True, tail=True)
+    above = f >= noise.FLOOR_FROM_HZ
+    assert cut.max() > noise.FLOOR_FROM_HZ and np.abs(px[above, 0, 0]).max() > 0.0, cut
+    assert not np.any(px_tail[above])
     # An exact channel passes whole with the tail too.
     x = noisy[:, :n].copy()
     x[1] = clean[1, :n]
