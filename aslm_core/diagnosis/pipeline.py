@@ -134,6 +134,9 @@ class DiagnosisConfig:
         given the window (Wiener smoother; :func:`segment.conditional_mean`, docs/diagnosis.md, "Stop 32"), their
         error drawn white at the measured floors; False: the measured inputs, their white noise propagated
         (before stop 32).
+    input_tail : bool
+        With ``input_mean``: the smoother's estimate of the inputs' spectrum continued above its cut-off by the
+        power law it follows below (the identifier's ``input_spectrum_tail``; docs/diagnosis.md, "Stop 42").
     cross_fit : bool
         Judge every candidate on both folds of each window: the time-ordered split (fit on the first
         ``train_fraction``, judge on the rest) and its mirror (judge on as many samples from ``mirror_gap_s``
@@ -166,6 +169,7 @@ class DiagnosisConfig:
     bound_rule: bool = True
     challengers: bool = True
     input_mean: bool = True
+    input_tail: bool = False
     cross_fit: bool = True
     mirror_gap_s: float = 1.0
 
@@ -204,7 +208,7 @@ def _plain_d(seg: Segment, previous, config: DiagnosisConfig) -> np.ndarray:
 
 def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _WindowAnalysis:
     seg = make_segment(window, skip_s=config.skip_s, train_fraction=config.train_fraction,
-                       input_mean=config.input_mean)
+                       input_mean=config.input_mean, input_tail=config.input_tail)
     if model is None:
         ctx = Context("identified", _plain_d(seg, previous, config))
     else:

@@ -182,13 +182,16 @@ def driver_noise(dv: np.ndarray, dtheta: np.ndarray, fs: float) -> tuple[np.ndar
             _lowpass(np.gradient(dtheta, dt) / (2.0 * math.pi), fs, FREQ_LOWPASS_HZ))
 
 
-def conditional_mean(window: Window) -> tuple[Prepared, Prepared | None]:
+def conditional_mean(window: Window, *, tail: bool = False) -> tuple[Prepared, Prepared | None]:
     """The window prepared as measured and, where V or θ carries white PMU noise, with V and θ replaced by their
     conditional mean given the window.
 
     Parameters
     ----------
     window : Window
+    tail : bool
+        Continue the smoother's estimate of the inputs' spectrum above its cut-off
+        (:func:`aslm_core.noise.wiener_smooth`'s ``tail``, the identifier's ``input_spectrum_tail``).
 
     Returns
     -------
@@ -208,7 +211,7 @@ def conditional_mean(window: Window) -> tuple[Prepared, Prepared | None]:
     raw = prepare(window, floors=True)
     if not noisy_inputs(raw.noise):
         return raw, None
-    return raw, prepare(window, input_smoother="wiener")
+    return raw, prepare(window, input_smoother="wiener", input_tail=tail)
 
 
 def error_spectrum(raw: Prepared, smooth: Prepared) -> tuple[np.ndarray, np.ndarray]:
@@ -242,7 +245,7 @@ def error_spectrum(raw: Prepared, smooth: Prepared) -> tuple[np.ndarray, np.ndar
 
 
 def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float = 0.65,
-                 guard_s: float = 0.1, input_mean: bool = True) -> Segment:
+                 guard_s: float = 0.1, input_mean: bool = True, input_tail: bool = False) -> Segment:
     """Prepare a window and split it in time.
 
     Parameters
@@ -258,6 +261,8 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
     input_mean : bool
         Replace V and θ by their conditional mean where they carry white noise (:func:`conditional_mean`);
         False: the measured inputs always.
+    input_tail : bool
+        With ``input_mean``: the smoother's spectrum continued above its cut-off (:func:`conditional_mean`).
 
     Returns
     -------
@@ -265,7 +270,7 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
         Where V or θ carries white noise, V and θ (and Δf, dV/dt built from them) are their conditional mean
         (:func:`conditional_mean`); a recorded f is used as measured.
     """
-    raw, smooth = conditional_mean(window) if input_mean else (prepare(window), None)
+    raw, smooth = conditional_mean(window, tail=input_tail) if input_mean else (prepare(window), None)
     prep = raw if smooth is None else smooth
     n = prep.V.shape[0]
     dt = prep.dt

@@ -104,3 +104,24 @@ def test_by_default_the_draws_are_white_at_the_measured_floors(windows):
     rng = np.random.default_rng(0)
     assert np.array_equal(nm.inputs_v, nm.sigma_v * rng.standard_normal((16, N)))
     assert np.array_equal(nm.inputs_theta, nm.sigma_theta * rng.standard_normal((16, N)))
+
+
+def test_the_smoothers_tail_is_an_option_that_leaves_exact_inputs_alone(windows):
+    # DiagnosisConfig.input_tail (off: worse on the development sets, docs/diagnosis.md "Stop 42").
+    clean, noisy = windows
+    for a, b in zip(astuple_arrays(make_segment(clean)), astuple_arrays(make_segment(clean, input_tail=True))):
+        assert np.array_equal(a, b)
+    plain, tail = make_segment(noisy), make_segment(noisy, input_tail=True)
+    assert np.array_equal(tail.V, prepare(noisy, input_smoother="wiener", input_tail=True).V)
+    assert np.array_equal(plain.V_raw, tail.V_raw)
+    assert not np.array_equal(plain.V, tail.V)
+    # The continued spectrum passes more of the window above the cut-off: the smoothed V moves more there.
+    sl = slice(plain.k0, plain.ke)
+    ff = np.fft.rfftfreq(sl.stop - sl.start, DT)
+    hi = (ff > 3.0) & (ff < 5.0)
+    power = [np.sum(np.abs(np.fft.rfft(x[sl] - x[sl].mean()))[hi] ** 2) for x in (plain.V, tail.V)]
+    assert power[1] > power[0]
+
+
+def astuple_arrays(seg) -> list[np.ndarray]:
+    return [seg.V, seg.theta, seg.P, seg.Q, seg.dfreq, seg.dvdt]
