@@ -109,7 +109,7 @@ def test_by_default_the_draws_are_white_at_the_measured_floors(windows):
 def test_the_smoothers_tail_is_an_option_that_leaves_exact_inputs_alone(windows):
     # DiagnosisConfig.input_tail (off: worse on the development sets, docs/diagnosis.md "Stop 42").
     clean, noisy = windows
-    for a, b in zip(astuple_arrays(make_segment(clean)), astuple_arrays(make_segment(clean, input_tail=True))):
+    for a, b in zip(_arrays(make_segment(clean)), _arrays(make_segment(clean, input_tail=True)), strict=True):
         assert np.array_equal(a, b)
     plain, tail = make_segment(noisy), make_segment(noisy, input_tail=True)
     assert np.array_equal(tail.V, prepare(noisy, input_smoother="wiener", input_tail=True).V)
@@ -123,5 +123,5 @@ def test_the_smoothers_tail_is_an_option_that_leaves_exact_inputs_alone(windows)
     assert power[1] > power[0]
 
 
-def astuple_arrays(seg) -> list[np.ndarray]:
+def _arrays(seg) -> list[np.ndarray]:
     return [seg.V, seg.theta, seg.P, seg.Q, seg.dfreq, seg.dvdt]
