@@ -21,7 +21,27 @@ from benchmarks.input_noise import INPUT_NOISE, with_input_noise
 
 
 def rate_summary(fs: float, n: int, seed: int, level: int = 2) -> dict:
-    """Median and 10–90 % range of the cut-offs [Hz] and the median error ratio (tail / none) at one rate."""
+    """The smoother's cut-offs with and without the spectrum's tail on one rate's noisy windows.
+
+    Parameters
+    ----------
+    fs : float
+        Reporting rate [frames/s].
+    n : int
+        Windows [-].
+    seed : int
+        Seed of the cases and of the 0.1 % / 1e-3 rad draws (as ``benchmarks.input_noise --rates``).
+    level : int
+        Table I's DL of P and Q's noise.
+
+    Returns
+    -------
+    dict
+        ``cut_v``: V's cut-off without the tail, 10th / 50th / 90th percentile [Hz]; ``cut_theta``: θ's median [Hz];
+        ``end_v``: the median of where V's tailed spectrum ends [Hz]; ``share_tailed``: windows whose V spectrum the
+        tail carried past its cut-off [-]; ``error_ratio_v``: median of the smoothed V's error std against the clean
+        V, with the tail over without [-].
+    """
     cs = common.cases(n, level=level, seed=seed, input_noise=False, fs=fs)
     k = len(INPUT_NOISE) - 1  # the 0.1 % / 1e-3 rad class, its draws as input_noise.run_level makes them
     _, v_rel, th = INPUT_NOISE[k]
