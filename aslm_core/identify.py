@@ -269,7 +269,7 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
     extra: dict[str, float] = {}
     oe_final, oe_problem, oe_prep = final, final_problem, prep  # the IV of the gated estimator starts here
     d_oe = np.array(final["d"])  # copied: the refinement's flags compare its answer with this one
-    if config.input_weighting == "spectral" and config.disturbance in ("none", "gated"):
+    if config.input_weighting in ("spectral", "temporal") and config.disturbance in ("none", "gated"):
         w = input_weighting.weighted_fit(window, config, final["d"], final_problem.k0 * prep.dt, prep.noise,
                                          EQUILIBRIUM_MARGIN, input_spectrum)
         if w is not None:

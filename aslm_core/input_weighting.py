@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
-from scipy import signal
+from scipy import linalg, signal
 
 from aslm_core import motor, optimize, static
 from aslm_core.noise import InputSpectrum, reflected_mean
@@ -48,6 +48,9 @@ RESIDUAL_SMOOTH_HZ = 1.0
 #: Highest frequency the fit uses, as a fraction of the reporting rate [-]: where the simulator's cubic
 #: interpolation of the inputs between samples is within ~0.5 % of a sinusoid's amplitude (5 % at 0.2).
 BAND_FRACTION = 0.1
+#: ``temporal`` form: S above the band is multiplied by this, so the whitened fit all but ignores those frequencies
+#: (the spectral form gives them weight zero, which a covariance cannot) [-].
+BAND_DOWNWEIGHT = 1e4
 
 
 @dataclass
@@ -58,13 +61,23 @@ class Weighting:
     entries (w00, w10, w11) [1/pu], zero above the band the fit uses; ``nuisance``: the whitened static
     regressors in the stacked real representation (:func:`_stack`) and ``gram_inv`` the inverse of their Gram
     matrix (the projection off them); ``samples``: the real degrees of freedom per channel the kept bins
-    hold (the regression length when every bin is kept).
+    hold (the regression length when every bin is kept).  ``chol``: the ``temporal`` form's lower Cholesky
+    factor of the stacked [P; Q] disturbance covariance over the regression samples (2l × 2l) [pu], which then
+    whitens in place of ``w``; None for the spectral form.
     """
 
     w: tuple[np.ndarray, np.ndarray, np.ndarray]
     nuisance: np.ndarray
     gram_inv: np.ndarray
     samples: float
+    chol: np.ndarray | None = None
+
+    def whiten(self, xp: np.ndarray, xq: np.ndarray) -> np.ndarray:
+        """The columns xp (P's rows) and xq (Q's rows), time along axis 0, whitened: a sum of squares over the
+        rows of the result is the quadratic form in S⁻¹."""
+        if self.chol is not None:
+            return linalg.solve_triangular(self.chol, np.vstack([xp, xq]), lower=True, check_finite=False)
+        return _stack(self.w, xp, xq, bin_weights(xp.shape[0]))
 
     def project(self, z: np.ndarray) -> np.ndarray:
         """z with its component in the whitened static regressors' span removed."""
@@ -183,6 +196,28 @@ def whitening(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return 1.0 / l00, -l10 / (l00 * l11), 1.0 / l11
 
 
+def temporal_covariance(s: np.ndarray, l: int) -> np.ndarray:
+    """The stacked [P; Q] covariance over l consecutive samples that the disturbance spectrum S implies.
+
+    Parameters
+    ----------
+    s : ndarray, shape (l + 1, 2, 2), complex
+        S at the rfft bins of 2l samples (:func:`disturbance_spectrum` on the doubled grid), per-sample units
+        [pu²]: its lags then reach the window's whole length without wrapping onto each other.
+    l : int
+        Regression samples.
+
+    Returns
+    -------
+    ndarray, shape (2l, 2l)
+        Block-Toeplitz: entry (i·l + a, k·l + b) is E[x_i(a)·x_k(b)] = c_ik(a − b), c_ik the inverse transform
+        of S_ik [pu²].
+    """
+    c = np.fft.irfft(s, n=2 * l, axis=0)  # c[τ, i, k] = E[x_i(t + τ)·x_k(t)]; negative lags wrap to 2l − |τ|
+    lag = np.subtract.outer(np.arange(l), np.arange(l)) % (2 * l)
+    return np.block([[c[lag, 0, 0], c[lag, 0, 1]], [c[lag, 1, 0], c[lag, 1, 1]]])
+
+
 @lru_cache(maxsize=32)
 def _taper_of(l: int, fraction: float) -> np.ndarray:
     """The symmetric Tukey taper of l samples, as a column (ones without a taper)."""
@@ -210,9 +245,14 @@ def _stack(w: tuple[np.ndarray, np.ndarray, np.ndarray], xp: np.ndarray, xq: np.
 
 
 def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.ndarray],
-                    white_var: tuple[float, float], band_hz: float = math.inf) -> Weighting | None:
+                    white_var: tuple[float, float], band_hz: float = math.inf,
+                    form: str = "spectral") -> Weighting | None:
     """The window's whitening at D: H at D and the static coefficients of the plain fit there, the bins
-    above ``band_hz`` [Hz] given zero weight.  None when the model cannot be simulated at D."""
+    above ``band_hz`` [Hz] given zero weight (``form="temporal"``: S there multiplied by
+    :data:`BAND_DOWNWEIGHT`).  ``form``: ``spectral`` whitens per rfft bin of the tapered samples, ``temporal``
+    by the Cholesky factor of the covariance S implies over the samples (:func:`temporal_covariance`; no taper,
+    no circular wrap).  None when the model cannot be simulated at D or that covariance is not positive
+    definite."""
     pb = problem
     if not _simulate(pb, d):
         return None
@@ -223,7 +263,11 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
     if h is None:
         return None
     freqs = np.fft.rfftfreq(pb.l, pb.dt)
-    s = disturbance_spectrum(h, freqs, *input_error, white_var)
+    temporal = form == "temporal"
+    # The temporal form reads S on the doubled grid: its covariance's lags then span the window unwrapped.
+    grid = np.fft.rfftfreq(2 * pb.l, pb.dt) if temporal else freqs
+    hz = np.concatenate([h, np.zeros_like(h)]) if temporal else h
+    s = disturbance_spectrum(hz, grid, *input_error, white_var)
     if RESIDUAL_SMOOTH_HZ > 0:
 
         width = max(1, int(round(RESIDUAL_SMOOTH_HZ * pb.l * pb.dt)))
@@ -232,17 +276,28 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
         fr = np.fft.rfft(resid * _taper(pb.l), axis=0, norm="ortho")
         for c in range(2):
             pr = reflected_mean(fr[:, c].real ** 2 + fr[:, c].imag ** 2, kernel)
+            if temporal:
+                pr = np.interp(grid, freqs, pr)
             s[:, c, c] += np.maximum(pr - s[:, c, c].real, 0.0)
+    mult = bin_weights(pb.l)
+    samples = float(np.sum(mult[freqs <= band_hz] ** 2))
+    phi = pb.basis
+    zero = np.zeros_like(phi)
+    if temporal:
+        s[grid > band_hz] *= BAND_DOWNWEIGHT
+        try:
+            chol = linalg.cholesky(temporal_covariance(s, pb.l), lower=True, check_finite=False)
+        except linalg.LinAlgError:
+            return None
+        nuis = linalg.solve_triangular(chol, np.block([[phi, zero], [zero, phi]]), lower=True, check_finite=False)
+        return Weighting((), nuis, np.linalg.inv(nuis.T @ nuis), samples, chol)
     # Above the band the model's interpolated inputs depart from the smoothed samples' content (the
     # interpolation's error grows as a power of f·dt) and the error correlates with the inputs: it biased D
     # at 25–30 frames/s, the unweighted fit on the same inputs as much (docs/numerics.md).
     keep = freqs <= band_hz
     w = tuple(x * keep for x in whitening(s))
-    mult = bin_weights(pb.l)
-    phi = pb.basis
-    zero = np.zeros_like(phi)
     nuis = _stack(w, np.hstack([phi, zero]), np.hstack([zero, phi]), mult)
-    return Weighting(w, nuis, np.linalg.inv(nuis.T @ nuis), float(np.sum(mult[keep] ** 2)))
+    return Weighting(w, nuis, np.linalg.inv(nuis.T @ nuis), samples)
 
 
 def _simulate(pb, d: np.ndarray) -> bool:
@@ -261,8 +316,7 @@ def whitened_residuals(problem, d: np.ndarray, weighting: Weighting) -> tuple[np
     k0 = pb.k0
     xp = np.column_stack([pb.p_meas - pb._p[k0:], pb._dp[k0:]])
     xq = np.column_stack([pb.q_meas - pb._q[k0:], pb._dq[k0:]])
-    z = _stack(weighting.w, xp, xq, bin_weights(pb.l))
-    z = weighting.project(z)
+    z = weighting.project(weighting.whiten(xp, xq))
     if not np.all(np.isfinite(z)):
         return None
     return z[:, 0], z[:, 1:]
@@ -356,7 +410,8 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     iters = 0
     out = None
     for _ in range(ROUNDS):
-        weighting = build_weighting(pb, d, prep.input_error, white, BAND_FRACTION / pb.dt)
+        weighting = build_weighting(pb, d, prep.input_error, white, BAND_FRACTION / pb.dt,
+                                    "temporal" if config.input_weighting == "temporal" else "spectral")
         if weighting is None:
             return None
         out = _descend(pb, d, weighting, margin)

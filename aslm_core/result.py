@@ -17,7 +17,7 @@ Disturbance = Literal["none", "ar", "ar_iv", "gated"]
 StderrMethod = Literal["spectral", "ar1"]
 IvEstimator = Literal["2sls", "liml"]
 IvWhitening = Literal["residual", "own"]
-InputWeighting = Literal["none", "spectral"]
+InputWeighting = Literal["none", "spectral", "temporal"]
 
 
 @dataclass(frozen=True)
@@ -101,7 +101,7 @@ class IdentifyConfig:
         lag of its colour; default), or the lag-1 inflation (1+ρ)/(1−ρ) of a white-noise sandwich (before
         issue 11).  ``ar_iv``: the same spectral rule on its moment conditions (and Hansen's statistic for
         ``iv_overid``), or the white-noise IV covariance and Sargan's statistic.  See docs/numerics.md.
-    input_weighting : {"none", "spectral"}
+    input_weighting : {"none", "spectral", "temporal"}
         ``spectral`` (the default, one default for the Python API, the CLI and the service): where V or θ carries
         white PMU noise (exact inputs: the output-error fit, untouched) and ``disturbance="none"`` (or ``"gated"``
         where its gate stays shut), D is refined from the output-error fit by weighting the residuals per

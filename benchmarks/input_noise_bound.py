@@ -37,7 +37,8 @@ docs/numerics.md, stop 32 and stop 41).
 The default's re-measurement runs ``--weighting --seed 45`` (:data:`FLIP_SEED`, fixed before that run; the stored
 bounds are seed 43's, so its table has no σ / bound column); the service history's confirmation ``--weighting
 --pooled 6 --seed 51`` (:data:`HISTORY_SEED`); ``--tail`` adds the row ``spectral_tail``, the default with
-``input_spectrum_tail=True``, confirmed with ``--weighting --tail --seed 52`` (:data:`TAIL_SEED`).
+``input_spectrum_tail=True``, confirmed with ``--weighting --tail --seed 52`` (:data:`TAIL_SEED`); ``--temporal`` the
+row ``temporal``, the default with the refinement whitening in the time domain (``input_weighting="temporal"``, stop 43).
 """
 
 from __future__ import annotations
@@ -308,6 +309,8 @@ WEIGHTING = {"none": IdentifyConfig(**common.OUTPUT_ERROR),
 #: ``--tail``: the S-weighted refinement with its smoother's spectrum continued above the cut-off (the default since
 #: stop 41).
 TAIL = dataclasses.replace(IdentifyConfig(), input_spectrum_tail=True)
+#: ``--temporal``: the default with the S-weighted refinement whitening in the time domain (stop 43).
+TEMPORAL = dataclasses.replace(IdentifyConfig(), input_weighting="temporal")
 #: ``--weighting``'s seed for the re-measurement with the S-weighted default, fixed before its run (2026-11-24).
 FLIP_SEED = 45
 
@@ -337,7 +340,7 @@ def history_spectrum(case, k: int, v_rel: float, th: float, rng: np.random.Gener
 
 
 def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0, history_of: int = 0,
-                  tail: bool = False) -> dict:
+                  tail: bool = False, temporal: bool = False) -> dict:
     """``--weighting`` (module docstring): per level, class and estimator the per-window D/D_real, SE/D_real
     and the minimum time [s], on the windows and draws of ``seed``; with ``pooled_k`` also the default given the
     inputs' spectrum pooled over that many previous windows (:func:`history_spectrum`, ``spectral_pooled``), of the
@@ -346,7 +349,9 @@ def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0
     rngs = {(level, k): np.random.default_rng([seed, level, k])  # as window_bounds
             for level in LEVELS for k in range(len(INPUT_NOISE))}
     identify(cases[2][0].window, config=WEIGHTING["spectral"])  # numba compilation outside the timings
-    names = list(WEIGHTING) + (["spectral_pooled"] if pooled_k else []) + (["spectral_tail"] if tail else [])
+    names = (list(WEIGHTING) + (["spectral_pooled"] if pooled_k else []) + (["spectral_tail"] if tail else [])
+             + (["temporal"] if temporal else []))
+    rows = {"spectral_tail": TAIL, "temporal": TEMPORAL}
     per = {(level, cls, name): {"ratio": [], "se": [], "t": []} for level in LEVELS for cls, _, _ in INPUT_NOISE
            for name in names}
     t_all = time.perf_counter()
@@ -361,7 +366,7 @@ def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0
             for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
                 w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])
                 for name in names:
-                    cfg = TAIL if name == "spectral_tail" else WEIGHTING.get(name, WEIGHTING["spectral"])
+                    cfg = rows.get(name) or WEIGHTING.get(name, WEIGHTING["spectral"])
                     best, r = math.inf, None
                     for _ in range(reps):
                         t0 = time.perf_counter()
@@ -451,7 +456,7 @@ def weighting_main(args) -> dict:
     """``--weighting``: run (or ``--report``), summarise against the stored bounds, print, write."""
     name = ("input_noise_weighting" + ("" if args.seed == CONFIRM_SEED else f"_seed{args.seed}")
             + (f"_pooled{args.pooled}" if args.pooled else "") + (f"_of{args.history_of}" if args.history_of else "")
-            + ("_tail" if args.tail else "")
+            + ("_tail" if args.tail else "") + ("_temporal" if args.temporal else "")
             + ("_quick" if args.quick else ""))
     bpath = common.RESULTS / "input_noise_bound.json"
     # The stored bounds are those of the confirmation seed's windows.
@@ -465,11 +470,12 @@ def weighting_main(args) -> dict:
         t_all = time.perf_counter()
         load0 = list(os.getloadavg())
         out = {"machine": common.machine(), "n": n, "seed": args.seed, "reps": args.reps,
-               "configs": {k: v.to_dict() for k, v in {**WEIGHTING, "spectral_tail": TAIL}.items()},
+               "configs": {k: v.to_dict() for k, v in {**WEIGHTING, "spectral_tail": TAIL, "temporal": TEMPORAL}.items()},
                "load_avg_at_start": load0,
                "pooled_k": args.pooled, "history_of": args.history_of,
-               "tail": args.tail,
-               "per_window": weighting_run(n, args.reps, args.seed, args.pooled, args.history_of, args.tail)}
+               "tail": args.tail, "temporal": args.temporal,
+               "per_window": weighting_run(n, args.reps, args.seed, args.pooled, args.history_of, args.tail,
+                                           args.temporal)}
         out["total_s"] = time.perf_counter() - t_all
         out["load_avg_at_end"] = list(os.getloadavg())
     out["summary"] = weighting_summary(out["per_window"], bounds)
@@ -495,6 +501,8 @@ def main(argv=None) -> dict:
                     help="--weighting: also the default given the inputs' spectrum pooled over this many previous windows")
     ap.add_argument("--tail", action="store_true",
                     help="--weighting: also the default with input_spectrum_tail=True (row spectral_tail)")
+    ap.add_argument("--temporal", action="store_true",
+                    help="--weighting: also the default with input_weighting='temporal' (row temporal)")
     ap.add_argument("--history-of", type=int, default=0, metavar="J",
                     help="--pooled: the history of case i + J's load and network for case i (a stale one; 0: its own)")
     ap.add_argument("--seed", type=int, default=CONFIRM_SEED,
