@@ -405,7 +405,7 @@ class Comparison:
 
 
 def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1.0, probes=None,
-            plain_cov=None) -> Comparison:
+            plain_cov=None, gain_metric: str = "channels") -> Comparison:
     """Compare a candidate with the plain fit on the held-out samples of one segment.
 
     Parameters
@@ -426,6 +426,11 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1
     plain_cov : tuple, optional
         The plain model's held-out prediction uncertainty from :func:`prediction_cov`: its held-out residual
         is the noise plus its own estimation error, and the score's metric counts both.
+    gain_metric : {"channels", "decorrelated"}
+        The log-likelihood gain's two channels: P and Q as they are (each weighted by its own variance per
+        coefficient), or P and Q given P — per coefficient, the noise model's P/Q covariance (the propagated
+        input noise moves both) taken out by its 2×2 Cholesky factor.  The same where that covariance is zero
+        (noise on P and Q only); the excess and reduction shares are the channels' in both.
 
     Notes
     -----
@@ -488,10 +493,48 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1
     S1p = float(np.sum((R0p - Dp) ** 2 / vp)) + 2.0 * bp
     S1q = float(np.sum((R0q - Dq) ** 2 / vq)) + 2.0 * bq
     gain = 0.5 * m * (math.log(S0p / max(S1p, 1e-300)) + math.log(S0q / max(S1q, 1e-300)))
+    if gain_metric == "decorrelated" and np.any(cpq != 0.0):
+        gain = _decorrelated_gain(vp, vq, cpq, (R0p, R0q), (Dp, Dq), (G0p, G0q, dGp, dGq) if probes is not None
+                                  else None)
     ex = [(s0 - s1) / (s0 - m) if s0 - m > 0.05 * m else None for s0, s1 in ((S0p, S1p), (S0q, S1q))]
     s0p, s0q, s1p, s1q = (float(r @ r) for r in (r0p, r0q, r1p, r1q))
     return Comparison(score, z, gain, gain - 0.5 * k * math.log(m), 1.0 - s1p / s0p, 1.0 - s1q / s0q, n,
                       ex[0], ex[1], 1.0 - S1p / S0p, 1.0 - S1q / S0q)
+
+
+def _decorrelated_gain(vp: np.ndarray, vq: np.ndarray, cpq: np.ndarray, r0: tuple, d: tuple,
+                       probes: tuple | None) -> float:
+    """Held-out log-likelihood gain Σ (m/2)·ln(S0/S1) over P and Q-given-P [nats] (:func:`compare`'s
+    ``gain_metric="decorrelated"``).
+
+    Per ambient-band coefficient the noise covariance [[v_P, c], [c, v_Q]] = L·Lᵀ; u = L⁻¹·(x_P, x_Q) are
+    uncorrelated with unit variance.  S0 and S1 are the sums of squares of u for the plain residual and the
+    candidate's, S1 raised by twice the input noise's bias of S0 − S1 in that channel (the probes, as in
+    :func:`compare`).
+    """
+    l00 = np.sqrt(vp)
+    l10 = cpq / l00
+    l11 = np.sqrt(np.maximum(vq - l10**2, 1e-9 * vq))
+
+    def white(xp: np.ndarray, xq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        a, b, c = (x[:, None] if xp.ndim == 2 else x for x in (l00, l10, l11))  # probes: (m, draws)
+        up = xp / a
+        return up, (xq - b * up) / c
+
+    u0p, u0q = white(*r0)
+    udp, udq = white(*d)
+    bp = bq = 0.0
+    if probes is not None:
+        g0p, g0q, dgp, dgq = probes
+        w0p, w0q = white(g0p, g0q)
+        wdp, wdq = white(dgp, dgq)
+        bp = float(np.mean(-np.sum(w0p * wdp, axis=0)))
+        bq = float(np.mean(-np.sum(w0q * wdq, axis=0)))
+    m = u0p.size
+    s0p, s0q = float(u0p @ u0p), float(u0q @ u0q)
+    s1p = float(np.sum((u0p - udp) ** 2)) + 2.0 * bp
+    s1q = float(np.sum((u0q - udq) ** 2)) + 2.0 * bq
+    return 0.5 * m * (math.log(s0p / max(s1p, 1e-300)) + math.log(s0q / max(s1q, 1e-300)))
 
 
 def _gls_metric(vp: np.ndarray, vq: np.ndarray, cpq: np.ndarray, plain_cov):

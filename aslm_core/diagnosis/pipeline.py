@@ -137,6 +137,11 @@ class DiagnosisConfig:
     input_tail : bool
         With ``input_mean``: the smoother's estimate of the inputs' spectrum continued above its cut-off by the
         power law it follows below (the identifier's ``input_spectrum_tail``; docs/diagnosis.md, "Stop 42").
+    gain_metric : {"channels", "decorrelated"}
+        The held-out log-likelihood gain (the penalty's and the ranking's) over P and Q as they are, or over P and
+        Q given P, the noise model's P/Q covariance per coefficient taken out (:func:`engine.compare`).  The two
+        are the same with noise on P and Q only; with noise on V and θ the propagated noise moves P and Q
+        together and only the second counts it, as the score test does (docs/diagnosis.md, "Stop 43").
     cross_fit : bool
         Judge every candidate on both folds of each window: the time-ordered split (fit on the first
         ``train_fraction``, judge on the rest) and its mirror (judge on as many samples from ``mirror_gap_s``
@@ -170,6 +175,7 @@ class DiagnosisConfig:
     challengers: bool = True
     input_mean: bool = True
     input_tail: bool = False
+    gain_metric: str = "channels"
     cross_fit: bool = True
     mirror_gap_s: float = 1.0
 
@@ -248,7 +254,8 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
         g1 = _probes(seg, noise, _PLAIN, ictx, re) if g0 is not None else None
         pcov = engine.prediction_cov(_PLAIN, seg, ctx, plain, noise) if config.prediction_variance else None
         out.refit_comp = engine.compare(seg, plain, re, 4 + 5, test_noise, config.lag_s,
-                                        probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
+                                        probes=(g0, g1) if g1 is not None else None, plain_cov=pcov,
+                                        gain_metric=config.gain_metric)
     return out
 
 
@@ -268,7 +275,8 @@ def _fold(seg: Segment, ctx: Context, plain: engine.Fit, noise: NoiseModel, test
         g1 = _probes(seg, noise, cand, ctx, f) if g0 is not None else None
         probes[name] = g1
         comps[name] = engine.compare(seg, plain, f, cand.n_params, test_noise, config.lag_s,
-                                     probes=(g0, g1) if g1 is not None else None, plain_cov=pcov)
+                                     probes=(g0, g1) if g1 is not None else None, plain_cov=pcov,
+                                     gain_metric=config.gain_metric)
     return _WindowAnalysis(seg, ctx, sig, plain, located, fits, comps, noise=test_noise, floors=floors,
                            weights=noise, probes=probes)
 
@@ -334,7 +342,7 @@ def _outside_box(analyses: list[_WindowAnalysis], config: DiagnosisConfig) -> tu
         a.probes[OUTSIDE_BOX] = g1
         g0 = (a.noise.probes_p, a.noise.probes_q) if g1 is not None else None
         comps.append(engine.compare(a.seg, a.plain, f, 0, a.noise, config.lag_s,
-                                    probes=(g0, g1) if g1 is not None else None))
+                                    probes=(g0, g1) if g1 is not None else None, gain_metric=config.gain_metric))
     m = len(comps)
     entry = CandidateEntry(
         name=OUTSIDE_BOX, parameters={f"D.{k}": v for k, v in _dynamic(analyses[0].fits[OUTSIDE_BOX].d).items()},
@@ -695,7 +703,8 @@ def paired_comparisons(analyses: list[_WindowAnalysis], best: str, rival: str,
         cov = engine.prediction_cov(cand, a.seg, a.ctx, fr, a.weights) if config.prediction_variance else None
         gb, gr = a.probes.get(best), a.probes.get(rival)
         out.append(engine.compare(a.seg, fr, fb, 0, a.noise, config.lag_s,
-                                  probes=(gr, gb) if gb is not None and gr is not None else None, plain_cov=cov))
+                                  probes=(gr, gb) if gb is not None and gr is not None else None, plain_cov=cov,
+                                  gain_metric=config.gain_metric))
     return out
 
 
