@@ -110,7 +110,7 @@ class CandidateEntryModel(BaseModel):
     improvement: PerChannelModel = Field(description="Held-out residual-variance reduction per channel over the full band [-] (0 when untested).")
     improvement_band: PerChannelModel = Field(description="The same in the ambient band below 5 Hz [-] (null when untested).")
     excess_reduction: PerChannelModel = Field(description="Share of the held-out ambient-band residual above the noise expectation removed, per channel [-] (null without excess or when untested).")
-    penalised_gain: float | None = Field(description="Held-out Gaussian log-likelihood gain minus the BIC penalty, summed over windows and folds [nats]; a candidate judged on the time-ordered folds only counts its mean per fold × the folds (null when untested).")
+    penalised_gain: float | None = Field(description="Held-out Gaussian log-likelihood gain (over P and Q given P) minus the BIC penalty, summed over windows and folds [nats]; a candidate judged on the time-ordered folds only counts its mean per fold × the folds (null when untested).")
     score_z: float = Field(description="Held-out score statistic, Stouffer-combined over windows [-] (0 when untested).")
     dm_z: float = Field(description="Diebold-Mariano statistic, reported only, not used for the verdict [-] (0 when untested).")
     magnitude_z: float | None = Field(description="Largest |magnitude parameter| / standard error, capped at 1e6 [-] (null when untested).")

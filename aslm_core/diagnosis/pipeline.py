@@ -17,7 +17,8 @@ Method (DESIGN §3)
    when the candidate is not needed: its variance counts the P/Q covariance, the input-noise quadratic form
    and the plain model's own prediction error, its mean the input noise both carry), one-sided and
    Bonferroni-corrected over the candidates; and a BIC-like penalty — the held-out Gaussian log-likelihood
-   gain must exceed (k/2)·ln(m) for k added parameters and m ambient-band coefficients.  Candidates passing both — and whose own magnitude (the parameter that is zero when the
+   gain (over P and Q given P, the noise model's P/Q covariance taken out) must exceed (k/2)·ln(m) for k added
+   parameters and m ambient-band coefficients.  Candidates passing both — and whose own magnitude (the parameter that is zero when the
    physics is absent, e.g. the second motor's torque) is at least 2 standard errors from zero (1 for the
    second motor, whose torque trades off against the first's) — are
    significant, ranked by the penalised gain.  A Diebold–Mariano
@@ -139,9 +140,10 @@ class DiagnosisConfig:
         power law it follows below (the identifier's ``input_spectrum_tail``; docs/diagnosis.md, "Stop 42").
     gain_metric : {"channels", "decorrelated"}
         The held-out log-likelihood gain (the penalty's and the ranking's) over P and Q as they are, or over P and
-        Q given P, the noise model's P/Q covariance per coefficient taken out (:func:`engine.compare`).  The two
-        are the same with noise on P and Q only; with noise on V and θ the propagated noise moves P and Q
-        together and only the second counts it, as the score test does (docs/diagnosis.md, "Stop 43").
+        Q given P, the noise model's P/Q covariance per coefficient taken out (:func:`engine.compare`; the default
+        since stop 43).  The two are the same with noise on P and Q only; with noise on V and θ the propagated
+        noise moves P and Q together and only the second counts it, as the score test does (docs/diagnosis.md,
+        "Stop 43").
     cross_fit : bool
         Judge every candidate on both folds of each window: the time-ordered split (fit on the first
         ``train_fraction``, judge on the rest) and its mirror (judge on as many samples from ``mirror_gap_s``
@@ -175,7 +177,7 @@ class DiagnosisConfig:
     challengers: bool = True
     input_mean: bool = True
     input_tail: bool = False
-    gain_metric: str = "channels"
+    gain_metric: str = "decorrelated"
     cross_fit: bool = True
     mirror_gap_s: float = 1.0
 

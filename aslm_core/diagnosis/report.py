@@ -111,8 +111,9 @@ class CandidateEntry(_Part):
     excess_reduction : PerChannel
         Share of the held-out ambient-band residual above the noise expectation removed, per channel [-] (null without excess or when untested).
     penalised_gain : float or None
-        Held-out Gaussian log-likelihood gain minus the BIC penalty, summed over windows and folds [nats]; a candidate
-        judged on the time-ordered folds only counts its mean per fold × the folds (null when untested).
+        Held-out Gaussian log-likelihood gain (over P and Q given P) minus the BIC penalty, summed over windows and
+        folds [nats]; a candidate judged on the time-ordered folds only counts its mean per fold × the folds (null
+        when untested).
     score_z : float
         Held-out score statistic, Stouffer-combined over windows [-] (0 when untested).
     dm_z : float
