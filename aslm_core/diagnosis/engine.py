@@ -449,6 +449,8 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1
     from the probes; the score is (numerator − b) over the total standard deviation, and the candidate's
     held-out sum of squares S1 is raised by 2·b per channel before the gain is taken.
     """
+    if gain_metric not in ("channels", "decorrelated"):
+        raise ValueError(f"gain_metric must be 'channels' or 'decorrelated', not {gain_metric!r}")
     noise = as_noise(noise, seg)
     te = seg.test
     r0p, r0q = (seg.P - plain.model_p)[te], (seg.Q - plain.model_q)[te]

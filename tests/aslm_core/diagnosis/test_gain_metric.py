@@ -41,13 +41,12 @@ def test_it_counts_the_evidence_the_correlated_noise_hides_in_each_channel():
     # (1, −1) is the noise covariance's eigenvector of eigenvalue 1 − ρ: z² = m·a²·2/(1 − ρ) ≈ 16 at a = 0.287.
     effect = 0.287 * np.vstack([np.ones(m), -np.ones(m)])
     penalty = math.log(m)  # (k/2)·ln(m) for k = 2
+    d = (effect[0], effect[1])
+    wp, wq = engine._gls_metric(vp, vq, c, None)(*d)  # C⁻¹·D, the score's metric
     dec, chan, zs = [], [], []
     for _ in range(400):
         noise = chol @ rng.standard_normal((2, m))
         r0 = (effect[0] + noise[0], effect[1] + noise[1])
-        d = (effect[0], effect[1])
-        cinv = engine._gls_metric(vp, vq, c, None)
-        wp, wq = cinv(*d)
         zs.append(float(np.sum(wp * r0[0] + wq * r0[1]) / math.sqrt(np.sum(wp * d[0] + wq * d[1]))))
         dec.append(engine._decorrelated_gain(vp, vq, c, r0, d, None))
         chan.append(_channels_gain(vp, vq, r0, d))
