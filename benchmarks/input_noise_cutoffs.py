@@ -3,9 +3,10 @@
 For issue 11's rates bench (DL 2, 0.1 % / 1e-3 rad white noise on V and θ, the windows and draws of
 ``benchmarks.input_noise --rates``): each noisy window's V and θ cut-offs without the tail, where the tail's
 spectrum ends, and the smoothed V's error against the clean V with the tail over without (docs/numerics.md,
-"Stop 42: the tail at 25 and 30 frames/s").  Prints; writes nothing.
+"Stop 42: the tail at 25 and 30 frames/s").  ``--edges``: where in the window the smoothed inputs' error lies — its
+mean square near each end over mid-window's (docs/numerics.md, "Stop 43").  Prints; writes nothing.
 
-    .venv/bin/python -m benchmarks.input_noise_cutoffs [--rates 25 30 50 100] [--n 40] [--seed 49]
+    .venv/bin/python -m benchmarks.input_noise_cutoffs [--rates 25 30 50 100] [--n 40] [--seed 49] [--edges]
 """
 
 from __future__ import annotations
@@ -64,13 +65,63 @@ def rate_summary(fs: float, n: int, seed: int, level: int = 2) -> dict:
             "error_ratio_v": float(np.median(ratio))}
 
 
+#: Spans from each end of the window over which :func:`edge_profile` averages the error [s].
+EDGE_SPANS = ((0.0, 0.1), (0.1, 0.25), (0.25, 0.5), (0.5, 1.0))
+
+
+def edge_profile(fs: float, n: int, seed: int, level: int = 2) -> dict:
+    """The smoothed inputs' error near the window's ends against mid-window, on one rate's noisy windows.
+
+    Parameters
+    ----------
+    fs, n, seed, level
+        As :func:`rate_summary` (the same windows and draws).
+
+    Returns
+    -------
+    dict
+        ``start`` and ``end``: per span of :data:`EDGE_SPANS` [s] from that end, the mean square of the Wiener smoother's
+        V and θ error (the refinement's smoother, its spectrum's tail on) over the mean square in the middle half of
+        the window, (V, θ) [-]; θ taken about its window mean.
+    """
+    cs = common.cases(n, level=level, seed=seed, input_noise=False, fs=fs)
+    k = len(INPUT_NOISE) - 1
+    _, v_rel, th = INPUT_NOISE[k]
+    rng = np.random.default_rng([seed, level, k])
+    err = []
+    for c in cs:
+        p = prepare(with_input_noise(c.window, c.clean, v_rel, th, rng), floors=True)
+        sigma = np.array([p.noise["noise_v"], p.noise["noise_theta"]])
+        s = wiener_smooth(np.stack([p.V, p.theta]), 1.0 / p.dt, sigma, tail=True)
+        clean = prepare(c.clean)
+        m = min(clean.V.size, s.shape[1])
+        e = np.stack([s[0, :m] - clean.V[:m], s[1, :m] - clean.theta[:m]])
+        err.append((e - e.mean(axis=1, keepdims=True)) ** 2)
+    m = min(e.shape[1] for e in err)
+    sq = np.mean([e[:, :m] for e in err], axis=0)
+    mid = sq[:, m // 4: 3 * m // 4].mean(axis=1)
+    spans = [(int(round(a * fs)), int(round(b * fs))) for a, b in EDGE_SPANS]
+    return {"fs": fs, "spans_s": EDGE_SPANS,
+            "start": [(sq[:, a:b].mean(axis=1) / mid).tolist() for a, b in spans],
+            "end": [(sq[:, m - b:m - a].mean(axis=1) / mid).tolist() for a, b in spans]}
+
+
 def main(argv=None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rates", type=float, nargs="+", default=[25.0, 30.0, 50.0, 100.0])
     ap.add_argument("--n", type=int, default=40)
     ap.add_argument("--seed", type=int, default=49)
+    ap.add_argument("--edges", action="store_true", help="the smoothed inputs' error near the ends over mid-window's")
     args = ap.parse_args(argv)
     out = []
+    if args.edges:
+        for fs in args.rates:
+            r = edge_profile(fs, args.n, args.seed)
+            out.append(r)
+            cells = "; ".join(f"{a:.2f}–{b:.2f} s: start {r['start'][i][0]:.2f} / {r['start'][i][1]:.2f}, end "
+                              f"{r['end'][i][0]:.2f} / {r['end'][i][1]:.2f}" for i, (a, b) in enumerate(EDGE_SPANS))
+            print(f"{fs:5.0f} frames/s, error² over mid-window's, V / θ: {cells}")
+        return out
     for fs in args.rates:
         r = rate_summary(fs, args.n, args.seed)
         out.append(r)
