@@ -279,8 +279,12 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
             if temporal:
                 pr = np.interp(grid, freqs, pr)
             s[:, c, c] += np.maximum(pr - s[:, c, c].real, 0.0)
+    # Above the band the model's interpolated inputs depart from the smoothed samples' content (the
+    # interpolation's error grows as a power of f·dt) and the error correlates with the inputs: it biased D
+    # at 25–30 frames/s, the unweighted fit on the same inputs as much (docs/numerics.md).
+    keep = freqs <= band_hz
     mult = bin_weights(pb.l)
-    samples = float(np.sum(mult[freqs <= band_hz] ** 2))
+    samples = float(np.sum(mult[keep] ** 2))
     phi = pb.basis
     zero = np.zeros_like(phi)
     if temporal:
@@ -291,10 +295,6 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
             return None
         nuis = linalg.solve_triangular(chol, np.block([[phi, zero], [zero, phi]]), lower=True, check_finite=False)
         return Weighting((), nuis, np.linalg.inv(nuis.T @ nuis), samples, chol)
-    # Above the band the model's interpolated inputs depart from the smoothed samples' content (the
-    # interpolation's error grows as a power of f·dt) and the error correlates with the inputs: it biased D
-    # at 25–30 frames/s, the unweighted fit on the same inputs as much (docs/numerics.md).
-    keep = freqs <= band_hz
     w = tuple(x * keep for x in whitening(s))
     nuis = _stack(w, np.hstack([phi, zero]), np.hstack([zero, phi]), mult)
     return Weighting(w, nuis, np.linalg.inv(nuis.T @ nuis), samples)
@@ -410,8 +410,7 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     iters = 0
     out = None
     for _ in range(ROUNDS):
-        weighting = build_weighting(pb, d, prep.input_error, white, BAND_FRACTION / pb.dt,
-                                    "temporal" if config.input_weighting == "temporal" else "spectral")
+        weighting = build_weighting(pb, d, prep.input_error, white, BAND_FRACTION / pb.dt, config.input_weighting)
         if weighting is None:
             return None
         out = _descend(pb, d, weighting, margin)

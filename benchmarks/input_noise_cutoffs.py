@@ -21,6 +21,19 @@ from benchmarks import common
 from benchmarks.input_noise import INPUT_NOISE, with_input_noise
 
 
+def _noisy_windows(fs: float, n: int, seed: int, level: int):
+    """The rates bench's noisy windows at one rate (0.1 % / 1e-3 rad, its draws as ``benchmarks.input_noise
+    --rates`` makes them): per window the prepared noisy window (with its floors), the floors σ_V [pu], σ_θ [rad] and
+    the prepared clean window."""
+    cs = common.cases(n, level=level, seed=seed, input_noise=False, fs=fs)
+    k = len(INPUT_NOISE) - 1
+    _, v_rel, th = INPUT_NOISE[k]
+    rng = np.random.default_rng([seed, level, k])
+    for c in cs:
+        p = prepare(with_input_noise(c.window, c.clean, v_rel, th, rng), floors=True)
+        yield p, np.array([p.noise["noise_v"], p.noise["noise_theta"]]), prepare(c.clean)
+
+
 def rate_summary(fs: float, n: int, seed: int, level: int = 2) -> dict:
     """The smoother's cut-offs with and without the spectrum's tail on one rate's noisy windows.
 
@@ -43,22 +56,15 @@ def rate_summary(fs: float, n: int, seed: int, level: int = 2) -> dict:
         tail carried past its cut-off [-]; ``error_ratio_v``: median of the smoothed V's error std against the clean
         V, with the tail over without [-].
     """
-    cs = common.cases(n, level=level, seed=seed, input_noise=False, fs=fs)
-    k = len(INPUT_NOISE) - 1  # the 0.1 % / 1e-3 rad class, its draws as input_noise.run_level makes them
-    _, v_rel, th = INPUT_NOISE[k]
-    rng = np.random.default_rng([seed, level, k])
     cuts, ends, ratio = [], [], []
-    for c in cs:
-        p = prepare(with_input_noise(c.window, c.clean, v_rel, th, rng), floors=True)
-        sigma = np.array([p.noise["noise_v"], p.noise["noise_theta"]])
+    for p, sigma, clean in _noisy_windows(fs, n, seed, level):
         x = np.stack([p.V, p.theta])
         s0, k0 = wiener_smooth(x, 1.0 / p.dt, sigma, return_cutoffs=True)
         s1, k1 = wiener_smooth(x, 1.0 / p.dt, sigma, return_cutoffs=True, tail=True)
-        v = prepare(c.clean).V
-        m = min(v.shape[0], s0.shape[1])
+        m = min(clean.V.shape[0], s0.shape[1])
         cuts.append(k0)
         ends.append(k1)
-        ratio.append(np.std(s1[0, :m] - v[:m]) / np.std(s0[0, :m] - v[:m]))
+        ratio.append(np.std(s1[0, :m] - clean.V[:m]) / np.std(s0[0, :m] - clean.V[:m]))
     cuts, ends = np.array(cuts), np.array(ends)
     return {"fs": fs, "cut_v": np.percentile(cuts[:, 0], [10, 50, 90]), "cut_theta": np.median(cuts[:, 1]),
             "end_v": np.median(ends[:, 0]), "share_tailed": float(np.mean(ends[:, 0] > cuts[:, 0] + 1e-9)),
@@ -82,18 +88,11 @@ def edge_profile(fs: float, n: int, seed: int, level: int = 2) -> dict:
     dict
         ``start`` and ``end``: per span of :data:`EDGE_SPANS` [s] from that end, the mean square of the Wiener smoother's
         V and θ error (the refinement's smoother, its spectrum's tail on) over the mean square in the middle half of
-        the window, (V, θ) [-]; θ taken about its window mean.
+        the window, (V, θ) [-]; each window's error taken about its mean.
     """
-    cs = common.cases(n, level=level, seed=seed, input_noise=False, fs=fs)
-    k = len(INPUT_NOISE) - 1
-    _, v_rel, th = INPUT_NOISE[k]
-    rng = np.random.default_rng([seed, level, k])
     err = []
-    for c in cs:
-        p = prepare(with_input_noise(c.window, c.clean, v_rel, th, rng), floors=True)
-        sigma = np.array([p.noise["noise_v"], p.noise["noise_theta"]])
+    for p, sigma, clean in _noisy_windows(fs, n, seed, level):
         s = wiener_smooth(np.stack([p.V, p.theta]), 1.0 / p.dt, sigma, tail=True)
-        clean = prepare(c.clean)
         m = min(clean.V.size, s.shape[1])
         e = np.stack([s[0, :m] - clean.V[:m], s[1, :m] - clean.theta[:m]])
         err.append((e - e.mean(axis=1, keepdims=True)) ** 2)

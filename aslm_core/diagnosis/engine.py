@@ -494,10 +494,11 @@ def compare(seg: Segment, plain: Fit, cand: Fit, k: int, noise, lag_s: float = 1
     S0p, S0q = float(np.sum(R0p**2 / vp)), float(np.sum(R0q**2 / vq))
     S1p = float(np.sum((R0p - Dp) ** 2 / vp)) + 2.0 * bp
     S1q = float(np.sum((R0q - Dq) ** 2 / vq)) + 2.0 * bq
-    gain = 0.5 * m * (math.log(S0p / max(S1p, 1e-300)) + math.log(S0q / max(S1q, 1e-300)))
     if gain_metric == "decorrelated" and np.any(cpq != 0.0):
         gain = _decorrelated_gain(vp, vq, cpq, (R0p, R0q), (Dp, Dq), (G0p, G0q, dGp, dGq) if probes is not None
                                   else None)
+    else:  # the channels as they are (the same gain where P and Q are uncorrelated)
+        gain = 0.5 * m * (math.log(S0p / max(S1p, 1e-300)) + math.log(S0q / max(S1q, 1e-300)))
     ex = [(s0 - s1) / (s0 - m) if s0 - m > 0.05 * m else None for s0, s1 in ((S0p, S1p), (S0q, S1q))]
     s0p, s0q, s1p, s1q = (float(r @ r) for r in (r0p, r0q, r1p, r1q))
     return Comparison(score, z, gain, gain - 0.5 * k * math.log(m), 1.0 - s1p / s0p, 1.0 - s1q / s0q, n,
