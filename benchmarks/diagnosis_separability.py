@@ -36,6 +36,17 @@ each case's verdict of the run of record beside its oracle: detectable (z_oracle
 :mod:`benchmarks.diagnosis_detectability`), detectable and separable, right among those.  Left out, as above:
 the estimation error of noisy fits, the prediction-error term of C, the motor-outside-the-box rival and the
 challengers' stricter level; G_k is the plain fit's for every candidate.
+
+The power reading (stop 44): the oracle's z's are expectations and the real statistics scatter about them with sd ≈ 1
+(the measured efficiency is ≈ 1), so a case at exactly the critical value is named in half the draws by any test at
+the diagnosis's level.  ``--margin 1 --detect-margin 1`` counts a case only where its detection and every separation
+pass in ≈ 84 % of draws, and ``--readable set:diagnosis_shunt_state_<set>`` leaves out the switched capacitor's V/θ
+cases whose bank state no setting of the two-state form reads from the PMU's V (the oracle fits noise-free V and
+cannot see that):
+
+    .venv/bin/python -m benchmarks.diagnosis_separability --library --sets confirm20 \
+        --windows-from diagnosis_separability_confirm20 --margin 1 --detect-margin 1 \
+        --readable confirm20:diagnosis_shunt_state_confirm20 --out diagnosis_separability_confirm20_power
 """
 
 from __future__ import annotations
@@ -243,8 +254,13 @@ def _holm(p: dict[str, float], alpha: float) -> list[str]:
 
 
 def library_cases(windows: list[dict], sets: list[str], stems: dict[str, str], zcrit: float,
-                  margin: float = 0.0) -> list[dict]:
-    """Every case (window, level, noise mode) of the sets with its oracle and its run-of-record verdict."""
+                  margin: float = 0.0, detect_margin: float = 0.0, unreadable: frozenset = frozenset()) -> list[dict]:
+    """Every case (window, level, noise mode) of the sets with its oracle and its run-of-record verdict.
+
+    ``detect_margin`` [-]: detectable when the oracle z clears the critical value by that much more (1: the real
+    statistic, sd 1 about it, passes in ≈ 84 % of draws).  ``unreadable``: (set, kind, seed, window start, level) of the
+    switched capacitor's V/θ cases whose bank state no setting of the two-state form reads from the PMU's V
+    (:func:`unreadable_banks`); not detectable in the input mode (the oracle fits noise-free V)."""
     from aslm_core.diagnosis.candidates import LIBRARY
     from benchmarks.diagnosis_detectability import _records
 
@@ -263,7 +279,9 @@ def library_cases(windows: list[dict], sets: list[str], stems: dict[str, str], z
                     sep = separation(cell, w["truth"], zcrit, w["implausible"], margin)
                     row = {"set": st, "mode": mode, "kind": k, "seed": s, "window": t0w, "level": int(lvl),
                            "snr_db": lc["snr_db"], "expected": w["truth"], "z_oracle": cell["z_oracle"],
-                           "detectable": cell["z_oracle"] >= zcrit, "z_true": cell["score"].get(w["truth"]), **sep}
+                           "detectable": bool(cell["z_oracle"] >= zcrit + detect_margin
+                                              and not (mode == "input" and (st, k, s, t0w, int(lvl)) in unreadable)),
+                           "z_true": cell["score"].get(w["truth"]), **sep}
                     r = recs.get((k, s, t0w, int(lvl)))
                     if r is not None:
                         row["snr_record_db"] = r["snr_db"]
@@ -281,6 +299,21 @@ def library_cases(windows: list[dict], sets: list[str], stems: dict[str, str], z
                                               if n in cell["fwd"]}
                     out.append(row)
     return out
+
+
+READABLE = 0.97  # stop 40: the share of held-out samples whose bank state a reader must get right
+
+
+def unreadable_banks(stems: dict[str, str]) -> frozenset:
+    """(set, kind, seed, window start, level) of the capacitor's V/θ cases in which even the two-state form with the
+    truth choosing its settings reads less than :data:`READABLE` of the held-out state from the PMU's V
+    (``agreement_best_two_state_noisy_v`` of :mod:`benchmarks.diagnosis_shunt_state`'s rows)."""
+    out = set()
+    for st, stem in stems.items():
+        for r in json.loads((RESULTS / f"{stem}.json").read_text())["rows"]:
+            if r["agreement_best_two_state_noisy_v"] < READABLE:
+                out.add((st, "switched_capacitor", r["seed"], float(r["window"][0]), int(r["level"])))
+    return frozenset(out)
 
 
 def look_alike_margins(cases: list[dict]) -> dict:
@@ -441,14 +474,17 @@ def library_main(args, argv) -> int:
             fh.flush()
             print(f"{job[0]}/{job[1]}: {len(ws)} windows, {time.perf_counter() - t0:.0f} s", flush=True)
     zcrit = critical_z()
-    cases = library_cases([w for w in windows if w["kind"] in kinds], sets, stems, zcrit, args.margin)
+    unread = unreadable_banks(dict(kv.split(":", 1) for kv in args.readable.split(",") if kv))
+    cases = library_cases([w for w in windows if w["kind"] in kinds], sets, stems, zcrit, args.margin,
+                          args.detect_margin, unread)
     tab = library_table(cases)
     targets = honest_targets(tab)
     print(library_markdown(tab, targets, cases, zcrit))
     print(f"\n{len(windows)} windows, {len(cases)} cases, {time.perf_counter() - t0:.0f} s, load {os.getloadavg()}")
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / f"{args.out}.json").write_text(json.dumps({
-        "sets": sets, "critical_z": zcrit, "alpha": ALPHA_SEP, "margin": args.margin, "verdicts_from": stems, "targets": targets,
+        "sets": sets, "critical_z": zcrit, "alpha": ALPHA_SEP, "margin": args.margin,
+        "detect_margin": args.detect_margin, "readable_from": args.readable, "verdicts_from": stems, "targets": targets,
         "table": tab, "cases": cases, "windows": windows, "load_avg": os.getloadavg(),
         "wall_s": time.perf_counter() - t0,
         "command": "benchmarks/diagnosis_separability.py " + " ".join(argv if argv is not None else sys.argv[1:])},
@@ -468,6 +504,10 @@ def main(argv: list[str] | None = None) -> int:
                    "(default diagnosis_independent_<set>; several stems joined by +)")
     p.add_argument("--margin", type=float, default=0.0, help="--library: forward z's must clear Holm's critical "
                    "value by this much more")
+    p.add_argument("--detect-margin", type=float, default=0.0, help="--library: the oracle z must clear the "
+                   "critical value by this much more to count as detectable")
+    p.add_argument("--readable", default="", help="--library: set:stem pairs of diagnosis_shunt_state runs; the "
+                   "capacitor's V/θ cases whose state the two-state form cannot read are not detectable")
     p.add_argument("--out", default="diagnosis_separability_library", help="--library: output stem")
     p.add_argument("--windows-from", default="", help="--library: reuse the windows of an earlier output (stem or "
                    ".partial.jsonl path), computing only the missing scenarios")

@@ -511,8 +511,9 @@ def main(argv=None) -> dict:
     if args.weighting:
         return weighting_main(args)
     n = args.n or (4 if args.quick else 100)
+    # The run of record holds 100 windows; other counts are written beside it (the weighting rows read that one).
     name = ("input_noise_bound" + ("_wiener_inputs" if args.gls_inputs == "wiener" else "")
-            + ("_quick" if args.quick else ""))
+            + (f"_n{n}" if n != 100 and not args.quick else "") + ("_quick" if args.quick else ""))
     if args.report:  # the summary recomputed from the per-window figures (JSON keys are strings)
         out = json.loads((common.RESULTS / f"{name}.json").read_text())
         bounds = [{int(k): {key: np.array(v) for key, v in b.items()} for k, b in w.items()}

@@ -101,3 +101,42 @@ def test_the_tally_counts_detectable_and_separable_cases_and_the_target():
     goals = {(g["mode"], g["level"]): g for g in ds.honest_targets(list(tab.values()))}
     assert not goals[("input", 2)]["met"] and goals[("input", 2)]["misses"] == {"frequency_dependence": 1}
     assert goals[("input", 1)]["met"] and goals[("input", 1)]["share"] == 1.0
+
+
+def test_the_power_reading_asks_the_oracle_z_to_clear_the_critical_value_and_the_bank_to_be_readable(
+        tmp_path, monkeypatch):
+    """``--detect-margin`` and ``--readable`` (stop 44): a case whose oracle z clears the critical value by less than
+    the margin is not detectable, and a capacitor's V/θ case whose bank state the two-state form cannot read from the
+    PMU's V is not detectable either — in that mode and that kind only."""
+    import benchmarks.diagnosis_detectability as dd
+
+    zcrit = 3.06
+
+    def window(kind: str, truth: str, z: float) -> dict:
+        cell = {"z_oracle": z, "score": {truth: z}, "fwd": {}, "back": {}}
+        return {"kind": kind, "seed": 7, "window": [2.0, 12.0], "truth": truth, "implausible": [],
+                "levels": {"1": {"snr_db": 14.0, "pq": cell, "input": cell}}}
+
+    windows = [window("switched_capacitor", "switched_shunt", zcrit + 0.5),
+               window("frequency_dependence", "frequency_dependence", zcrit + 1.5)]
+    monkeypatch.setattr(ds, "jobs", lambda st, kinds=None: [("switched_capacitor", 7), ("frequency_dependence", 7)])
+    monkeypatch.setattr(dd, "_records", lambda stem, input_noise: [])
+    monkeypatch.setattr(ds, "RESULTS", tmp_path)
+    (tmp_path / "shunt.json").write_text(
+        '{"rows": [{"seed": 7, "window": [2.0, 12.0], "level": 1, "agreement_best_two_state_noisy_v": 0.9},'
+        ' {"seed": 7, "window": [12.0, 22.0], "level": 1, "agreement_best_two_state_noisy_v": 0.99}]}')
+    unreadable = ds.unreadable_banks({"S": "shunt"})
+    assert unreadable == {("S", "switched_capacitor", 7, 2.0, 1)}
+
+    def detectable(**kw) -> dict:
+        return {(c["mode"], c["kind"]): c["detectable"]
+                for c in ds.library_cases(windows, ["S"], {"S": "x"}, zcrit, **kw)}
+
+    assert all(detectable().values())
+    assert detectable(detect_margin=1.0) == {("pq", "switched_capacitor"): False, ("input", "switched_capacitor"): False,
+                                             ("pq", "frequency_dependence"): True,
+                                             ("input", "frequency_dependence"): True}
+    assert detectable(unreadable=unreadable) == {("pq", "switched_capacitor"): True,
+                                                 ("input", "switched_capacitor"): False,
+                                                 ("pq", "frequency_dependence"): True,
+                                                 ("input", "frequency_dependence"): True}
