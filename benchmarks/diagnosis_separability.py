@@ -361,6 +361,25 @@ def library_table(cases: list[dict]) -> list[dict]:
                                                                        x[0][2]))]
 
 
+def reachable(cases: list[dict], zcrit: float) -> list[dict]:
+    """Per mode and level, the right names any test at the diagnosis's level could give in expectation: the sum over
+    the inside-library cases of Φ(z_oracle − zcrit), the chance that a statistic with that expectation and sd 1 is
+    detected at all (an upper bound: a right name needs the detection), and the same over the separable cases only.
+    The oracle's z is the most powerful linear statistic's expectation given the true correction, so with the
+    diagnosis's critical value (fixed by its wrong-name budget) no test expects more detections."""
+    out = []
+    for mode in MODES:
+        for lvl in sorted({c["level"] for c in cases}):
+            rows = [c for c in cases if c["mode"] == mode and c["level"] == lvl]
+            if not rows:
+                continue
+            p = np.array([stats.norm.cdf(c["z_oracle"] - zcrit) for c in rows])
+            sep = np.array([bool(c["separable"]) for c in rows])
+            out.append({"mode": mode, "level": lvl, "cases": len(rows), "detected": float(p.sum()),
+                        "detected_and_separable": float(p[sep].sum())})
+    return out
+
+
 def honest_targets(tab: list[dict]) -> list[dict]:
     """Per mode and level, pooled over the kinds: right among detectable-and-separable against 80 % (60 % at
     L1), and the kinds that carry the misses (detectable and separable, not named right)."""
@@ -479,12 +498,19 @@ def library_main(args, argv) -> int:
                           args.detect_margin, unread)
     tab = library_table(cases)
     targets = honest_targets(tab)
+    reach = reachable(cases, zcrit)
     print(library_markdown(tab, targets, cases, zcrit))
+    print("\nRight names any test at the diagnosis's level could give, in expectation (Σ Φ(z_oracle − critical)):\n")
+    print("| mode | level | cases | detected | detected, separable cases only |\n|---|---|---|---|---|")
+    for r in reach:
+        print(f"| {r['mode']} | L{r['level']} | {r['cases']} | {r['detected']:.1f} = {r['detected'] / r['cases']:.0%} | "
+              f"{r['detected_and_separable']:.1f} = {r['detected_and_separable'] / r['cases']:.0%} |")
     print(f"\n{len(windows)} windows, {len(cases)} cases, {time.perf_counter() - t0:.0f} s, load {os.getloadavg()}")
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / f"{args.out}.json").write_text(json.dumps({
         "sets": sets, "critical_z": zcrit, "alpha": ALPHA_SEP, "margin": args.margin,
         "detect_margin": args.detect_margin, "readable_from": args.readable, "verdicts_from": stems, "targets": targets,
+        "reachable": reach,
         "table": tab, "cases": cases, "windows": windows, "load_avg": os.getloadavg(),
         "wall_s": time.perf_counter() - t0,
         "command": "benchmarks/diagnosis_separability.py " + " ".join(argv if argv is not None else sys.argv[1:])},

@@ -140,3 +140,18 @@ def test_the_power_reading_asks_the_oracle_z_to_clear_the_critical_value_and_the
                                                  ("input", "switched_capacitor"): False,
                                                  ("pq", "frequency_dependence"): True,
                                                  ("input", "frequency_dependence"): True}
+
+
+def test_the_reachable_count_is_the_expected_number_of_detections_at_the_critical_value():
+    """A case whose oracle z equals the critical value is detected in half the draws, one far above it always, one far
+    below never; the separable-only sum leaves the others out."""
+    def case(z, sep):
+        return {"mode": "input", "level": 2, "z_oracle": z, "separable": sep}
+
+    zcrit = 3.06
+    got = {(r["mode"], r["level"]): r
+           for r in ds.reachable([case(zcrit, True), case(zcrit + 10.0, False), case(zcrit - 10.0, True)], zcrit)}
+    r = got[("input", 2)]
+    assert r["cases"] == 3
+    assert abs(r["detected"] - 1.5) < 1e-9
+    assert abs(r["detected_and_separable"] - 0.5) < 1e-9
