@@ -1,0 +1,287 @@
+"""The refinement's input spectrum, three ways tried at stop 44 and not adopted (issue 11): kept so the figures rerun.
+
+On the supplement's windows and draws of ``benchmarks.input_noise_bound --weighting`` (seed ``--seed``, ``--n`` windows
+per level, both PMU classes), every noisy window is identified by the default (``IdentifyConfig()``) and by each variant:
+
+* ``pq``: the S-weighted refinement's smoother given the inputs' signal spectrum read through P and Q,
+  S_x = H⁻¹·(S_PQ − N_PQ)·H⁻ᴴ — H the model's input response at the output-error D (as the refinement forms it), S_PQ the
+  smoothed periodogram matrix of the measured P and Q on the regression samples, N_PQ their white floors — negative
+  eigenvalues clipped, zero from 5 Hz (:func:`pq_spectrum`);
+* ``avg``: the mean of that and the window's own estimate (:func:`aslm_core.noise.pooled_spectrum` of the one window,
+  without the cut-off rule);
+* ``ptail``: the window's own estimate on its grid with today's tail rebuilt here (the power law over [cut-off / 2,
+  cut-off)), the control of the next one;
+* ``wpl``: the tail's power law fitted instead by the Whittle likelihood of the raw periodogram over [cut-off / 2, 5 Hz)
+  with the white floor known (:func:`whittle_power_law`);
+* ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
+  the smoother, the output-error stage's prefilter too — and each parameter's median of the three (``widths_median``) or
+  the run nearest that median (``widths_medoid``, distance in units of each parameter's spread over the cell's windows).
+
+The spectrum variants reach the refinement through ``identify(..., input_spectrum=)``'s seam (the one the service's
+history uses) by standing in for :func:`aslm_core.input_weighting.weighted_fit` within this process; ``widths`` stands in
+for :func:`aslm_core.noise.wiener_smooth`.  Nothing in ``aslm_core`` is changed.  Printed per variant: σ of D/D_real
+over the default's per cell (median and range over the noisy cells × parameters, Tm at 0.1 % / 1e-3 rad per DL) and the
+windows off by more than 20 % per class; JSON ``docs/results/input_noise_variants_seed<seed>.json`` (per window D/D_real).
+
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 41 [--n 300] [--variants pq,avg,ptail,wpl,widths]
+
+Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)".
+"""
+
+from __future__ import annotations
+
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import contextlib  # noqa: E402
+import math  # noqa: E402
+import time  # noqa: E402
+from dataclasses import replace  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy import optimize  # noqa: E402
+
+from aslm_core import WindowError, identify, input_weighting, noise, preprocess  # noqa: E402
+from aslm_core.problem import Problem  # noqa: E402
+from benchmarks import common  # noqa: E402
+from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, with_input_noise  # noqa: E402
+
+VARIANTS = ("pq", "avg", "ptail", "wpl", "widths")
+WIDTHS_HZ = (0.5, 0.25, 1.0)  # today's first
+_WEIGHTED_FIT = input_weighting.weighted_fit
+_WIENER_SMOOTH = noise.wiener_smooth
+
+
+def pq_spectrum(window, config, d0: np.ndarray, skip_s: float) -> noise.InputSpectrum | None:
+    """The inputs' signal spectrum read through the measured P and Q at the output-error D (module docstring)."""
+    prep = preprocess.prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
+                              floors=True, input_smoother="wiener", input_tail=config.input_spectrum_tail)
+    pb = Problem(prep, window.f0, replace(config, skip_s=skip_s))
+    if not input_weighting._simulate(pb, d0):
+        return None
+    k0 = pb.k0
+    resid = np.column_stack([pb.p_meas - pb._p[k0:], pb.q_meas - pb._q[k0:]])
+    beta = np.linalg.solve(pb.r_factor, pb.basis.T @ resid)
+    h = input_weighting.impulse_response(pb, d0, beta[:, 0], beta[:, 1])
+    if h is None:
+        return None
+    sy = noise.pooled_spectrum([noise.input_periodogram(np.vstack([pb.p_meas, pb.q_meas]), 1.0 / pb.dt)])
+    hm = np.fft.rfft(h, axis=0)[:sy.freqs.size]
+    try:
+        hinv = np.linalg.inv(hm)
+    except np.linalg.LinAlgError:
+        return None
+    sx = hinv @ sy.s @ hinv.conj().transpose(0, 2, 1)
+    lam, vec = np.linalg.eigh(0.5 * (sx + sx.conj().transpose(0, 2, 1)))
+    sx = (vec * np.maximum(lam, 0.0)[:, None, :]) @ vec.conj().transpose(0, 2, 1)
+    sx[sy.freqs >= noise.FLOOR_FROM_HZ] = 0.0
+    return noise.InputSpectrum(sy.freqs, sx, 1)
+
+
+def whittle_power_law(f: np.ndarray, p: np.ndarray, floor: float) -> tuple[float, float]:
+    """(ln A, β) of the mean A·f^−β + floor fitted to periodogram ordinates p at f by the Whittle likelihood, β ≥ 1."""
+    lf = np.log(f)
+
+    def nll(x):
+        m = np.exp(x[0] - x[1] * lf) + floor
+        return float(np.sum(np.log(m) + p / m))
+
+    la0 = np.log(max(float(np.mean(p[:3])) - floor, 1e-3 * floor)) + 2.0 * lf[0]
+    best = min((optimize.minimize(nll, [la0 + (b0 - 2.0) * lf[0], b0], method="Nelder-Mead",
+                                  options={"xatol": 1e-4, "fatol": 1e-6, "maxiter": 400}) for b0 in (1.5, 3.0, 5.0)),
+               key=lambda r: r.fun)
+    return float(best.x[0]), max(float(best.x[1]), 1.0)
+
+
+def own_spectrum(window, config, whittle: bool) -> noise.InputSpectrum:
+    """The window's own estimate on its grid, zero above each input's cut-off, continued to 5 Hz by a power law
+    (``ptail``, or ``wpl`` with ``whittle``), the cross-spectrum there at the coherence of [cut-off / 2, cut-off)."""
+    pm = preprocess.prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=0.0)
+    x, fs = np.stack([pm.V, pm.theta]), 1.0 / pm.dt
+    per = noise.input_periodogram(x, fs)
+    own = noise.pooled_spectrum([per])
+    f, s = own.freqs, own.s.copy()
+    _, cuts = _WIENER_SMOOTH(x, fs, np.sqrt(per.floor), return_cutoffs=True)
+    k_top = int(np.searchsorted(f, noise.FLOOR_FROM_HZ))
+    ends = [int(np.searchsorted(f, c)) for c in cuts]
+    for i, e in enumerate(ends):
+        s[e:, i, :] = 0.0
+        s[e:, :, i] = 0.0
+    for i, e in enumerate(ends):
+        if e >= k_top:
+            continue
+        lo, k = max(1, e // 2), np.arange(e, k_top)
+        if whittle:
+            la, b = whittle_power_law(f[lo:k_top], per.p[lo:k_top, i, i].real, float(per.floor[i]))
+            s[k, i, i] = np.exp(la - b * np.log(f[k]))
+        else:
+            band = np.arange(lo, e)
+            band = band[s[band, i, i].real > 0]
+            if band.size >= 3:
+                slope, level = np.polyfit(np.log(f[band]), np.log(s[band, i, i].real), 1)
+                s[k, i, i] = np.exp(level + min(slope, -1.0) * np.log(f[k]))
+    first = min(ends)
+    if first < k_top:
+        band = np.arange(max(1, first // 2), first)
+        sa, sd, sb = s[band, 0, 0].real.sum(), s[band, 1, 1].real.sum(), s[band, 0, 1].sum()
+        if sa > 0 and sd > 0:
+            coh = sb / np.sqrt(sa * sd)
+            coh *= min(1.0, 0.999 / max(abs(coh), 1e-12))
+            k = np.arange(first, k_top)
+            s[k, 0, 1] = coh * np.sqrt(s[k, 0, 0].real * s[k, 1, 1].real)
+            s[k, 1, 0] = s[k, 0, 1].conj()
+    s[k_top:] = 0.0
+    return noise.InputSpectrum(f, s, 1)
+
+
+def _spectrum(variant: str, window, config, d0, skip_s) -> noise.InputSpectrum | None:
+    if variant in ("ptail", "wpl"):
+        return own_spectrum(window, config, whittle=variant == "wpl")
+    pq = pq_spectrum(window, config, d0, skip_s)
+    if pq is None or variant == "pq":
+        return pq
+    own = noise._given_spectrum(noise.pooled_spectrum([preprocess.input_periodogram(window, config.max_gap_samples)]),
+                                pq.freqs)
+    return noise.InputSpectrum(pq.freqs, 0.5 * (pq.s + own), 1)
+
+
+@contextlib.contextmanager
+def spectrum_variant(variant: str):
+    """Within the block, the S-weighted refinement's smoother is given the variant's spectrum (module docstring)."""
+    def fit(window, config, d0, skip_s, floors, margin, input_spectrum=None):
+        if input_spectrum is None and input_weighting.noisy_inputs(floors):
+            spec = _spectrum(variant, window, config, d0, skip_s)
+            if spec is not None:
+                return _WEIGHTED_FIT(window, config, d0, skip_s, floors, margin, input_spectrum=spec)
+        return _WEIGHTED_FIT(window, config, d0, skip_s, floors, margin, input_spectrum=input_spectrum)
+
+    input_weighting.weighted_fit = fit
+    try:
+        yield
+    finally:
+        input_weighting.weighted_fit = _WEIGHTED_FIT
+
+
+@contextlib.contextmanager
+def smoother_width(hz: float):
+    """Within the block, every call of the Wiener smoother averages its cross-spectrum over ``hz`` [Hz]."""
+    def smooth(*args, **kwargs):
+        kwargs["smooth_hz"] = hz
+        return _WIENER_SMOOTH(*args, **kwargs)
+
+    noise.wiener_smooth = smooth
+    try:
+        yield
+    finally:
+        noise.wiener_smooth = _WIENER_SMOOTH
+
+
+def _ratio(window, truth) -> list[float]:
+    try:
+        return (identify(window, config=TAIL).d / truth).tolist()
+    except WindowError:
+        return [math.nan] * 4
+
+
+def run(n: int, seed: int, variants: list[str]) -> dict:
+    """Per level, noisy class and row (``default`` and the variants' rows): the per-window D/D_real."""
+    cases = {level: common.cases(n, level=level, seed=seed) for level in LEVELS}
+    rngs = {(level, k): np.random.default_rng([seed, level, k]) for level in LEVELS for k in range(len(INPUT_NOISE))}
+    per: dict[str, list] = {}
+    t0 = time.perf_counter()
+    for i in range(n):
+        for level in LEVELS:
+            c = cases[level][i]
+            for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
+                w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])  # drawn for every class, as there
+                if cls == "none":
+                    continue
+                rows = {"default": _ratio(w, c.truth.d)}
+                for variant in variants:
+                    if variant == "widths":
+                        runs = [rows["default"]]
+                        for hz in WIDTHS_HZ[1:]:
+                            with smoother_width(hz):
+                                runs.append(_ratio(w, c.truth.d))
+                        rows["widths_runs"] = runs
+                    else:
+                        with spectrum_variant(variant):
+                            rows[variant] = _ratio(w, c.truth.d)
+                for name, r in rows.items():
+                    per.setdefault(f"{level}|{cls}|{name}", []).append(r)
+        if (i + 1) % 50 == 0:
+            print(f"{i + 1} windows ({time.perf_counter() - t0:.0f} s)", flush=True)
+    for key in [k for k in per if k.endswith("|widths_runs")]:
+        base = key.rsplit("|", 1)[0]
+        med, mdo = combine_widths(np.array(per.pop(key)))
+        per[f"{base}|widths_median"] = med.tolist()
+        per[f"{base}|widths_medoid"] = mdo.tolist()
+    return per
+
+
+def combine_widths(runs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """From runs (windows, widths, 4) of D/D_real, each window's per-parameter median and the run nearest it (L1
+    distance in units of each parameter's spread over the windows of the first width's run)."""
+    med = np.nanmedian(runs, axis=1)
+    scale = np.nanstd(runs[:, 0], axis=0, ddof=1)
+    dist = np.nansum(np.abs(runs - med[:, None, :]) / scale, axis=2)
+    pick = np.argmin(np.where(np.isfinite(dist), dist, np.inf), axis=1)
+    return med, runs[np.arange(runs.shape[0]), pick]
+
+
+def summary(per: dict) -> dict:
+    """Per row other than the default: σ over the default's per (level, class, parameter), and the windows off by
+    more than 20 % per class for both."""
+    names = sorted({k.rsplit("|", 1)[1] for k in per} - {"default"})
+    out = {}
+    for name in names:
+        ratios, off, tm = [], {}, []
+        for key in (k for k in per if k.endswith("|" + name)):
+            level, cls, _ = key.split("|")
+            d, m = np.array(per[f"{level}|{cls}|default"]), np.array(per[key])
+            ok = np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(m), axis=1)
+            r = m[ok].std(axis=0, ddof=1) / d[ok].std(axis=0, ddof=1)
+            ratios.append(r)
+            if cls.startswith("0.1"):
+                tm.append((int(level), float(r[3])))
+            o = off.setdefault(cls, [0, 0])
+            o[0] += int(np.sum(np.any(np.abs(d[ok] - 1.0) > 0.2, axis=1)))
+            o[1] += int(np.sum(np.any(np.abs(m[ok] - 1.0) > 0.2, axis=1)))
+        r = np.array(ratios)
+        out[name] = {"sigma_ratio_median": float(np.median(r)), "sigma_ratio_min": float(r.min()),
+                     "sigma_ratio_max": float(r.max()), "tm_ratio_01pct": [x for _, x in sorted(tm)],
+                     "off_20pct_default_variant": off}
+    return out
+
+
+def main(argv=None) -> dict:
+    ap = common.parser(__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=None, help="windows per level (default 300; --quick 3)")
+    ap.add_argument("--seed", type=int, default=41, help="seed of the windows and draws (41, 43, 45: development)")
+    ap.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated, of {', '.join(VARIANTS)}")
+    args = ap.parse_args(argv)
+    variants = [v for v in args.variants.split(",") if v]
+    unknown = sorted(set(variants) - set(VARIANTS))
+    if unknown:
+        raise SystemExit(f"unknown variants {unknown}; known: {', '.join(VARIANTS)}")
+    n = args.n or (3 if args.quick else 300)
+    t0 = time.perf_counter()
+    per = run(n, args.seed, variants)
+    summ = summary(per)
+    for name, s in summ.items():
+        print(f"{name:14s} σ / default median {s['sigma_ratio_median']:.3f} ({s['sigma_ratio_min']:.2f}–"
+              f"{s['sigma_ratio_max']:.2f}); Tm at 0.1 %, DL 1/2/3: "
+              + " / ".join(f"{x:.2f}" for x in s["tm_ratio_01pct"])
+              + "; off > 20 % default → variant: "
+              + ", ".join(f"{cls}: {a} → {b}" for cls, (a, b) in s["off_20pct_default_variant"].items()))
+    out = {"machine": common.machine(), "n": n, "seed": args.seed, "variants": variants, "summary": summ,
+           "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
+    if not args.no_write:
+        common.write_json(f"input_noise_variants_seed{args.seed}" + ("_quick" if args.quick else ""), out)
+    return out
+
+
+if __name__ == "__main__":
+    main()

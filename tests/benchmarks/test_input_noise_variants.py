@@ -1,0 +1,42 @@
+"""benchmarks/input_noise_variants.py (stop 44): the variants reach the refinement and leave aslm_core as it was."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from aslm_core import input_weighting, noise  # noqa: E402
+from benchmarks import input_noise_variants as iv  # noqa: E402
+
+
+def test_each_variant_changes_the_answer_and_the_core_is_restored_afterwards():
+    per = iv.run(1, 41, ["pq", "wpl", "widths"])
+    assert input_weighting.weighted_fit is iv._WEIGHTED_FIT and noise.wiener_smooth is iv._WIENER_SMOOTH
+    key = "2|0.1 % / 1e-3 rad|"
+    d = np.array(per[key + "default"])
+    for name in ("pq", "wpl", "widths_median", "widths_medoid"):
+        v = np.array(per[key + name])
+        assert v.shape == d.shape and np.all(np.isfinite(v))
+    # A spectrum handed in moves the refinement's answer: the seam is reached.
+    assert not np.allclose(np.array(per[key + "pq"]), d, rtol=0, atol=1e-9)
+
+
+def test_the_widths_median_is_per_parameter_and_the_medoid_is_the_run_nearest_it():
+    runs = np.array([[[1.0, 1.0, 1.0, 1.0], [1.2, 0.9, 1.0, 0.5], [0.9, 1.1, 1.0, 1.05]],
+                     [[1.0, 1.0, 1.0, 1.0], [1.01, 1.0, 1.0, 1.0], [2.0, 2.0, 2.0, 2.0]]])
+    med, mdo = iv.combine_widths(runs)
+    assert np.allclose(med[0], [1.0, 1.0, 1.0, 1.0]) and np.allclose(med[1], [1.01, 1.0, 1.0, 1.0])
+    assert np.allclose(mdo[0], runs[0, 0]) and np.allclose(mdo[1], runs[1, 1])
+
+
+def test_the_whittle_fit_recovers_a_power_law_above_a_known_floor():
+    rng = np.random.default_rng(4)
+    f = np.linspace(1.5, 5.0, 400)
+    floor, a, beta = 1.0, 40.0, 3.0
+    p = (a * f ** -beta + floor) * rng.exponential(size=f.size)  # periodogram ordinates: exponential about the mean
+    la, b = iv.whittle_power_law(f, p, floor)
+    assert abs(b - beta) < 0.4
+    assert abs(np.exp(la) / a - 1.0) < 0.5
