@@ -310,7 +310,10 @@ def unreadable_banks(stems: dict[str, str]) -> frozenset:
     (``agreement_best_two_state_noisy_v`` of :mod:`benchmarks.diagnosis_shunt_state`'s rows)."""
     out = set()
     for st, stem in stems.items():
-        for r in json.loads((RESULTS / f"{stem}.json").read_text())["rows"]:
+        path = RESULTS / f"{stem}.json"
+        if not path.exists():
+            raise SystemExit(f"--readable {st}:{stem}: no {path} (run benchmarks.diagnosis_shunt_state --set {st} first)")
+        for r in json.loads(path.read_text())["rows"]:
             if r["agreement_best_two_state_noisy_v"] < READABLE:
                 out.add((st, "switched_capacitor", r["seed"], float(r["window"][0]), int(r["level"])))
     return frozenset(out)
