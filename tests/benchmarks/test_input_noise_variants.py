@@ -40,3 +40,18 @@ def test_the_whittle_fit_recovers_a_power_law_above_a_known_floor():
     la, b = iv.whittle_power_law(f, p, floor)
     assert abs(b - beta) < 0.4
     assert abs(np.exp(la) / a - 1.0) < 0.5
+
+
+def test_the_honest_count_compares_each_rows_spread_with_its_windows_bound(tmp_path):
+    """A row whose D/D_real spreads at the bound counts all four parameters, one at twice the bound none."""
+    import json
+
+    rng = np.random.default_rng(2)
+    n, sd = 400, 0.05
+    bounds = [{"1": {"0.1 % / 1e-3 rad|structural": [sd**2] * 4}} for _ in range(n)]
+    path = tmp_path / "b.json"
+    path.write_text(json.dumps({"per_window_relative_variance": bounds}))
+    per = {"1|0.1 % / 1e-3 rad|default": (1.0 + sd * rng.standard_normal((n, 4))).tolist(),
+           "1|0.1 % / 1e-3 rad|wide": (1.0 + 2 * sd * rng.standard_normal((n, 4))).tolist()}
+    assert iv.honest_counts(per, path) == {"default": 4, "wide": 0}
+    assert iv.honest_counts(per, tmp_path / "absent.json") is None
