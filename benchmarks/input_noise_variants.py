@@ -179,18 +179,22 @@ def smoother_width(hz: float):
         noise.wiener_smooth = _WIENER_SMOOTH
 
 
-def _ratio(window, truth) -> list[float]:
+def _measure(window, truth) -> tuple[list[float], list[float]]:
+    """D/D_real and the standard errors over D_real of the default identifier on the window (NaN where it refuses)."""
     try:
-        return (identify(window, config=TAIL).d / truth).tolist()
+        r = identify(window, config=TAIL)
     except WindowError:
-        return [math.nan] * 4
+        return [math.nan] * 4, [math.nan] * 4
+    return (r.d / truth).tolist(), (np.array([r.stderr[p] for p in common.PARAMS]) / truth).tolist()
 
 
-def run(n: int, seed: int, variants: list[str]) -> dict:
-    """Per level, noisy class and row (``default`` and the variants' rows): the per-window D/D_real."""
+def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict]:
+    """Per level, noisy class and row (``default`` and the variants' rows): the per-window D/D_real, and their
+    standard errors over D_real (the median of the widths takes the 0.5 Hz run's, the run nearest it its own)."""
     cases = {level: common.cases(n, level=level, seed=seed) for level in LEVELS}
     rngs = {(level, k): np.random.default_rng([seed, level, k]) for level in LEVELS for k in range(len(INPUT_NOISE))}
     per: dict[str, list] = {}
+    per_se: dict[str, list] = {}
     t0 = time.perf_counter()
     for i in range(n):
         for level in LEVELS:
@@ -199,37 +203,50 @@ def run(n: int, seed: int, variants: list[str]) -> dict:
                 w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])  # drawn for every class, as there
                 if cls == "none":
                     continue
-                rows = {"default": _ratio(w, c.truth.d)}
+                rows = {"default": _measure(w, c.truth.d)}
                 for variant in variants:
                     if variant == "widths":
                         runs = [rows["default"]]
                         for hz in WIDTHS_HZ[1:]:
                             with smoother_width(hz):
-                                runs.append(_ratio(w, c.truth.d))
-                        rows["widths_runs"] = runs
+                                runs.append(_measure(w, c.truth.d))
+                        rows["widths_runs"] = ([r for r, _ in runs], [e for _, e in runs])
                     else:
                         with spectrum_variant(variant):
-                            rows[variant] = _ratio(w, c.truth.d)
-                for name, r in rows.items():
+                            rows[variant] = _measure(w, c.truth.d)
+                for name, (r, e) in rows.items():
                     per.setdefault(f"{level}|{cls}|{name}", []).append(r)
+                    per_se.setdefault(f"{level}|{cls}|{name}", []).append(e)
         if (i + 1) % 50 == 0:
             print(f"{i + 1} windows ({time.perf_counter() - t0:.0f} s)", flush=True)
     for key in [k for k in per if k.endswith("|widths_runs")]:
         base = key.rsplit("|", 1)[0]
-        med, mdo = combine_widths(np.array(per.pop(key)))
-        per[f"{base}|widths_median"] = med.tolist()
-        per[f"{base}|widths_medoid"] = mdo.tolist()
-    return per
+        runs, ses = np.array(per.pop(key)), np.array(per_se.pop(key))
+        med, mdo, pick = combine_widths(runs)
+        rows_ = np.arange(runs.shape[0])
+        per[f"{base}|widths_median"], per_se[f"{base}|widths_median"] = med.tolist(), ses[:, 0].tolist()
+        per[f"{base}|widths_medoid"], per_se[f"{base}|widths_medoid"] = mdo.tolist(), ses[rows_, pick].tolist()
+    return per, per_se
 
 
-def combine_widths(runs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """From runs (windows, widths, 4) of D/D_real, each window's per-parameter median and the run nearest it (L1
-    distance in units of each parameter's spread over the windows of the first width's run)."""
+def combine_widths(runs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """From runs (windows, widths, 4) of D/D_real, each window's per-parameter median, the run nearest it (L1
+    distance in units of each parameter's spread over the windows of the first width's run) and that run's index."""
     med = np.nanmedian(runs, axis=1)
     scale = np.nanstd(runs[:, 0], axis=0, ddof=1)
     dist = np.nansum(np.abs(runs - med[:, None, :]) / scale, axis=2)
     pick = np.argmin(np.where(np.isfinite(dist), dist, np.inf), axis=1)
-    return med, runs[np.arange(runs.shape[0]), pick]
+    return med, runs[np.arange(runs.shape[0]), pick], pick
+
+
+def coverage(per: dict, per_se: dict) -> dict[str, list[float]]:
+    """Per row, the share of windows with |D/D_real − 1| < 1.96·SE in each noisy cell × parameter (24 per row)."""
+    out: dict[str, list[float]] = {}
+    for key, r in per.items():
+        r, e = np.array(r), np.array(per_se[key])
+        ok = np.all(np.isfinite(r), axis=1) & np.all(np.isfinite(e), axis=1)
+        out.setdefault(key.rsplit("|", 1)[1], []).extend(np.mean(np.abs(r[ok] - 1.0) < 1.96 * e[ok], axis=0).tolist())
+    return out
 
 
 def summary(per: dict) -> dict:
@@ -289,8 +306,12 @@ def main(argv=None) -> dict:
         raise SystemExit(f"unknown variants {unknown}; known: {', '.join(VARIANTS)}")
     n = args.n or (3 if args.quick else 300)
     t0 = time.perf_counter()
-    per = run(n, args.seed, variants)
+    per, per_se = run(n, args.seed, variants)
     summ = summary(per)
+    cover = coverage(per, per_se)
+    print("coverage of ±1.96 SE over the noisy cells × parameters, min–max (inside 90–97 % of 24): "
+          + "; ".join(f"{k} {100 * min(v):.0f}–{100 * max(v):.0f} % ({sum(0.90 <= x <= 0.97 for x in v)})"
+                      for k, v in sorted(cover.items())))
     for name, s in summ.items():
         print(f"{name:14s} σ / default median {s['sigma_ratio_median']:.3f} ({s['sigma_ratio_min']:.2f}–"
               f"{s['sigma_ratio_max']:.2f}); Tm at 0.1 %, DL 1/2/3: "
@@ -302,7 +323,7 @@ def main(argv=None) -> dict:
         print("issue 11's honest version (σ ≤ 1.3 × the structural bound), noisy cells × parameters met of 24: "
               + ", ".join(f"{k} {v}" for k, v in sorted(honest.items())))
     out = {"machine": common.machine(), "n": n, "seed": args.seed, "variants": variants, "summary": summ,
-           "honest_version_met": honest,
+           "honest_version_met": honest, "coverage_95": cover, "per_window_se": per_se,
            "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
     if not args.no_write:
         common.write_json(f"input_noise_variants_seed{args.seed}" + ("_quick" if args.quick else ""), out)

@@ -13,7 +13,8 @@ from benchmarks import input_noise_variants as iv  # noqa: E402
 
 
 def test_each_variant_changes_the_answer_and_the_core_is_restored_afterwards():
-    per = iv.run(1, 41, ["pq", "wpl", "widths"])
+    per, per_se = iv.run(1, 41, ["pq", "wpl", "widths"])
+    assert set(per_se) == set(per)
     assert input_weighting.weighted_fit is iv._WEIGHTED_FIT and noise.wiener_smooth is iv._WIENER_SMOOTH
     key = "2|0.1 % / 1e-3 rad|"
     d = np.array(per[key + "default"])
@@ -27,9 +28,15 @@ def test_each_variant_changes_the_answer_and_the_core_is_restored_afterwards():
 def test_the_widths_median_is_per_parameter_and_the_medoid_is_the_run_nearest_it():
     runs = np.array([[[1.0, 1.0, 1.0, 1.0], [1.2, 0.9, 1.0, 0.5], [0.9, 1.1, 1.0, 1.05]],
                      [[1.0, 1.0, 1.0, 1.0], [1.01, 1.0, 1.0, 1.0], [2.0, 2.0, 2.0, 2.0]]])
-    med, mdo = iv.combine_widths(runs)
+    med, mdo, pick = iv.combine_widths(runs)
     assert np.allclose(med[0], [1.0, 1.0, 1.0, 1.0]) and np.allclose(med[1], [1.01, 1.0, 1.0, 1.0])
-    assert np.allclose(mdo[0], runs[0, 0]) and np.allclose(mdo[1], runs[1, 1])
+    assert np.allclose(mdo[0], runs[0, 0]) and np.allclose(mdo[1], runs[1, 1]) and pick.tolist() == [0, 1]
+
+
+def test_coverage_counts_the_windows_inside_196_standard_errors():
+    per = {"1|0.1 % / 1e-3 rad|default": [[1.0, 1.0, 1.0, 1.3]] * 3 + [[1.1, 1.0, 1.0, 1.0]]}
+    per_se = {"1|0.1 % / 1e-3 rad|default": [[0.1, 0.1, 0.1, 0.1]] * 4}
+    assert np.allclose(iv.coverage(per, per_se)["default"], [1.0, 1.0, 1.0, 0.25])
 
 
 def test_the_whittle_fit_recovers_a_power_law_above_a_known_floor():
