@@ -61,8 +61,8 @@ IMPULSE = 1e-4
 REFERENCE = "learnt_0.5"
 
 
-def transfer(case) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, float]:
-    """H(f) of the truth's model on the case's clean window and its derivatives.
+def transfer(case, d: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, float]:
+    """H(f) of the model on the case's clean window at D (default the truth's) and its derivatives.
 
     Returns
     -------
@@ -77,7 +77,8 @@ def transfer(case) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, float]:
     fs : float
         Sample rate [Hz].
     """
-    clean, d = case.clean, np.asarray(case.truth.d, dtype=np.float64)
+    clean = case.clean
+    d = np.asarray(case.truth.d if d is None else d, dtype=np.float64)
     prep = prepare(clean, max_gap_samples=MODEL.max_gap_samples, min_duration_s=MODEL.min_duration_s)
     pb = Problem(prep, clean.f0, MODEL)
     n, k0, l = prep.V.size, pb.k0, pb.l
@@ -89,7 +90,7 @@ def transfer(case) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, float]:
         vd, vq, vdm, vqm = motor.dq_inputs(v, th, pb.substeps)
         if not motor.simulate_kernel(vd, vq, vdm, vqm, d, pb.dt, pb.omega0, pb.rk4, True, p, q, dp, dq, xs, True,
                                      k0, pb.p_meas, pb.q_meas, dp):
-            raise ValueError("the truth's model cannot be simulated on this window")
+            raise ValueError("the model cannot be simulated at this D on this window")
         # (samples from j − 2, [P, Q, ∂P/∂D…, ∂Q/∂D…])
         return np.column_stack([p[j - 2:], q[j - 2:], dp[j - 2:], dq[j - 2:]])
 
@@ -145,12 +146,27 @@ def _sqrtm(s: np.ndarray) -> np.ndarray:
 _E = np.array([[[1, 0], [0, 0]], [[0, 0], [0, 1]], [[0, 1], [1, 0]], [[0, 1j], [-1j, 0]]], dtype=complex)
 
 
-def bounds(freqs: np.ndarray, h: np.ndarray, dh: np.ndarray, sx: np.ndarray, r_u: tuple[float, float],
-           r_y: tuple[float, float], d: np.ndarray, widths: tuple[float, ...] = WIDTHS_HZ) -> dict[str, np.ndarray]:
-    """Relative bound variances var/D² of (a, b, H2, Tm) by kind (module docstring) from one window's H, ∂H, S_x."""
-    k = np.arange(1, freqs.size - 1)  # no DC, no Nyquist
-    f, h, dh, sx = freqs[k], h[k], dh[:, k], sx[k]
-    m = k.size
+def fisher_per_bin(h: np.ndarray, dh: np.ndarray, sx: np.ndarray, r_u: tuple[float, float],
+                   r_y: tuple[float, float]) -> np.ndarray:
+    """Per bin the Fisher information tr(Σ⁻¹ ∂_iΣ Σ⁻¹ ∂_jΣ) of z = (V, θ, P, Q) ~ CN(0, Σ) (module docstring) in the
+    parameters (a, b, H2, Tm, g_P, g_Q) and the four relative-deviation directions of S_x at that bin.
+
+    Parameters
+    ----------
+    h : ndarray, shape (m, 2, 2)
+        [P; Q] per [V; θ].
+    dh : ndarray, shape (6, m, 2, 2)
+        ∂H per parameter.
+    sx : ndarray, shape (m, 2, 2)
+        The inputs' signal cross-spectrum, per-sample units.
+    r_u, r_y : (float, float)
+        White noise variances of V, θ and of P, Q, per sample.
+
+    Returns
+    -------
+    ndarray, shape (m, 10, 10)
+    """
+    m = h.shape[0]
     ru, ry = np.diag(r_u).astype(complex), np.diag(r_y).astype(complex)
     hh = h.conj().transpose(0, 2, 1)
     sig = np.empty((m, 4, 4), dtype=complex)
@@ -160,7 +176,7 @@ def bounds(freqs: np.ndarray, h: np.ndarray, dh: np.ndarray, sx: np.ndarray, r_u
     sig[:, 2:, 2:] = h @ sx @ hh + ry
     inv = np.linalg.inv(sig)
     ders = []
-    for a in range(6):
+    for a in range(dh.shape[0]):
         da = np.zeros((m, 4, 4), dtype=complex)
         dha = dh[a]
         da[:, :2, 2:] = sx @ dha.conj().transpose(0, 2, 1)
@@ -180,33 +196,46 @@ def bounds(freqs: np.ndarray, h: np.ndarray, dh: np.ndarray, sx: np.ndarray, r_u
     per_bin = np.empty((m, q, q))
     for a in range(q):
         for b in range(a, q):
-            v = np.einsum("kij,kji->k", ders[a], ders[b]).real
-            per_bin[:, a, b] = per_bin[:, b, a] = v
+            per_bin[:, a, b] = per_bin[:, b, a] = np.einsum("kij,kji->k", ders[a], ders[b]).real
+    return per_bin
+
+
+def bounds(freqs: np.ndarray, h: np.ndarray, dh: np.ndarray, sx: np.ndarray, r_u: tuple[float, float],
+           r_y: tuple[float, float], d: np.ndarray, widths: tuple[float, ...] = WIDTHS_HZ) -> dict[str, np.ndarray]:
+    """Relative bound variances var/D² of (a, b, H2, Tm) by kind (module docstring) from one window's H, ∂H, S_x on
+    the rfft bins ``freqs`` [Hz] (DC and Nyquist left out)."""
+    k = np.arange(1, freqs.size - 1)
+    f, h, dh, sx = freqs[k], h[k], dh[:, k], sx[k]
+    per_bin = fisher_per_bin(h, dh, sx, r_u, r_y)
     theta = slice(0, 6)
     full = per_bin[:, theta, theta].sum(axis=0)
     out = {"known": _d_block(full) / d**2}
     # Through the conditional mean of P, Q given V, θ only: 2·Re tr(Q⁻¹·∂H·C·∂Hᴴ), C = S_x·(S_x + R_u)⁻¹·S_x,
     # Q = H·P_x·Hᴴ + R_y, P_x = S_x − C.
+    ru, ry = np.diag(r_u).astype(complex), np.diag(r_y).astype(complex)
     c = sx @ np.linalg.inv(sx + ru) @ sx
-    qinv = np.linalg.inv(h @ (sx - c) @ hh + ry)
+    qinv = np.linalg.inv(h @ (sx - c) @ h.conj().transpose(0, 2, 1) + ry)
     mean = np.empty((6, 6))
     for a in range(6):
         for b in range(a, 6):
             v = 2.0 * np.einsum("kij,kjl,kli->k", qinv, dh[a] @ c, dh[b].conj().transpose(0, 2, 1)).real.sum()
             mean[a, b] = mean[b, a] = v
     out["known_mean"] = _d_block(mean) / d**2
-    df = freqs[1] - freqs[0]
     for w in widths:
-        band = np.floor((f - f[0]) / w + 1e-9).astype(int)
-        eff = full.copy()
-        for b in np.unique(band):
-            sel = band == b
-            blk = per_bin[sel].sum(axis=0)
-            cross, nn = blk[theta, 6:], blk[6:, 6:]
-            eff -= cross @ np.linalg.pinv(nn, rcond=1e-12, hermitian=True) @ cross.T
-        out[f"learnt_{w:g}"] = _d_block(eff) / d**2
-    del df
+        out[f"learnt_{w:g}"] = _d_block(full - band_loss(per_bin, f, w)) / d**2
     return out
+
+
+def band_loss(per_bin: np.ndarray, freqs: np.ndarray, width_hz: float) -> np.ndarray:
+    """The information on (a, b, H2, Tm, g_P, g_Q) lost when S_x's relative deviation is unknown per band of
+    ``width_hz`` [Hz] (bands from the first bin): Σ_b I_θψ·I_ψψ⁻¹·I_ψθ over the bands' summed per-bin information."""
+    band = np.floor((freqs - freqs[0]) / width_hz + 1e-9).astype(int)
+    loss = np.zeros((6, 6))
+    for b in np.unique(band):
+        blk = per_bin[band == b].sum(axis=0)
+        cross = blk[:6, 6:]
+        loss += cross @ np.linalg.pinv(blk[6:, 6:], rcond=1e-12, hermitian=True) @ cross.T
+    return loss
 
 
 def _d_block(info: np.ndarray) -> np.ndarray:
@@ -232,8 +261,8 @@ def window_bounds(by_level: dict, long_s: float) -> dict:
 
 
 def summary(per_window: list[dict], time_domain: dict | None) -> dict:
-    """Per level and class: RMS relative bound of each kind, the time-domain structural bound's, the default's σ and
-    its ratio to the ``known`` and reference bounds, on the windows both runs hold."""
+    """Per level and class: RMS relative bound of each kind, the time-domain structural bound's, and the σ of the
+    default and of the oracle GLS on the same windows (``input_noise_bound --n 300``'s) over each bound."""
     n = len(per_window)
     td = time_domain["per_window_relative_variance"][:n] if time_domain else None
     est = time_domain["per_window_ratio"][:n] if time_domain else None
@@ -246,39 +275,49 @@ def summary(per_window: list[dict], time_domain: dict | None) -> dict:
             if td is not None:
                 row["time_domain_structural"] = np.sqrt(np.mean([w[str(level)][f"{cls}|structural"] for w in td],
                                                                 axis=0)).tolist()
-                r = np.array([e[str(level)][cls][0] for e in est])
-                ok = np.all(np.isfinite(r), axis=1)
-                sigma = r[ok].std(axis=0, ddof=1)
-                row["sigma_default"] = sigma.tolist()
-                for kind in ("known", REFERENCE, "time_domain_structural"):
-                    row[f"sigma_over_{kind}"] = (sigma / np.array(row[kind])).tolist()
+                for j, name in enumerate(ESTIMATORS):
+                    r = np.array([e[str(level)][cls][j] for e in est])
+                    ok = np.all(np.isfinite(r), axis=1)
+                    sigma = r[ok].std(axis=0, ddof=1)
+                    row[f"sigma_{name}"] = sigma.tolist()
+                    for kind in ["time_domain_structural"] + kinds:
+                        row[f"sigma_{name}_over_{kind}"] = (sigma / np.array(row[kind])).tolist()
             out[f"{level}|{cls}"] = row
     return out
 
 
-def _cells(row: dict, key: str) -> str:
-    return " / ".join(f"{x:.3f}" for x in row[key])
+#: The estimators whose per-window D ``input_noise_bound --n 300`` stores, in its order.
+ESTIMATORS = ("default", "oracle_gls")
 
 
-def report(summ: dict) -> None:
-    """Print the bound table and the honest count against each kind."""
+def honest_counts(summ: dict) -> dict[str, dict[str, int]]:
+    """Per estimator and bound kind: the noisy cells × parameters (of 24) with σ ≤ 1.3 × that bound."""
+    kinds = [k.split("_over_", 1)[1] for k in next(iter(summ.values())) if k.startswith("sigma_default_over_")]
+    return {name: {kind: sum(int(np.sum(np.array(r[f"sigma_{name}_over_{kind}"]) <= 1.3)) for r in summ.values())
+                   for kind in kinds} for name in ESTIMATORS}
+
+
+def _cells(row: dict, key: str, fmt: str = "{:.3f}") -> str:
+    return " / ".join(fmt.format(x) for x in row[key])
+
+
+def report(summ: dict) -> dict | None:
+    """Print the bound table, the σ over the bounds and the honest count against each kind; the counts."""
     kinds = ["time_domain_structural", "known_mean", "known"] + [f"learnt_{w:g}" for w in WIDTHS_HZ]
     head = ["DL", "input noise"] + [f"{k} a / b / H2 / Tm" for k in kinds]
-    rows = []
-    for key, row in summ.items():
-        level, cls = key.split("|")
-        rows.append([level, cls] + [_cells(row, k) if k in row else "–" for k in kinds])
+    rows = [[*key.split("|")] + [_cells(row, k) if k in row else "–" for k in kinds] for key, row in summ.items()]
     print(common.md_table(head, rows))
-    if all("sigma_default" in r for r in summ.values()):
-        head = ["DL", "input noise", "σ default", "/ time-domain structural", "/ known", f"/ {REFERENCE}"]
-        rows = [[*key.split("|"), _cells(r, "sigma_default"),
-                 " / ".join(f"{x:.2f}" for x in r["sigma_over_time_domain_structural"]),
-                 " / ".join(f"{x:.2f}" for x in r["sigma_over_known"]),
-                 " / ".join(f"{x:.2f}" for x in r[f"sigma_over_{REFERENCE}"])] for key, r in summ.items()]
-        print("\n" + common.md_table(head, rows))
-        for kind in ("time_domain_structural", "known", REFERENCE):
-            met = sum(int(np.sum(np.array(r[f"sigma_over_{kind}"]) <= 1.3)) for r in summ.values())
-            print(f"σ default ≤ 1.3 × {kind}: {met} of {4 * len(summ)} noisy cells × parameters")
+    if not all("sigma_default" in r for r in summ.values()):
+        return None
+    cols = ("time_domain_structural", "known", REFERENCE)
+    head = ["DL", "input noise"] + [f"σ {e}" for e in ESTIMATORS] + [f"{e} / {k}" for e in ESTIMATORS for k in cols]
+    rows = [[*key.split("|")] + [_cells(r, f"sigma_{e}") for e in ESTIMATORS]
+            + [_cells(r, f"sigma_{e}_over_{k}", "{:.2f}") for e in ESTIMATORS for k in cols] for key, r in summ.items()]
+    print("\n" + common.md_table(head, rows))
+    counts = honest_counts(summ)
+    for name, per in counts.items():
+        print(f"{name}: σ ≤ 1.3 × bound in " + ", ".join(f"{k} {v}" for k, v in per.items()) + " of 24")
+    return counts
 
 
 def main(argv=None) -> dict:
@@ -299,9 +338,9 @@ def main(argv=None) -> dict:
         if (i + 1) % 25 == 0:
             print(f"{i + 1} windows ({time.perf_counter() - t0:.0f} s)", flush=True)
     summ = summary(per_window, time_domain)
-    report(summ)
+    counts = report(summ)
     out = {"machine": common.machine(), "n": n, "seed": CONFIRM_SEED, "long_s": args.long_s,
-           "widths_hz": list(WIDTHS_HZ), "reference": REFERENCE, "summary": summ,
+           "widths_hz": list(WIDTHS_HZ), "reference": REFERENCE, "summary": summ, "honest_counts": counts,
            "per_window_relative_variance": per_window, "total_s": time.perf_counter() - t0,
            "load_avg_at_end": list(os.getloadavg())}
     if not args.no_write:
