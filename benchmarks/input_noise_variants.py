@@ -13,19 +13,25 @@ per level, both PMU classes), every noisy window is identified by the default (`
   cut-off)), the control of the next one;
 * ``wpl``: the tail's power law fitted instead by the Whittle likelihood of the raw periodogram over [cut-off / 2, 5 Hz)
   with the white floor known (:func:`whittle_power_law`);
+* ``floor_outside``, ``no_floor`` (stop 45): the refinement's S with the residual periodogram's floor on its diagonal
+  kept only in the bins where the model's S has no input-error content (H·P_x·Hᴴ ≤ 1e-3 of the white floor: above the
+  smoother's spectrum), or not at all (:func:`residual_floor`);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
   the smoother, the output-error stage's prefilter too — and each parameter's median of the three (``widths_median``) or
   the run nearest that median (``widths_medoid``, distance in units of each parameter's spread over the cell's windows).
 
 The spectrum variants reach the refinement through ``identify(..., input_spectrum=)``'s seam (the one the service's
 history uses) by standing in for :func:`aslm_core.input_weighting.weighted_fit` within this process; ``widths`` stands in
-for :func:`aslm_core.noise.wiener_smooth`.  Nothing in ``aslm_core`` is changed.  Printed per variant: σ of D/D_real
+for :func:`aslm_core.noise.wiener_smooth`, the floor variants for the refinement's spectrum and whitening functions.
+Nothing in ``aslm_core`` is changed.  Printed per variant: σ of D/D_real
 over the default's per cell (median and range over the noisy cells × parameters, Tm at 0.1 % / 1e-3 rad per DL) and the
 windows off by more than 20 % per class; JSON ``docs/results/input_noise_variants_seed<seed>.json`` (per window D/D_real).
 
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 [--n 300] [--variants pq,avg,ptail,wpl,widths]
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_outside,no_floor --tag floor
 
-Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)".
+Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)"; the floor
+variants "Stop 45: the bound with the inputs' spectrum learnt from the window".
 """
 
 from __future__ import annotations
@@ -49,10 +55,15 @@ from aslm_core.problem import Problem  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, with_input_noise  # noqa: E402
 
-VARIANTS = ("pq", "avg", "ptail", "wpl", "widths")
+VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor")
+FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none"}
+#: ``floor_outside``: the model's S counts as having input-error content above this fraction of the white floor [-].
+FLOOR_CONTENT_REL = 1e-3
 WIDTHS_HZ = (0.5, 0.25, 1.0)  # today's first
 _WEIGHTED_FIT = input_weighting.weighted_fit
 _WIENER_SMOOTH = noise.wiener_smooth
+_DISTURBANCE_SPECTRUM = input_weighting.disturbance_spectrum
+_WHITENING = input_weighting.whitening
 
 
 def pq_spectrum(window, config, d0: np.ndarray, skip_s: float) -> noise.InputSpectrum | None:
@@ -179,6 +190,36 @@ def smoother_width(hz: float):
         noise.wiener_smooth = _WIENER_SMOOTH
 
 
+@contextlib.contextmanager
+def residual_floor(mode: str):
+    """Within the block, the refinement's S keeps the residual periodogram's floor on its diagonal only where the
+    model's S has no input-error content (``outside``), or drops it (``none``)."""
+    model: dict = {}
+
+    def spectrum(h, freqs, px_freqs, px, white_var):
+        s = _DISTURBANCE_SPECTRUM(h, freqs, px_freqs, px, white_var)
+        model["s"], model["white"] = s.copy(), white_var
+        return s
+
+    def whitening(s):
+        if "s" in model:
+            for c in range(2):
+                content = model["s"][:, c, c].real - model["white"][c] > FLOOR_CONTENT_REL * model["white"][c]
+                s[content, c, c] = model["s"][content, c, c]
+        return _WHITENING(s)
+
+    old = input_weighting.RESIDUAL_SMOOTH_HZ
+    if mode == "none":
+        input_weighting.RESIDUAL_SMOOTH_HZ = 0.0
+    else:
+        input_weighting.disturbance_spectrum, input_weighting.whitening = spectrum, whitening
+    try:
+        yield
+    finally:
+        input_weighting.RESIDUAL_SMOOTH_HZ = old
+        input_weighting.disturbance_spectrum, input_weighting.whitening = _DISTURBANCE_SPECTRUM, _WHITENING
+
+
 def _measure(window, truth) -> tuple[list[float], list[float]]:
     """D/D_real and the standard errors over D_real of the default identifier on the window (NaN where it refuses)."""
     try:
@@ -211,6 +252,9 @@ def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict]:
                             with smoother_width(hz):
                                 runs.append(_measure(w, c.truth.d))
                         rows["widths_runs"] = ([r for r, _ in runs], [e for _, e in runs])
+                    elif variant in FLOOR_VARIANTS:
+                        with residual_floor(FLOOR_VARIANTS[variant]):
+                            rows[variant] = _measure(w, c.truth.d)
                     else:
                         with spectrum_variant(variant):
                             rows[variant] = _measure(w, c.truth.d)
@@ -298,7 +342,9 @@ def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None, help="windows per level (default 300; --quick 3)")
     ap.add_argument("--seed", type=int, default=41, help="seed of the windows and draws (41, 43, 45: development)")
-    ap.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated, of {', '.join(VARIANTS)}")
+    ap.add_argument("--variants", default=",".join(VARIANTS[:5]),
+                    help=f"comma-separated, of {', '.join(VARIANTS)} (default: stop 44's five)")
+    ap.add_argument("--tag", default="", help="suffix of the JSON's name (e.g. floor), so runs of other variants sit beside")
     args = ap.parse_args(argv)
     variants = [v for v in args.variants.split(",") if v]
     unknown = sorted(set(variants) - set(VARIANTS))
@@ -326,7 +372,8 @@ def main(argv=None) -> dict:
            "honest_version_met": honest, "coverage_95": cover, "per_window_se": per_se,
            "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
     if not args.no_write:
-        common.write_json(f"input_noise_variants_seed{args.seed}" + ("_quick" if args.quick else ""), out)
+        common.write_json(f"input_noise_variants_seed{args.seed}" + (f"_{args.tag}" if args.tag else "")
+                          + ("_quick" if args.quick else ""), out)
     return out
 
 

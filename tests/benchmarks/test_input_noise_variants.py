@@ -62,3 +62,33 @@ def test_the_honest_count_compares_each_rows_spread_with_its_windows_bound(tmp_p
            "1|0.1 % / 1e-3 rad|wide": (1.0 + 2 * sd * rng.standard_normal((n, 4))).tolist()}
     assert iv.honest_counts(per, path) == {"default": 4, "wide": 0}
     assert iv.honest_counts(per, tmp_path / "absent.json") is None
+
+
+def test_the_floor_variants_reach_the_refinements_weighting_and_restore_it():
+    """Stop 45's residual-floor variants move the refinement's answer on a noisy window, keep the model's S where it has
+    input-error content (``outside``: below the floor's reach, the weighting equals the model's), and leave
+    ``input_weighting`` as it was."""
+    per, _ = iv.run(1, 41, ["floor_outside", "no_floor"])
+    assert input_weighting.disturbance_spectrum is iv._DISTURBANCE_SPECTRUM
+    assert input_weighting.whitening is iv._WHITENING and input_weighting.RESIDUAL_SMOOTH_HZ == 1.0
+    key = "3|0.1 % / 1e-3 rad|"
+    d = np.array(per[key + "default"])
+    for name in ("floor_outside", "no_floor"):
+        assert not np.allclose(np.array(per[key + name]), d, rtol=0, atol=1e-9), name
+    # The "outside" hooks: S formed with input-error content in the first four bins only; a floor added to the whole
+    # diagonal afterwards (as build_weighting adds it) is taken back where the model has content.
+    l = 16
+    h = np.zeros((l, 2, 2))
+    h[2] = np.eye(2)  # |H| = 1 at every frequency
+    freqs = np.fft.rfftfreq(l, 0.01)
+    px = np.zeros((freqs.size, 2, 2), dtype=complex)
+    px[:4, 0, 0] = px[:4, 1, 1] = 1.0
+    with iv.residual_floor("outside"):
+        s = input_weighting.disturbance_spectrum(h, freqs, freqs, px, (1.0, 1.0))
+        s[:, 0, 0] += 5.0
+        s[:, 1, 1] += 5.0
+        w00, _, w11 = input_weighting.whitening(s)
+    np.testing.assert_allclose(w00[:4], 1 / np.sqrt(2.0))
+    np.testing.assert_allclose(w00[4:], 1 / np.sqrt(6.0))
+    np.testing.assert_allclose(w11[4:], 1 / np.sqrt(6.0))
+    assert input_weighting.whitening is iv._WHITENING
