@@ -42,15 +42,16 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_
     os.environ.setdefault(_v, "1")
 
 import json  # noqa: E402
+import math  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from aslm_core import motor, static  # noqa: E402
+from aslm_core import IdentifyConfig, WindowError, identify, motor, static  # noqa: E402
 from aslm_core.preprocess import prepare  # noqa: E402
 from aslm_core.problem import Problem  # noqa: E402
 from benchmarks import common  # noqa: E402
-from benchmarks.input_noise import CONFIRM_SEED, INPUT_NOISE  # noqa: E402
+from benchmarks.input_noise import CONFIRM_SEED, INPUT_NOISE, with_input_noise  # noqa: E402
 from benchmarks.input_noise_bound import LEVELS, MODEL, long_inputs, static_coefficients  # noqa: E402
 
 #: Nuisance band widths of the learnt spectrum [Hz]; the first is the reference (module docstring).
@@ -260,12 +261,17 @@ def window_bounds(by_level: dict, long_s: float) -> dict:
     return out
 
 
-def summary(per_window: list[dict], time_domain: dict | None) -> dict:
-    """Per level and class: RMS relative bound of each kind, the time-domain structural bound's, and the σ of the
-    default and of the oracle GLS on the same windows (``input_noise_bound --n 300``'s) over each bound."""
+def summary(per_window: list[dict], time_domain: dict | None, own: list[dict] | None = None) -> dict:
+    """Per level and class: RMS relative bound of each kind, and σ over each bound of the estimators whose per-window
+    D/D_real are at hand: the default and the oracle GLS of ``input_noise_bound --n 300`` (seed 43's windows, with its
+    time-domain structural bound), else the default run here (``own``: per window {level: {class: D/D_real}})."""
     n = len(per_window)
     td = time_domain["per_window_relative_variance"][:n] if time_domain else None
-    est = time_domain["per_window_ratio"][:n] if time_domain else None
+    if time_domain:
+        est = {name: [{lv: {c: r[j] for c, r in e[str(lv)].items()} for lv in LEVELS}
+                      for e in time_domain["per_window_ratio"][:n]] for j, name in enumerate(ESTIMATORS)}
+    else:
+        est = {"default": own} if own else {}
     out = {}
     for level in LEVELS:
         for cls, _, _ in INPUT_NOISE[1:]:
@@ -275,13 +281,13 @@ def summary(per_window: list[dict], time_domain: dict | None) -> dict:
             if td is not None:
                 row["time_domain_structural"] = np.sqrt(np.mean([w[str(level)][f"{cls}|structural"] for w in td],
                                                                 axis=0)).tolist()
-                for j, name in enumerate(ESTIMATORS):
-                    r = np.array([e[str(level)][cls][j] for e in est])
-                    ok = np.all(np.isfinite(r), axis=1)
-                    sigma = r[ok].std(axis=0, ddof=1)
-                    row[f"sigma_{name}"] = sigma.tolist()
-                    for kind in ["time_domain_structural"] + kinds:
-                        row[f"sigma_{name}_over_{kind}"] = (sigma / np.array(row[kind])).tolist()
+            for name, per in est.items():
+                r = np.array([e[level][cls] for e in per])
+                ok = np.all(np.isfinite(r), axis=1)
+                sigma = r[ok].std(axis=0, ddof=1)
+                row[f"sigma_{name}"] = sigma.tolist()
+                for kind in (["time_domain_structural"] if td is not None else []) + kinds:
+                    row[f"sigma_{name}_over_{kind}"] = (sigma / np.array(row[kind])).tolist()
             out[f"{level}|{cls}"] = row
     return out
 
@@ -290,11 +296,39 @@ def summary(per_window: list[dict], time_domain: dict | None) -> dict:
 ESTIMATORS = ("default", "oracle_gls")
 
 
+def default_ratios(cases: dict, seed: int, n: int) -> list[dict]:
+    """Per window {level: {class: D/D_real}} of the default (``IdentifyConfig()``) on the noise draws of
+    ``input_noise_bound`` for ``seed`` (one generator per level and class, drawn for every class of every window);
+    NaN where it refuses the window."""
+    rngs = {(level, k): np.random.default_rng([seed, level, k]) for level in LEVELS for k in range(len(INPUT_NOISE))}
+    out = []
+    for i in range(n):
+        row: dict = {}
+        for level in LEVELS:
+            c = cases[level][i]
+            row[level] = {}
+            for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
+                w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])
+                if cls == "none":
+                    continue
+                try:
+                    row[level][cls] = (identify(w, config=IdentifyConfig()).d / c.truth.d).tolist()
+                except WindowError:
+                    row[level][cls] = [math.nan] * 4
+        out.append(row)
+    return out
+
+
 def honest_counts(summ: dict) -> dict[str, dict[str, int]]:
     """Per estimator and bound kind: the noisy cells × parameters (of 24) with σ ≤ 1.3 × that bound."""
-    kinds = [k.split("_over_", 1)[1] for k in next(iter(summ.values())) if k.startswith("sigma_default_over_")]
-    return {name: {kind: sum(int(np.sum(np.array(r[f"sigma_{name}_over_{kind}"]) <= 1.3)) for r in summ.values())
-                   for kind in kinds} for name in ESTIMATORS}
+    first = next(iter(summ.values()))
+    names = [k[len("sigma_"):] for k in first if k.startswith("sigma_") and "_over_" not in k]
+    out = {}
+    for name in names:
+        kinds = [k.split("_over_", 1)[1] for k in first if k.startswith(f"sigma_{name}_over_")]
+        out[name] = {kind: sum(int(np.sum(np.array(r[f"sigma_{name}_over_{kind}"]) <= 1.3)) for r in summ.values())
+                     for kind in kinds}
+    return out
 
 
 def _cells(row: dict, key: str, fmt: str = "{:.3f}") -> str:
@@ -303,16 +337,19 @@ def _cells(row: dict, key: str, fmt: str = "{:.3f}") -> str:
 
 def report(summ: dict) -> dict | None:
     """Print the bound table, the σ over the bounds and the honest count against each kind; the counts."""
-    kinds = ["time_domain_structural", "known_mean", "known"] + [f"learnt_{w:g}" for w in WIDTHS_HZ]
+    first = next(iter(summ.values()))
+    kinds = [k for k in ["time_domain_structural", "known_mean", "known"] + [f"learnt_{w:g}" for w in WIDTHS_HZ]
+             if k in first]
     head = ["DL", "input noise"] + [f"{k} a / b / H2 / Tm" for k in kinds]
-    rows = [[*key.split("|")] + [_cells(row, k) if k in row else "–" for k in kinds] for key, row in summ.items()]
+    rows = [[*key.split("|")] + [_cells(row, k) for k in kinds] for key, row in summ.items()]
     print(common.md_table(head, rows))
-    if not all("sigma_default" in r for r in summ.values()):
+    names = [k[len("sigma_"):] for k in first if k.startswith("sigma_") and "_over_" not in k]
+    if not names:
         return None
-    cols = ("time_domain_structural", "known", REFERENCE)
-    head = ["DL", "input noise"] + [f"σ {e}" for e in ESTIMATORS] + [f"{e} / {k}" for e in ESTIMATORS for k in cols]
-    rows = [[*key.split("|")] + [_cells(r, f"sigma_{e}") for e in ESTIMATORS]
-            + [_cells(r, f"sigma_{e}_over_{k}", "{:.2f}") for e in ESTIMATORS for k in cols] for key, r in summ.items()]
+    cols = [k for k in ("time_domain_structural", "known", REFERENCE) if k in first]
+    head = ["DL", "input noise"] + [f"σ {e}" for e in names] + [f"{e} / {k}" for e in names for k in cols]
+    rows = [[*key.split("|")] + [_cells(r, f"sigma_{e}") for e in names]
+            + [_cells(r, f"sigma_{e}_over_{k}", "{:.2f}") for e in names for k in cols] for key, r in summ.items()]
     print("\n" + common.md_table(head, rows))
     counts = honest_counts(summ)
     for name, per in counts.items():
@@ -324,27 +361,32 @@ def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None, help="windows (default 300; --quick 3)")
     ap.add_argument("--long-s", type=float, default=300.0, help="length of the clean realisation [s]")
+    ap.add_argument("--seed", type=int, default=CONFIRM_SEED,
+                    help=f"windows and draws (default {CONFIRM_SEED}: the default's and the oracle GLS's D from "
+                         "input_noise_bound --n 300; another seed runs the default here, without the oracle)")
     args = ap.parse_args(argv)
     n = args.n or (3 if args.quick else 300)
     td_path = common.RESULTS / "input_noise_bound_n300.json"
-    time_domain = json.loads(td_path.read_text()) if td_path.exists() else None
+    time_domain = json.loads(td_path.read_text()) if td_path.exists() and args.seed == CONFIRM_SEED else None
     if time_domain is not None and len(time_domain["per_window_relative_variance"]) < n:
         time_domain = None
-    cases = {level: common.cases(n, level=level, seed=CONFIRM_SEED) for level in LEVELS}
+    cases = {level: common.cases(n, level=level, seed=args.seed) for level in LEVELS}
+    own = default_ratios(cases, args.seed, n) if time_domain is None else None
     t0 = time.perf_counter()
     per_window = []
     for i in range(n):
         per_window.append(window_bounds({level: cases[level][i] for level in LEVELS}, args.long_s))
         if (i + 1) % 25 == 0:
             print(f"{i + 1} windows ({time.perf_counter() - t0:.0f} s)", flush=True)
-    summ = summary(per_window, time_domain)
+    summ = summary(per_window, time_domain, own)
     counts = report(summ)
-    out = {"machine": common.machine(), "n": n, "seed": CONFIRM_SEED, "long_s": args.long_s,
+    out = {"machine": common.machine(), "n": n, "seed": args.seed, "long_s": args.long_s,
            "widths_hz": list(WIDTHS_HZ), "reference": REFERENCE, "summary": summ, "honest_counts": counts,
-           "per_window_relative_variance": per_window, "total_s": time.perf_counter() - t0,
-           "load_avg_at_end": list(os.getloadavg())}
+           "per_window_relative_variance": per_window, "per_window_default": own,
+           "total_s": time.perf_counter() - t0, "load_avg_at_end": list(os.getloadavg())}
     if not args.no_write:
-        common.write_json("input_noise_bound_spectrum" + ("_quick" if args.quick else ""), out)
+        common.write_json("input_noise_bound_spectrum" + ("" if args.seed == CONFIRM_SEED else f"_seed{args.seed}")
+                          + ("_quick" if args.quick else ""), out)
     return out
 
 
