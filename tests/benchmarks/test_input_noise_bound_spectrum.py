@@ -142,3 +142,17 @@ def test_one_window_bounds_order_and_kinds():
         for cls in (low, high):
             assert np.all(b[f"{cls}|learnt_0.5"] >= b[f"{cls}|known"] * (1 - 1e-9))
         assert np.all(b[f"{low}|known"] <= b[f"{high}|known"])
+
+
+def test_default_on_other_seeds_uses_the_draws_of_the_other_benchmarks():
+    """``--seed``'s in-process default answers as the variants benchmark's default row on the same seed (the same
+    windows, noise draws and configuration)."""
+    from benchmarks import input_noise_variants as iv
+    from benchmarks.input_noise_bound_spectrum import default_ratios
+
+    cases = {level: common.cases(1, level=level, seed=41) for level in LEVELS}
+    own = default_ratios(cases, 41, 1)[0]
+    per, _ = iv.run(1, 41, [])
+    for level in LEVELS:
+        for cls, ratio in own[level].items():
+            np.testing.assert_allclose(ratio, per[f"{level}|{cls}|default"][0], rtol=1e-12)
