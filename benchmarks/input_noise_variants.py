@@ -16,6 +16,8 @@ per level, both PMU classes), every noisy window is identified by the default (`
 * ``floor_outside``, ``no_floor`` (stop 45): the refinement's S with the residual periodogram's floor on its diagonal
   kept only in the bins where the model's S has no input-error content (H·P_x·Hᴴ ≤ 1e-3 of the white floor: above the
   smoother's spectrum), or not at all (:func:`residual_floor`);
+* ``em`` (stop 45): the spectrum by the joint likelihood of the measured V, θ, P and Q with the inputs latent, H at the
+  output-error D (:func:`em_spectrum`);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
   the smoother, the output-error stage's prefilter too — and each parameter's median of the three (``widths_median``) or
   the run nearest that median (``widths_medoid``, distance in units of each parameter's spread over the cell's windows).
@@ -29,9 +31,10 @@ windows off by more than 20 % per class; JSON ``docs/results/input_noise_variant
 
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 [--n 300] [--variants pq,avg,ptail,wpl,widths]
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_outside,no_floor --tag floor
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants em --tag em
 
 Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)"; the floor
-variants "Stop 45: the bound with the inputs' spectrum learnt from the window".
+variants and ``em`` "Stop 45: the bound with the inputs' spectrum learnt from the window".
 """
 
 from __future__ import annotations
@@ -55,7 +58,7 @@ from aslm_core.problem import Problem  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, with_input_noise  # noqa: E402
 
-VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor")
+VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em")
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none"}
 #: ``floor_outside``: the model's S counts as having input-error content above this fraction of the white floor [-].
 FLOOR_CONTENT_REL = 1e-3
@@ -148,7 +151,61 @@ def own_spectrum(window, config, whittle: bool) -> noise.InputSpectrum:
     return noise.InputSpectrum(f, s, 1)
 
 
+def em_spectrum(window, config, d0: np.ndarray, skip_s: float, iters: int = 30) -> noise.InputSpectrum | None:
+    """The inputs' signal spectrum by the joint likelihood of the measured V, θ, P and Q with the inputs latent (``em``):
+    per rfft bin of the regression samples u = x + n, y = H·x + v (H the model's response at the output-error D, as
+    the refinement forms it; n, v white at the window's floors), x ~ CN(0, S_x); EM over x, its M-step averaged over
+    the smoother's width (0.5 Hz) as the window's own estimate is, from that estimate plus a tenth of the floor; zero
+    from 5 Hz."""
+    prep = preprocess.prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
+                              floors=True, input_smoother="wiener", input_tail=config.input_spectrum_tail)
+    pb = Problem(prep, window.f0, replace(config, skip_s=skip_s))
+    if not input_weighting._simulate(pb, d0):
+        return None
+    k0, l = pb.k0, pb.l
+    resid = np.column_stack([pb.p_meas - pb._p[k0:], pb.q_meas - pb._q[k0:]])
+    beta = np.linalg.solve(pb.r_factor, pb.basis.T @ resid)
+    h = input_weighting.impulse_response(pb, d0, beta[:, 0], beta[:, 1])
+    if h is None:
+        return None
+    raw = preprocess.prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=0.0)
+    x = np.stack([raw.V[k0:], raw.theta[k0:], pb.p_meas, pb.q_meas])
+    taper, ww = noise._taper(l)
+    z = np.fft.rfft(noise._detrend(x) * taper, axis=1) / math.sqrt(ww)  # E|z|² = the per-sample spectrum
+    freqs = np.fft.rfftfreq(l, pb.dt)
+    m = freqs.size
+    # h[k] is the response k − 2 samples after the impulse: undo that delay for y = H·x bin by bin.
+    hf = np.fft.rfft(h, axis=0) * np.exp(2j * np.pi * 2.0 * np.arange(m) / l)[:, None, None]
+    ru = np.array([prep.noise["noise_v"] ** 2, prep.noise["noise_theta"] ** 2])
+    ry = np.array([prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2])
+    if np.any(ru <= 0.0) or np.any(ry <= 0.0):
+        return None
+    top = int(np.searchsorted(freqs, noise.FLOOR_FROM_HZ))
+    k = np.arange(1, top)
+    u, y, hk = z[:2, k].T, z[2:, k].T, hf[k]
+    own = noise._given_spectrum(noise.pooled_spectrum([noise.input_periodogram(x[:2], 1.0 / pb.dt)]), freqs[k])
+    s = own + 0.1 * np.diag(ru)
+    hr = hk.conj().transpose(0, 2, 1) / ry[None, None, :]  # Hᴴ·R_y⁻¹
+    prec = np.diag(1.0 / ru)[None] + hr @ hk
+    b = u / ru[None, :] + (hr @ y[:, :, None])[:, :, 0]
+    width = max(1, int(round(noise.WIENER_SMOOTH_HZ * l * pb.dt)))
+    for _ in range(iters):
+        cov = np.linalg.inv(np.linalg.inv(s) + prec)
+        mu = (cov @ b[:, :, None])[:, :, 0]
+        e = np.einsum("ki,kj->kij", mu, mu.conj()) + cov
+        s = np.empty_like(e)
+        for i in range(2):
+            for j in range(2):
+                s[:, i, j] = noise._moving_average(e[:, i, j], width)
+        s = 0.5 * (s + s.conj().transpose(0, 2, 1)) + 1e-12 * np.diag(ru)[None]
+    out = np.zeros((m, 2, 2), dtype=complex)
+    out[k] = s
+    return noise.InputSpectrum(freqs, out, 1)
+
+
 def _spectrum(variant: str, window, config, d0, skip_s) -> noise.InputSpectrum | None:
+    if variant == "em":
+        return em_spectrum(window, config, d0, skip_s)
     if variant in ("ptail", "wpl"):
         return own_spectrum(window, config, whittle=variant == "wpl")
     pq = pq_spectrum(window, config, d0, skip_s)

@@ -8,8 +8,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from aslm_core import input_weighting, noise  # noqa: E402
+from aslm_core import identify, input_weighting, noise, preprocess  # noqa: E402
+from benchmarks import common  # noqa: E402
 from benchmarks import input_noise_variants as iv  # noqa: E402
+from benchmarks.input_noise_bound import INPUT_NOISE, TAIL, with_input_noise  # noqa: E402
 
 
 def test_each_variant_changes_the_answer_and_the_core_is_restored_afterwards():
@@ -92,3 +94,27 @@ def test_the_floor_variants_reach_the_refinements_weighting_and_restore_it():
     np.testing.assert_allclose(w00[4:], 1 / np.sqrt(6.0))
     np.testing.assert_allclose(w11[4:], 1 / np.sqrt(6.0))
     assert input_weighting.whitening is iv._WHITENING
+
+
+def test_the_em_spectrum_is_a_spectrum_near_the_windows_own_where_the_signal_is_strong():
+    """Stop 45's ``em``: Hermitian, non-negative, zero from 5 Hz, and where V and θ stand well above their floors
+    (0.3–1.5 Hz) within a factor of two of the window's own estimate; handed in, it moves the refinement's answer."""
+    case = common.cases(1, level=2, seed=41)[0]
+    rng = np.random.default_rng(0)
+    _, v_rel, th = INPUT_NOISE[2]
+    w = with_input_noise(case.window, case.clean, v_rel, th, rng)
+    r = identify(w, config=TAIL)
+    spec = iv.em_spectrum(w, TAIL, r.d, r.quality["skip_s"])
+    assert spec is not None
+    s, f = spec.s, spec.freqs
+    np.testing.assert_allclose(s, s.conj().transpose(0, 2, 1), atol=1e-15)
+    assert np.linalg.eigvalsh(s).min() > -1e-12 * np.abs(s).max()
+    assert np.all(s[f >= noise.FLOOR_FROM_HZ] == 0)
+    own = noise._given_spectrum(noise.pooled_spectrum([preprocess.input_periodogram(w)]), f)
+    band = (f > 0.3) & (f < 1.5)
+    for c in range(2):
+        ratio = s[band, c, c].real.sum() / own[band, c, c].real.sum()
+        assert 0.5 < ratio < 2.0, (c, ratio)
+    per, _ = iv.run(1, 41, ["em"])
+    key = "2|0.1 % / 1e-3 rad|"
+    assert not np.allclose(np.array(per[key + "em"]), np.array(per[key + "default"]), rtol=0, atol=1e-9)
