@@ -18,6 +18,8 @@ per level, both PMU classes), every noisy window is identified by the default (`
   smoother's spectrum), or not at all (:func:`residual_floor`);
 * ``em`` (stop 45): the spectrum by the joint likelihood of the measured V, θ, P and Q with the inputs latent, H at the
   output-error D (:func:`em_spectrum`);
+* ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
+  thirty-third of the rate instead of a tenth (5 or 3 Hz at 100 frames/s);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
   the smoother, the output-error stage's prefilter too — and each parameter's median of the three (``widths_median``) or
   the run nearest that median (``widths_medoid``, distance in units of each parameter's spread over the cell's windows).
@@ -32,9 +34,10 @@ windows off by more than 20 % per class; JSON ``docs/results/input_noise_variant
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 [--n 300] [--variants pq,avg,ptail,wpl,widths]
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_outside,no_floor --tag floor
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants em --tag em
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants band5,band3 --tag band
 
 Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)"; the floor
-variants and ``em`` "Stop 45: the bound with the inputs' spectrum learnt from the window".
+variants, ``em`` and the bands "Stop 45: the bound with the inputs' spectrum learnt from the window".
 """
 
 from __future__ import annotations
@@ -58,7 +61,9 @@ from aslm_core.problem import Problem  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, with_input_noise  # noqa: E402
 
-VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em")
+VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3")
+#: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
+BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none"}
 #: ``floor_outside``: the model's S counts as having input-error content above this fraction of the white floor [-].
 FLOOR_CONTENT_REL = 1e-3
@@ -309,6 +314,13 @@ def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict]:
                             with smoother_width(hz):
                                 runs.append(_measure(w, c.truth.d))
                         rows["widths_runs"] = ([r for r, _ in runs], [e for _, e in runs])
+                    elif variant in BAND_VARIANTS:
+                        old = input_weighting.BAND_FRACTION
+                        input_weighting.BAND_FRACTION = BAND_VARIANTS[variant]
+                        try:
+                            rows[variant] = _measure(w, c.truth.d)
+                        finally:
+                            input_weighting.BAND_FRACTION = old
                     elif variant in FLOOR_VARIANTS:
                         with residual_floor(FLOOR_VARIANTS[variant]):
                             rows[variant] = _measure(w, c.truth.d)
