@@ -67,15 +67,16 @@ def test_the_honest_count_compares_each_rows_spread_with_its_windows_bound(tmp_p
 
 
 def test_the_floor_variants_reach_the_refinements_weighting_and_restore_it():
-    """Stop 45's residual-floor variants move the refinement's answer on a noisy window, keep the model's S where it has
+    """Stop 45's residual-floor and band variants move the refinement's answer on a noisy window, keep the model's S where it has
     input-error content (``outside``: below the floor's reach, the weighting equals the model's), and leave
     ``input_weighting`` as it was."""
-    per, _ = iv.run(1, 41, ["floor_outside", "no_floor"])
+    per, _ = iv.run(1, 41, ["floor_outside", "no_floor", "band3"])
     assert input_weighting.disturbance_spectrum is iv._DISTURBANCE_SPECTRUM
     assert input_weighting.whitening is iv._WHITENING and input_weighting.RESIDUAL_SMOOTH_HZ == 1.0
+    assert input_weighting.BAND_FRACTION == 0.1
     key = "3|0.1 % / 1e-3 rad|"
     d = np.array(per[key + "default"])
-    for name in ("floor_outside", "no_floor"):
+    for name in ("floor_outside", "no_floor", "band3"):
         assert not np.allclose(np.array(per[key + name]), d, rtol=0, atol=1e-9), name
     # The "outside" hooks: S formed with input-error content in the first four bins only; a floor added to the whole
     # diagonal afterwards (as build_weighting adds it) is taken back where the model has content.
