@@ -13,7 +13,7 @@ bin k = 1 … l/2 − 1 of the regression samples holds z = (V, θ, P, Q), compl
 
 H(f; D, g) the model's [P; Q] response to [V; θ] (the motor by the compiled simulator's impulse response and its
 forward sensitivities ∂/∂D; the static part its slope g on V, a nuisance), S_x the inputs' true signal cross-spectrum
-(Welch, 10 s Hann segments, over a 300 s clean realisation of the same load and network:
+(Welch, Hann segments of the regression length, over a 300 s clean realisation of the same load and network:
 ``input_noise_bound.long_inputs``), R_u the PMU class's white noise, R_y the P and Q noise injected at the level.
 The Fisher information Σ_k tr(Σ⁻¹ ∂_iΣ Σ⁻¹ ∂_jΣ) (Whittle) gives
 
@@ -23,17 +23,20 @@ The Fisher information Σ_k tr(Σ⁻¹ ∂_iΣ Σ⁻¹ ∂_jΣ) (Whittle) gives
 * ``learnt_<w>``: the bound with S_x unknown in bands of w Hz: per band a Hermitian 2×2 relative deviation
   S_x^{1/2}·(I + E_b)·S_x^{1/2} (four real nuisance parameters a band) estimated from the same data.  An estimator that
   assumes of the spectrum only that it is smooth over w Hz cannot beat it; one that assumes more (a parametric shape)
-  could.  ``learnt_0.5_band`` and ``learnt_0.5_below_5hz``: the reference over the bins up to a tenth of the rate (the
-  S-weighted refinement's band) and below 5 Hz only (added after the first runs, as a sensitivity: how much information
-  lies where the identifier's model departs from the data).  **0.5 Hz is the reference** (the width the default's smoother averages the window's spectrum over,
+  could.  **0.5 Hz is the reference** (the width the default's smoother averages the window's spectrum over,
   ``noise.WIENER_SMOOTH_HZ``), fixed with this docstring before any figure of it was seen (2026-12-03); 0.25, 1 and
-  2 Hz are shown as the sensitivity to that choice.
+  2 Hz are shown as the sensitivity to that choice;
+* ``learnt_0.5_band``, ``learnt_0.5_below_5hz``: the reference over the bins up to a tenth of the rate (the S-weighted
+  refinement's band) and below 5 Hz only (added after the first runs, as a sensitivity: how much information lies where
+  the identifier's model departs from the data).
 
-Reported per level and class: RMS relative bound (√ mean var/D²) of each kind, the time-domain structural bound of the
-same windows (``input_noise_bound_n300.json``), and the default's σ on them (the same file's per-window D) over the
-``known`` and ``learnt_0.5`` bounds; JSON ``docs/results/input_noise_bound_spectrum.json``.
+Reported per level and class: RMS relative bound (√ mean var/D²) of each kind and, on seed 43, the time-domain structural
+bound of the same windows (``input_noise_bound_n300.json``); σ of the default and of the oracle GLS (that file's
+per-window D) over each bound, and per estimator and kind the noisy cells × parameters within 1.3 × (issue 11's honest
+version); JSON ``docs/results/input_noise_bound_spectrum.json``.  ``--seed`` other than 43 runs the default here on
+``input_noise_bound``'s draws for that seed (no oracle, no time-domain bound; JSON ``…_seed<seed>.json``).
 
-    .venv/bin/python -m benchmarks.input_noise_bound_spectrum [--n 300] [--long-s 300]
+    .venv/bin/python -m benchmarks.input_noise_bound_spectrum [--n 300] [--long-s 300] [--seed 43]
 """
 
 from __future__ import annotations
@@ -58,8 +61,6 @@ from benchmarks.input_noise_bound import LEVELS, MODEL, long_inputs, static_coef
 
 #: Nuisance band widths of the learnt spectrum [Hz]; the first is the reference (module docstring).
 WIDTHS_HZ = (0.5, 0.25, 1.0, 2.0)
-#: Relative step of the impulse in V and θ (as ``input_weighting.IMPULSE_STEP``, relative to nothing: pu, rad).
-IMPULSE = 1e-4
 #: The reference the honest count is taken against, and its band width [Hz].
 REFERENCE = "learnt_0.5"
 REFERENCE_HZ = 0.5
@@ -100,17 +101,18 @@ def transfer(case, d: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray,
 
     resp = np.zeros((l, 10, 2))
     base = (prep.V, prep.theta)
+    step = input_weighting.IMPULSE_STEP
     for c in range(2):
         up, down = base[c].copy(), base[c].copy()
-        up[j] += IMPULSE
-        down[j] -= IMPULSE
+        up[j] += step
+        down[j] -= step
         hi = run(up, base[1]) if c == 0 else run(base[0], up)
         lo = run(down, base[1]) if c == 0 else run(base[0], down)
-        resp[: n - j + 2, :, c] = (hi - lo) / (2.0 * IMPULSE)
+        resp[: n - j + 2, :, c] = (hi - lo) / (2.0 * step)
     bp, bq = static_coefficients(case.truth)
     vj = np.array([float(np.mean(prep.V[k0:]))])
-    dphi = (static.regressors(vj + IMPULSE, MODEL.static) - static.regressors(vj - IMPULSE, MODEL.static))[0]
-    dphi /= 2.0 * IMPULSE
+    dphi = (static.regressors(vj + step, MODEL.static) - static.regressors(vj - step, MODEL.static))[0]
+    dphi /= 2.0 * step
     resp[2, 0, 0] += float(dphi @ bp)
     resp[2, 1, 0] += float(dphi @ bq)
     f = np.fft.rfft(resp, axis=0)  # (m, 10, 2)
