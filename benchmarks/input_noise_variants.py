@@ -29,7 +29,8 @@ history uses) by standing in for :func:`aslm_core.input_weighting.weighted_fit` 
 for :func:`aslm_core.noise.wiener_smooth`, the floor variants for the refinement's spectrum and whitening functions.
 Nothing in ``aslm_core`` is changed.  Printed per variant: σ of D/D_real
 over the default's per cell (median and range over the noisy cells × parameters, Tm at 0.1 % / 1e-3 rad per DL) and the
-windows off by more than 20 % per class; JSON ``docs/results/input_noise_variants_seed<seed>.json`` (per window D/D_real).
+windows off by more than 20 % per class; JSON ``docs/results/input_noise_variants_seed<seed>[_<tag>].json`` (per window
+D/D_real).
 
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 [--n 300] [--variants pq,avg,ptail,wpl,widths]
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_outside,no_floor --tag floor
