@@ -75,19 +75,27 @@ _DISTURBANCE_SPECTRUM = input_weighting.disturbance_spectrum
 _WHITENING = input_weighting.whitening
 
 
-def pq_spectrum(window, config, d0: np.ndarray, skip_s: float) -> noise.InputSpectrum | None:
-    """The inputs' signal spectrum read through the measured P and Q at the output-error D (module docstring)."""
+def response_at(window, config, d0: np.ndarray, skip_s: float):
+    """The window prepared as the S-weighted refinement prepares it, its :class:`Problem` simulated at d0, and the
+    model's impulse response there with the plain fit's static coefficients (as the refinement forms H); None when the
+    model cannot be simulated or H formed."""
     prep = preprocess.prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
                               floors=True, input_smoother="wiener", input_tail=config.input_spectrum_tail)
     pb = Problem(prep, window.f0, replace(config, skip_s=skip_s))
     if not input_weighting._simulate(pb, d0):
         return None
-    k0 = pb.k0
-    resid = np.column_stack([pb.p_meas - pb._p[k0:], pb.q_meas - pb._q[k0:]])
+    resid = np.column_stack([pb.p_meas - pb._p[pb.k0:], pb.q_meas - pb._q[pb.k0:]])
     beta = np.linalg.solve(pb.r_factor, pb.basis.T @ resid)
     h = input_weighting.impulse_response(pb, d0, beta[:, 0], beta[:, 1])
-    if h is None:
+    return None if h is None else (prep, pb, h)
+
+
+def pq_spectrum(window, config, d0: np.ndarray, skip_s: float) -> noise.InputSpectrum | None:
+    """The inputs' signal spectrum read through the measured P and Q at the output-error D (module docstring)."""
+    at = response_at(window, config, d0, skip_s)
+    if at is None:
         return None
+    _, pb, h = at
     sy = noise.pooled_spectrum([noise.input_periodogram(np.vstack([pb.p_meas, pb.q_meas]), 1.0 / pb.dt)])
     hm = np.fft.rfft(h, axis=0)[:sy.freqs.size]
     try:
@@ -163,17 +171,11 @@ def em_spectrum(window, config, d0: np.ndarray, skip_s: float, iters: int = 30) 
     the refinement forms it; n, v white at the window's floors), x ~ CN(0, S_x); EM over x, its M-step averaged over
     the smoother's width (0.5 Hz) as the window's own estimate is, from that estimate plus a tenth of the floor; zero
     from 5 Hz."""
-    prep = preprocess.prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
-                              floors=True, input_smoother="wiener", input_tail=config.input_spectrum_tail)
-    pb = Problem(prep, window.f0, replace(config, skip_s=skip_s))
-    if not input_weighting._simulate(pb, d0):
+    at = response_at(window, config, d0, skip_s)
+    if at is None:
         return None
+    prep, pb, h = at
     k0, l = pb.k0, pb.l
-    resid = np.column_stack([pb.p_meas - pb._p[k0:], pb.q_meas - pb._q[k0:]])
-    beta = np.linalg.solve(pb.r_factor, pb.basis.T @ resid)
-    h = input_weighting.impulse_response(pb, d0, beta[:, 0], beta[:, 1])
-    if h is None:
-        return None
     raw = preprocess.prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=0.0)
     x = np.stack([raw.V[k0:], raw.theta[k0:], pb.p_meas, pb.q_meas])
     taper, ww = noise._taper(l)
