@@ -23,7 +23,18 @@ for ``known`` checks the machinery (Monte Carlo error ~ 1/√(2·draws·windows)
 learnt bound the best estimator of the spectrum-learning model stays on a window this long.  JSON
 ``docs/results/input_noise_bound_attain.json``.
 
+``--windows``: the same maximum likelihood on the simulated windows themselves instead of draws from the model — the
+joint likelihood over latent V and θ done in the frequency domain (issue 11's last candidate): per noisy window, H and
+∂H at the default's D (its impulse responses through the compiled simulator, the static slopes from the plain fit
+there, as the S-weighted refinement forms H), z the tapered DFT of the measured V, θ, P, Q over the regression samples
+(``--taper tukey``: the 10 % Tukey taper of :mod:`aslm_core.noise`; ``hann``), R_u and R_y the window's floors, S_x
+started from the window's own estimate, bins up to :data:`TOP_HZ`; D/D_real next to the default's on the same windows
+and draws (``input_noise_bound``'s, ``--seed``), and per window how far the DFTs depart from the model's Y = H·X on the
+clean record (the relative power of Y − H·X per band) against the time-domain linear model's departure.  JSON
+``…_windows_<taper>.json``.
+
     .venv/bin/python -m benchmarks.input_noise_bound_attain [--n 20] [--draws 200] [--seed 53]
+    .venv/bin/python -m benchmarks.input_noise_bound_attain --windows --n 100 --seed 41 [--taper tukey|hann]
 """
 
 from __future__ import annotations
@@ -33,16 +44,17 @@ import os
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
-import json  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from aslm_core import identify, input_weighting, noise, preprocess  # noqa: E402
 from benchmarks import common  # noqa: E402
-from benchmarks.input_noise import INPUT_NOISE  # noqa: E402
-from benchmarks.input_noise_bound import LEVELS, long_inputs  # noqa: E402
+from benchmarks.input_noise import INPUT_NOISE, with_input_noise  # noqa: E402
+from benchmarks.input_noise_bound import LEVELS, TAIL, long_inputs  # noqa: E402
 from benchmarks.input_noise_bound_spectrum import _E, _sqrtm, signal_spectrum, transfer  # noqa: E402
+from benchmarks.input_noise_variants import response_at  # noqa: E402
 
 #: Band width of the learnt spectrum's nuisance [Hz] (the reference of ``input_noise_bound_spectrum``).
 WIDTH_HZ = 0.5
@@ -141,6 +153,22 @@ def reduced(score: np.ndarray, fisher: np.ndarray, band: np.ndarray | None) -> t
     return g, f, parts
 
 
+def _trial(z: np.ndarray, h: np.ndarray, sx: np.ndarray, step: np.ndarray, alpha: float, dh: np.ndarray, eig: dict,
+           band: np.ndarray | None, root: np.ndarray | None, ru: np.ndarray, ry: np.ndarray) -> tuple:
+    """(log-likelihood, H, S_x, Σ) after α times the step: H moved along ∂H, each band's S_x by exp(α·ΔE) in its
+    eigenbasis with the exponents clipped at ±STEP_LOG (``eig``: per band the eigenpairs of ΔE)."""
+    h_t = h + np.tensordot(alpha * step, dh, axes=1)
+    sx_t = sx
+    if band is not None:
+        rel = np.empty_like(sx)
+        for b, (lam, vec) in eig.items():
+            rel[band == b] = (vec * np.exp(np.clip(alpha * lam, -STEP_LOG, STEP_LOG))) @ vec.conj().T
+        sx_t = root @ rel @ root
+        sx_t = 0.5 * (sx_t + sx_t.conj().transpose(0, 2, 1))
+    s_t = sigma(h_t, sx_t, ru, ry)
+    return loglik(z, s_t), h_t, sx_t, s_t
+
+
 def ml_fit(z: np.ndarray, freqs: np.ndarray, h0: np.ndarray, dh: np.ndarray, sx0: np.ndarray, ru: np.ndarray,
            ry: np.ndarray, learnt: bool) -> tuple[np.ndarray, bool]:
     """Maximum-likelihood deviation of the six parameters from the truth on one draw z (m, 4), by Fisher scoring from
@@ -162,24 +190,11 @@ def ml_fit(z: np.ndarray, freqs: np.ndarray, h0: np.ndarray, dh: np.ndarray, sx0
         # positive spectrum, and a band whose likelihood peaks on the boundary (a singular S_x) approaches it
         # geometrically instead of holding every other step back.
         eig = {b: np.linalg.eigh(np.tensordot(p, _E, axes=1)) for b, p in psi.items()}
-
-        def trial(alpha: float) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
-            h_t = h + np.tensordot(alpha * step, dh, axes=1)
-            sx_t = sx
-            if learnt:
-                rel = np.empty_like(sx)
-                for b, (lam, vec) in eig.items():
-                    rel[band == b] = (vec * np.exp(np.clip(alpha * lam, -STEP_LOG, STEP_LOG))) @ vec.conj().T
-                sx_t = root @ rel @ root
-                sx_t = 0.5 * (sx_t + sx_t.conj().transpose(0, 2, 1))
-            s_t = sigma(h_t, sx_t, ru, ry)
-            return loglik(z, s_t), h_t, sx_t, s_t
-
         # The better of the full and the half step (scoring's expected information can overshoot the observed
         # curvature and alternate about the optimum), halved further while neither raises the likelihood.
         alpha, accepted = 1.0, False
         for _ in range(30):
-            full, half = trial(alpha), trial(0.5 * alpha)
+            full, half = (_trial(z, h, sx, step, a, dh, eig, band, root, ru, ry) for a in (alpha, 0.5 * alpha))
             if max(full[0], half[0]) >= ll:
                 if half[0] > full[0]:
                     alpha, full = 0.5 * alpha, half
@@ -262,12 +277,143 @@ def summary(per_window: list[dict]) -> dict:
     return out
 
 
+#: Bands over which ``--windows`` compares the DFTs with Y = H·X [Hz].
+MISFIT_BANDS = ((0.0, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 5.0))
+
+
+def taper_of(l: int, kind: str) -> np.ndarray:
+    """The taper of l samples: ``tukey`` (:mod:`aslm_core.noise`'s 10 % Tukey) or ``hann``."""
+    return noise._taper(l)[0] if kind == "tukey" else np.hanning(l)
+
+
+def window_model(window, d: np.ndarray, skip_s: float, taper: str) -> tuple | None:
+    """The frequency-domain model of a window at D: (freqs, z (m, 4), H, ∂H (6, m, 2, 2), R_u, R_y, S_x start), the
+    DFTs normalised so that E|z|² is the per-sample spectrum; None where H cannot be formed (``--windows``)."""
+    at = response_at(window, TAIL, d, skip_s)
+    if at is None:
+        return None
+    _, pb, h = at
+    resid = np.column_stack([pb.p_meas - pb._p[pb.k0:], pb.q_meas - pb._q[pb.k0:]])
+    beta = np.linalg.solve(pb.r_factor, pb.basis.T @ resid)
+    dh = np.zeros((6,) + h.shape)
+    for j in range(4):
+        e = np.zeros(4)
+        e[j] = 1e-4 * max(abs(d[j]), 1e-3)
+        hp = input_weighting.impulse_response(pb, d + e, beta[:, 0], beta[:, 1])
+        hm = input_weighting.impulse_response(pb, d - e, beta[:, 0], beta[:, 1])
+        if hp is None or hm is None:
+            return None
+        dh[j] = (hp - hm) / (2.0 * e[j])
+    dh[4, 2, 0, 0] = dh[5, 2, 1, 0] = 1.0  # the static slopes act in the impulse's sample (h[k]: k − 2 after it)
+    l, k0 = pb.l, pb.k0
+    raw = preprocess.prepare(window, floors=True)
+    x = np.stack([raw.V[k0:], raw.theta[k0:], raw.P[k0:], raw.Q[k0:]])
+    tp = taper_of(l, taper)
+    z = np.fft.rfft(noise._detrend(x) * tp, axis=1).T / math.sqrt(float(tp @ tp))
+    freqs = np.fft.rfftfreq(l, pb.dt)
+    delay = np.exp(2j * np.pi * 2.0 * np.arange(freqs.size) / l)  # undo h's two-sample lead
+    hf = np.fft.rfft(h, axis=0) * delay[:, None, None]
+    dhf = np.fft.rfft(dh, axis=1) * delay[None, :, None, None]
+    fl = raw.noise
+    ru = np.diag([fl["noise_v"] ** 2, fl["noise_theta"] ** 2]).astype(complex)
+    ry = np.diag([fl["noise_p"] ** 2, fl["noise_q"] ** 2]).astype(complex)
+    own = noise.pooled_spectrum([noise.input_periodogram(x[:2], 1.0 / pb.dt)], top_hz=TOP_HZ + noise.WIENER_SMOOTH_HZ)
+    sx0 = noise._given_spectrum(own, freqs) + 0.1 * ru  # positive where the window's estimate is not
+    return freqs, z, hf, dhf, ru, ry, sx0
+
+
+def misfit(case, taper: str) -> tuple[list[float], float]:
+    """On the clean record at the truth: the relative power of P's Y − H·X per :data:`MISFIT_BANDS` band of the tapered
+    DFTs, and the time-domain linear model's relative error power (the convolution of h with the inputs' deviations,
+    the window's samples before the regression its history)."""
+    d = np.asarray(case.truth.d, dtype=np.float64)
+    freqs, z, hf, _, _, _, _ = window_model(case.clean, d, 1.0, taper)
+    y = np.einsum("kij,kj->ki", hf, z[:, :2])[:, 0]
+    out = []
+    for lo, hi in MISFIT_BANDS:
+        sel = (freqs > lo) & (freqs <= hi)
+        out.append(float(np.sum(np.abs(z[sel, 2] - y[sel]) ** 2) / np.sum(np.abs(z[sel, 2]) ** 2)))
+    _, pb, h = response_at(case.clean, TAIL, d, 1.0)
+    raw = preprocess.prepare(case.clean)
+    n, k0 = raw.V.size, pb.k0
+    dv, dth = raw.V - raw.V.mean(), raw.theta - raw.theta.mean()
+    lin = np.zeros(n)
+    for k in range(pb.l):  # y[t] = Σ_k h[k]·x[t − k + 2]
+        s = k - 2
+        src = slice(0, n - s) if s >= 0 else slice(-s, n)
+        dst = slice(s, n) if s >= 0 else slice(0, n + s)
+        lin[dst] += h[k, 0, 0] * dv[src] + h[k, 0, 1] * dth[src]
+    a, b = noise._detrend(raw.P[k0:]), noise._detrend(lin[k0:])
+    return out, float(np.sum((a - b) ** 2) / np.sum(a**2))
+
+
+def windows_run(n: int, seed: int, taper: str) -> dict:
+    """``--windows`` (module docstring): per level and noisy class the per-window D/D_real of the default and of the
+    maximum likelihood on the window's DFTs, and per window the model's misfit on the clean record."""
+    cases = {level: common.cases(n, level=level, seed=seed) for level in LEVELS}
+    rngs = {(level, k): np.random.default_rng([seed, level, k]) for level in LEVELS for k in range(len(INPUT_NOISE))}
+    per: dict[str, dict[str, list]] = {}
+    mis = []
+    for i in range(n):
+        mis.append(misfit(cases[LEVELS[-1]][i], taper))
+        for level in LEVELS:
+            c = cases[level][i]
+            for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
+                w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])  # drawn for every class
+                if cls == "none":
+                    continue
+                r = identify(w, config=TAIL)
+                cell = per.setdefault(f"{level}|{cls}", {"default": [], "window_ml": []})
+                cell["default"].append((r.d / c.truth.d).tolist())
+                model = window_model(w, r.d, float(r.quality.get("skip_s", 1.0)), taper)
+                if model is None:
+                    cell["window_ml"].append([math.nan] * 4)
+                    continue
+                freqs, z, hf, dhf, ru, ry, sx0 = model
+                sel = (freqs > 0) & (freqs <= TOP_HZ)
+                delta, _ = ml_fit(z[sel], freqs[sel], hf[sel], dhf[:, sel], sx0[sel], ru, ry, True)
+                cell["window_ml"].append(((r.d + delta[:4]) / c.truth.d).tolist())
+        if (i + 1) % 10 == 0:
+            print(f"{i + 1} windows", flush=True)
+    return {"per_window": per, "misfit": mis}
+
+
+def windows_report(run: dict) -> None:
+    """Print σ and μ of D/D_real per cell and estimator, and the misfit's medians and ranges."""
+    rows = []
+    for cell, est in run["per_window"].items():
+        for name, r in est.items():
+            r = np.array(r)
+            ok = np.all(np.isfinite(r), axis=1)
+            rows.append([*cell.split("|"), name, " / ".join(f"{x:.3f}" for x in r[ok].std(axis=0, ddof=1)),
+                         " / ".join(f"{x:.3f}" for x in r[ok].mean(axis=0)), str(int((~ok).sum()))])
+    print(common.md_table(["DL", "input noise", "estimator", "σ a / b / H2 / Tm", "μ", "refused"], rows))
+    bands = np.array([m[0] for m in run["misfit"]])
+    td = np.array([m[1] for m in run["misfit"]])
+    print("P's |Y − H·X|² / |Y|² on the clean records, median [min, max]: "
+          + ", ".join(f"{lo:g}–{hi:g} Hz {np.median(bands[:, j]):.2g} [{bands[:, j].min():.2g}, {bands[:, j].max():.2g}]"
+                      for j, (lo, hi) in enumerate(MISFIT_BANDS))
+          + f"; time-domain linear model {np.median(td):.2g} [{td.min():.2g}, {td.max():.2g}]")
+
+
 def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=None, help="windows (default 20; --quick 1)")
     ap.add_argument("--draws", type=int, default=None, help="draws per window and cell (default 200; --quick 20)")
     ap.add_argument("--seed", type=int, default=SEED, help=f"windows (default {SEED})")
+    ap.add_argument("--windows", action="store_true", help="the maximum likelihood on the windows' own DFTs")
+    ap.add_argument("--taper", choices=("tukey", "hann"), default="tukey", help="--windows: the DFTs' taper")
     args = ap.parse_args(argv)
+    if args.windows:
+        n = args.n or (2 if args.quick else 100)
+        t0 = time.perf_counter()
+        run = windows_run(n, args.seed, args.taper)
+        windows_report(run)
+        out = {"machine": common.machine(), "n": n, "seed": args.seed, "taper": args.taper, "top_hz": TOP_HZ, **run,
+               "total_s": time.perf_counter() - t0, "load_avg_at_end": list(os.getloadavg())}
+        if not args.no_write:
+            common.write_json(f"input_noise_bound_attain_windows_{args.taper}" + ("_quick" if args.quick else ""), out)
+        return out
     n = args.n or (1 if args.quick else 20)
     draws = args.draws or (20 if args.quick else 200)
     cases = {level: common.cases(n, level=level, seed=args.seed) for level in LEVELS}
