@@ -156,3 +156,22 @@ def test_default_on_other_seeds_uses_the_draws_of_the_other_benchmarks():
     for level in LEVELS:
         for cls, ratio in own[level].items():
             np.testing.assert_allclose(ratio, per[f"{level}|{cls}|default"][0], rtol=1e-12)
+
+
+def test_efficiency_scores_the_stored_default_against_the_stored_bounds():
+    """``--efficiency`` re-runs the default on the stored run's windows and draws: its z on seed 53's first windows is
+    the stored default's error over the stored reference bound, window by window."""
+    import json
+
+    from benchmarks.input_noise_bound_spectrum import REFERENCE, efficiency
+
+    stored = json.loads((common.RESULTS / "input_noise_bound_spectrum_seed53.json").read_text())
+    n = 3
+    bounds_ = stored["per_window_relative_variance"][:n]
+    out = efficiency(bounds_, {level: common.cases(n, level=level, seed=53) for level in LEVELS}, 53)
+    for cell, r in out.items():
+        level, cls = cell.split("|")
+        z = np.array([(np.array(stored["per_window_default"][i][level][cls]) - 1.0)
+                      / np.sqrt(bounds_[i][level][f"{cls}|{REFERENCE}"]) for i in range(n)])
+        np.testing.assert_allclose(r["rms_z"], np.sqrt(np.mean(z**2, axis=0)), rtol=1e-9)
+        assert all(0.0 <= s <= 1.0 for s in r["tail_share_of_squared_error"])
