@@ -15,8 +15,8 @@ the truth) of
   ``input_noise_bound_spectrum``).
 
 Only the bins from the first up to :data:`TOP_HZ` (5 Hz, below the floor band) are used, by the estimates and by the
-bounds they are compared with (``input_noise_bound_spectrum``'s ``learnt_0.5_below_5hz`` kind, and the known bound over
-the same bins): above it the signal is orders of magnitude under the PMU floor and its spectrum's maximum likelihood sits
+bounds they are compared with (computed here on those bins and bands, as ``input_noise_bound_spectrum``'s
+``learnt_0.5_below_5hz`` kind, and the known bound on the same bins): above it the signal is orders of magnitude under the PMU floor and its spectrum's maximum likelihood sits
 on the boundary, where no regular bound applies.  Reported per level and class: √(mean over windows of the estimate's
 variance over the draws) over √(mean of the bound) for a / b / H2 / Tm, relative to D, for both kinds; a ratio near 1
 for ``known`` checks the machinery (Monte Carlo error ~ 1/√(2·draws·windows)), and ``learnt``'s ratio is how far above the
@@ -171,8 +171,8 @@ def _trial(z: np.ndarray, h: np.ndarray, sx: np.ndarray, step: np.ndarray, alpha
 
 def ml_fit(z: np.ndarray, freqs: np.ndarray, h0: np.ndarray, dh: np.ndarray, sx0: np.ndarray, ru: np.ndarray,
            ry: np.ndarray, learnt: bool) -> tuple[np.ndarray, bool]:
-    """Maximum-likelihood deviation of the six parameters from the truth on one draw z (m, 4), by Fisher scoring from
-    the truth with the step halved until the likelihood rises; (δ, converged)."""
+    """Maximum-likelihood deviation δ of the six parameters from where H0 was formed, on one draw (or window) z (m, 4):
+    Fisher scoring from (H0, S_x0) with a step search (the comments in the loop); (δ, converged)."""
     band = bands_of(freqs, WIDTH_HZ) if learnt else None
     delta = np.zeros(6)
     h, sx = h0.copy(), sx0.copy()
@@ -191,7 +191,7 @@ def ml_fit(z: np.ndarray, freqs: np.ndarray, h0: np.ndarray, dh: np.ndarray, sx0
         # geometrically instead of holding every other step back.
         eig = {b: np.linalg.eigh(np.tensordot(p, _E, axes=1)) for b, p in psi.items()}
         # The better of the full and the half step (scoring's expected information can overshoot the observed
-        # curvature and alternate about the optimum), halved further while neither raises the likelihood.
+        # curvature and alternate about the optimum), quartered while neither raises the likelihood.
         alpha, accepted = 1.0, False
         for _ in range(30):
             full, half = (_trial(z, h, sx, step, a, dh, eig, band, root, ru, ry) for a in (alpha, 0.5 * alpha))
