@@ -15,6 +15,9 @@ ingredient at a time swapped from the default's estimate to the oracle's:
 * ``rounds2``: S re-formed at the refined D and the descent repeated (``ROUNDS`` = 2);
 * ``oracle``: inputs, S true and S at the truth together (the frequency-domain counterpart of the oracle GLS);
   ``oracle_full_band`` the same over every bin;
+* ``*_5hz`` (stop 46): ``default``, ``px``, ``s_true``, ``inputs``, ``inputs_s_true`` and ``oracle`` with the fit confined
+  to the bins up to a twentieth of the rate (5 Hz at 100 frames/s), where no residual floor is needed to stand for the
+  model's departure above;
 * candidate estimates of the inputs, each with its own smoother's P_x: the Wiener smoother with the true spectrum
   (:func:`wiener_given`, not runnable: the ceiling), ``smooth_hz`` 0.25 and 1 Hz, and the signal spectrum of a VAR
   model of the measured inputs (order by BIC or AIC; with or without today's cut-off rule);
@@ -81,6 +84,14 @@ VARIANTS = {
     "wiener_var_bic_cut": ("var_bic_cut", "own", "est", "oe", 1),
     "wiener_var_aic_cut": ("var_aic_cut", "own", "est", "oe", 1),
     "oracle_full_band": ("oracle", "true", "true", "truth", 1, 0.5),
+    # Stop 46: the same swaps with the fit confined to the bins up to 5 Hz (a twentieth of the rate at 100 frames/s),
+    # where the floor band's premise holds and the true S needs no residual floor to stand for the model's error above.
+    "default_5hz": ("est", "est", "est", "oe", 1, 0.05),
+    "px_5hz": ("est", "true", "est", "oe", 1, 0.05),
+    "s_true_5hz": ("est", "true", "true", "oe", 1, 0.05),
+    "inputs_5hz": ("oracle", "est", "est", "oe", 1, 0.05),
+    "inputs_s_true_5hz": ("oracle", "true", "true", "oe", 1, 0.05),
+    "oracle_5hz": ("oracle", "true", "true", "truth", 1, 0.05),
     # The inputs' spectrum pooled over K noisy 10 s windows of the long realisation (the bus's previous windows):
     # runnable in a service that keeps per-bus spectra across periods.
     "pooled_spectrum_6": ("pooled_6", "own", "est", "oe", 1),
