@@ -17,7 +17,9 @@ ingredient at a time swapped from the default's estimate to the oracle's:
   ``oracle_full_band`` the same over every bin;
 * ``*_5hz`` (stop 46): ``default``, ``px``, ``s_true``, ``inputs``, ``inputs_s_true`` and ``oracle`` with the fit confined
   to the bins up to a twentieth of the rate (5 Hz at 100 frames/s), where no residual floor is needed to stand for the
-  model's departure above;
+  model's departure above; ``oracle_5hz_from_truth`` and ``default_5hz_from_truth`` descend from the true D;
+  ``oracle_5hz_temporal``, ``default_5hz_temporal`` and the ``*_5hz_temporal`` swaps whiten in the time domain
+  (stop 43's form);
 * candidate estimates of the inputs, each with its own smoother's P_x: the Wiener smoother with the true spectrum
   (:func:`wiener_given`, not runnable: the ceiling), ``smooth_hz`` 0.25 and 1 Hz, and the signal spectrum of a VAR
   model of the measured inputs (order by BIC or AIC; with or without today's cut-off rule);
@@ -62,8 +64,9 @@ from benchmarks.input_noise_bound import long_inputs  # noqa: E402
 LEVELS = (1, 2, 3)
 DEFAULT = IdentifyConfig()
 OE = IdentifyConfig(**common.OUTPUT_ERROR)
-#: The variants: (oracle inputs, P_x, P/Q variances and residual floor: "est" or "true", D of S: "oe" or "truth",
-#: rounds).
+#: The variants: (oracle inputs, P_x, P/Q variances and residual floor: "est" or "true" (or "nofloor": the estimated
+#: variances without the residual floor; "truewhite": the injected variances with it), D of S: "oe" or "truth",
+#: rounds[, band as a fraction of the rate, start: "oe" or "truth", form: "spectral" or "temporal"]).
 VARIANTS = {
     "default": ("est", "est", "est", "oe", 1),
     "inputs": ("oracle", "est", "est", "oe", 1),
@@ -92,6 +95,22 @@ VARIANTS = {
     "inputs_5hz": ("oracle", "est", "est", "oe", 1, 0.05),
     "inputs_s_true_5hz": ("oracle", "true", "true", "oe", 1, 0.05),
     "oracle_5hz": ("oracle", "true", "true", "truth", 1, 0.05),
+    # ... and descended from the true D instead of the output-error D (a seventh field: the start).
+    "oracle_5hz_from_truth": ("oracle", "true", "true", "truth", 1, 0.05, "truth"),
+    "default_5hz_from_truth": ("est", "est", "est", "oe", 1, 0.05, "truth"),
+    # ... and whitened in the time domain (``input_weighting="temporal"``; an eighth field: the form).
+    "oracle_5hz_temporal": ("oracle", "true", "true", "truth", 1, 0.05, "oe", "temporal"),
+    "default_5hz_temporal": ("est", "est", "est", "oe", 1, 0.05, "oe", "temporal"),
+    "inputs_5hz_temporal": ("oracle", "est", "est", "oe", 1, 0.05, "oe", "temporal"),
+    "px_5hz_temporal": ("est", "true", "est", "oe", 1, 0.05, "oe", "temporal"),
+    "s_true_5hz_temporal": ("est", "true", "true", "oe", 1, 0.05, "oe", "temporal"),
+    "inputs_s_true_5hz_temporal": ("oracle", "true", "true", "oe", 1, 0.05, "oe", "temporal"),
+    # Which half of ``s_true``: the P, Q floors kept but no residual floor ("nofloor"), or the injected variances with
+    # the residual floor kept ("truewhite").
+    "nofloor_5hz_temporal": ("est", "est", "nofloor", "oe", 1, 0.05, "oe", "temporal"),
+    "truewhite_5hz_temporal": ("est", "est", "truewhite", "oe", 1, 0.05, "oe", "temporal"),
+    "px_nofloor_5hz_temporal": ("est", "true", "nofloor", "oe", 1, 0.05, "oe", "temporal"),
+    "px_truewhite_5hz_temporal": ("est", "true", "truewhite", "oe", 1, 0.05, "oe", "temporal"),
     # The inputs' spectrum pooled over K noisy 10 s windows of the long realisation (the bus's previous windows):
     # runnable in a service that keeps per-bus spectra across periods.
     "pooled_spectrum_6": ("pooled_6", "own", "est", "oe", 1),
@@ -278,6 +297,8 @@ def run_variant(prep, f0: float, d0: np.ndarray, skip_s: float, d_true: np.ndarr
     """D of the refinement with the ingredients of ``spec`` (:data:`VARIANTS`); None where it fails."""
     inputs, px, white, d_at, rounds = spec[:5]
     band = spec[5] if len(spec) > 5 else input_weighting.BAND_FRACTION
+    if len(spec) > 6 and spec[6] == "truth":
+        d0 = d_true
     own = None
     if inputs == "oracle":
         prep = dataclasses.replace(prep, V=oracle_vt[0], theta=oracle_vt[1])
@@ -336,14 +357,15 @@ def run_variant(prep, f0: float, d0: np.ndarray, skip_s: float, d_true: np.ndarr
         prep = dataclasses.replace(prep, V=vt[0], theta=vt[1], input_error=tuple(own))
     pb = Problem(prep, f0, replace(DEFAULT, skip_s=skip_s))
     err = px_true if px == "true" else prep.input_error
-    wv = white_true if white == "true" else (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
+    wv = white_true if white in ("true", "truewhite") else (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
     saved = input_weighting.RESIDUAL_SMOOTH_HZ
-    input_weighting.RESIDUAL_SMOOTH_HZ = 0.0 if white == "true" else saved
+    input_weighting.RESIDUAL_SMOOTH_HZ = 0.0 if white in ("true", "nofloor") else saved
     try:
         d = np.array(d0, float)
         for r in range(rounds):
             at = d_true if (d_at == "truth" and r == 0) else d
-            wt = input_weighting.build_weighting(pb, np.asarray(at, float), err, wv, band / pb.dt)
+            wt = input_weighting.build_weighting(pb, np.asarray(at, float), err, wv, band / pb.dt,
+                                                 spec[7] if len(spec) > 7 else "spectral")
             if wt is None:
                 return None
             out = input_weighting._descend(pb, d, wt, EQUILIBRIUM_MARGIN)

@@ -15,7 +15,8 @@ per level, both PMU classes), every noisy window is identified by the default (`
   with the white floor known (:func:`whittle_power_law`);
 * ``floor_outside``, ``no_floor`` (stop 45): the refinement's S with the residual periodogram's floor on its diagonal
   kept only in the bins where the model's S has no input-error content (H·P_x·Hᴴ ≤ 1e-3 of the white floor: above the
-  smoother's spectrum), or not at all (:func:`residual_floor`);
+  smoother's spectrum), or not at all (:func:`residual_floor`); ``floor_sig2``, ``floor_sig1.5`` (stop 46): kept only
+  where it raises the diagonal above 2 or 1.5 × the model's (a significant excess);
 * ``em`` (stop 45): the spectrum by the joint likelihood of the measured V, θ, P and Q with the inputs latent, H at the
   output-error D (:func:`em_spectrum`);
 * ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
@@ -36,6 +37,7 @@ D/D_real).
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_outside,no_floor --tag floor
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants em --tag em
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants band5,band3 --tag band
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_sig2,floor_sig1.5 --tag floorsig
 
 Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)"; the floor
 variants, ``em`` and the bands "Stop 45: the bound with the inputs' spectrum learnt from the window".
@@ -62,10 +64,12 @@ from aslm_core.problem import Problem  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, with_input_noise  # noqa: E402
 
-VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3")
+VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
+            "floor_sig1.5")
 #: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
-FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none"}
+FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none", "floor_sig2": "significant_2",
+                  "floor_sig1.5": "significant_1.5"}
 #: ``floor_outside``: the model's S counts as having input-error content above this fraction of the white floor [-].
 FLOOR_CONTENT_REL = 1e-3
 WIDTHS_HZ = (0.5, 0.25, 1.0)  # today's first
@@ -258,7 +262,10 @@ def smoother_width(hz: float):
 @contextlib.contextmanager
 def residual_floor(mode: str):
     """Within the block, the refinement's S keeps the residual periodogram's floor on its diagonal only where the
-    model's S has no input-error content (``outside``), or drops it (``none``)."""
+    model's S has no input-error content (``outside``), only where the floored diagonal exceeds c times the model's
+    (``significant_<c>``: the residual's excess over S is significant; its periodogram averaged over 1 Hz of a 10 s
+    window has about 20 degrees of freedom, so c = 2 is about its 99.5 % quantile under the model, c = 1.5 its 93 %), or
+    drops it (``none``)."""
     model: dict = {}
 
     def spectrum(h, freqs, px_freqs, px, white_var):
@@ -269,8 +276,11 @@ def residual_floor(mode: str):
     def whitening(s):
         if "s" in model:
             for c in range(2):
-                content = model["s"][:, c, c].real - model["white"][c] > FLOOR_CONTENT_REL * model["white"][c]
-                s[content, c, c] = model["s"][content, c, c]
+                if mode.startswith("significant_"):
+                    keep = s[:, c, c].real < float(mode.split("_", 1)[1]) * model["s"][:, c, c].real
+                else:
+                    keep = model["s"][:, c, c].real - model["white"][c] > FLOOR_CONTENT_REL * model["white"][c]
+                s[keep, c, c] = model["s"][keep, c, c]
         return _WHITENING(s)
 
     old = input_weighting.RESIDUAL_SMOOTH_HZ

@@ -95,6 +95,17 @@ def test_the_floor_variants_reach_the_refinements_weighting_and_restore_it():
     np.testing.assert_allclose(w00[4:], 1 / np.sqrt(6.0))
     np.testing.assert_allclose(w11[4:], 1 / np.sqrt(6.0))
     assert input_weighting.whitening is iv._WHITENING
+    # The "significant_2" hooks (stop 46): the floor is kept only where it raises the diagonal above twice the model's.
+    with iv.residual_floor("significant_2"):
+        s = input_weighting.disturbance_spectrum(h, freqs, freqs, px, (1.0, 1.0))  # 2 in the first four bins, 1 after
+        s[:, 0, 0] += 0.5  # 2.5 and 1.5: not significant anywhere
+        s[:, 1, 1] += 3.0  # 5 and 4: significant everywhere
+        w00, _, w11 = input_weighting.whitening(s)
+    np.testing.assert_allclose(w00[:4], 1 / np.sqrt(2.0))
+    np.testing.assert_allclose(w00[4:], 1.0)
+    np.testing.assert_allclose(w11[:4], 1 / np.sqrt(5.0))
+    np.testing.assert_allclose(w11[4:], 1 / np.sqrt(4.0))
+    assert input_weighting.whitening is iv._WHITENING
 
 
 def test_the_em_spectrum_is_a_spectrum_near_the_windows_own_where_the_signal_is_strong():
