@@ -19,7 +19,7 @@ ingredient at a time swapped from the default's estimate to the oracle's:
   to the bins up to a twentieth of the rate (5 Hz at 100 frames/s), where no residual floor is needed to stand for the
   model's departure above; ``oracle_5hz_from_truth`` and ``default_5hz_from_truth`` descend from the true D;
   ``oracle_5hz_temporal``, ``default_5hz_temporal`` and the ``*_5hz_temporal`` swaps whiten in the time domain
-  (stop 43's form);
+  (stop 43's form), the ``pooled*_5hz_temporal`` rows with the pooled spectrum's smoother and its P_x;
 * candidate estimates of the inputs, each with its own smoother's P_x: the Wiener smoother with the true spectrum
   (:func:`wiener_given`, not runnable: the ceiling), ``smooth_hz`` 0.25 and 1 Hz, and the signal spectrum of a VAR
   model of the measured inputs (order by BIC or AIC; with or without today's cut-off rule);
@@ -111,6 +111,16 @@ VARIANTS = {
     "truewhite_5hz_temporal": ("est", "est", "truewhite", "oe", 1, 0.05, "oe", "temporal"),
     "px_nofloor_5hz_temporal": ("est", "true", "nofloor", "oe", 1, 0.05, "oe", "temporal"),
     "px_truewhite_5hz_temporal": ("est", "true", "truewhite", "oe", 1, 0.05, "oe", "temporal"),
+    # A runnable P_x from more than the window: the pooled spectrum's smoother (K = 6 or 30 previous windows), no
+    # residual floor, in the time domain up to 5 Hz; and with the floor, for comparison.
+    "pooled6_nofloor_5hz_temporal": ("pooled5_6", "own", "nofloor", "oe", 1, 0.05, "oe", "temporal"),
+    "pooled30_nofloor_5hz_temporal": ("pooled5_30", "own", "nofloor", "oe", 1, 0.05, "oe", "temporal"),
+    "pooled6_5hz_temporal": ("pooled5_6", "own", "est", "oe", 1, 0.05, "oe", "temporal"),
+    "pooled30fine_nofloor_5hz_temporal": ("pooledfine_30", "own", "nofloor", "oe", 1, 0.05, "oe", "temporal"),
+    "pooled6fine_nofloor_5hz_temporal": ("pooledfine_6", "own", "nofloor", "oe", 1, 0.05, "oe", "temporal"),
+    "pooled6fine_nofloor_5hz": ("pooledfine_6", "own", "nofloor", "oe", 1, 0.05),
+    "pooled6fine_5hz_temporal": ("pooledfine_6", "own", "est", "oe", 1, 0.05, "oe", "temporal"),
+    "pooled6fine": ("pooledfine_6", "own", "est", "oe", 1),
     # The inputs' spectrum pooled over K noisy 10 s windows of the long realisation (the bus's previous windows):
     # runnable in a service that keeps per-bus spectra across periods.
     "pooled_spectrum_6": ("pooled_6", "own", "est", "oe", 1),
@@ -262,9 +272,10 @@ def noisy_windows(lv: np.ndarray, lth: np.ndarray, n: int, k: int, noise_std: tu
     return out
 
 
-def pooled_estimate(wins: list[np.ndarray], fs: float, top_hz: float | None = None) -> callable:
+def pooled_estimate(wins: list[np.ndarray], fs: float, top_hz: float | None = None,
+                    smooth_hz: float = noise.WIENER_SMOOTH_HZ) -> callable:
     """The (V, θ) signal cross-spectrum from noisy windows (:func:`noisy_windows`): the windows' tapered periodogram matrices averaged,
-    smoothed over :data:`aslm_core.noise.WIENER_SMOOTH_HZ`, minus the floor each channel's band above 5 Hz gives
+    smoothed over ``smooth_hz`` (:data:`aslm_core.noise.WIENER_SMOOTH_HZ`), minus the floor each channel's band above 5 Hz gives
     (:func:`aslm_core.noise.noise_floor`, the variances averaged over the k windows), negative eigenvalues clipped.
     With ``top_hz`` [Hz] the spectrum is zero from there up.  Per-sample units (white noise of variance σ² flat at
     σ²), as ``spectrum(freqs)`` (interpolated)."""
@@ -279,7 +290,7 @@ def pooled_estimate(wins: list[np.ndarray], fs: float, top_hz: float | None = No
     acc /= k
     floor /= k
     f = np.fft.rfftfreq(n, 1.0 / fs)
-    width = max(1, int(round(noise.WIENER_SMOOTH_HZ * n / fs)))
+    width = max(1, int(round(smooth_hz * n / fs)))
     sm = np.empty_like(acc)
     for i in range(2):
         for j in range(2):
@@ -318,6 +329,8 @@ def run_variant(prep, f0: float, d0: np.ndarray, skip_s: float, d_true: np.ndarr
                                               spectrum=pooled["core", int(inputs[5:])])
         elif inputs.startswith("pooled5_"):
             vt, own = wiener_given(x, fs, sigma, pooled[int(inputs[8:]), noise.FLOOR_FROM_HZ])
+        elif inputs.startswith("pooledfine_"):
+            vt, own = wiener_given(x, fs, sigma, pooled[int(inputs[11:]), "fine"])
         elif inputs == "pgram_nocut":
             vt, own = wiener_given(x, fs, sigma, None)
         elif inputs == "pgram_tail":
@@ -448,6 +461,8 @@ def main(argv=None) -> dict:
                 wins = noisy_windows(lv, lth, n, k, (math.sqrt(nv[0]), math.sqrt(nv[1])), prng)
                 for top in (None, noise.FLOOR_FROM_HZ):
                     pooled[k, top] = pooled_estimate(wins, fs, top)
+                # Unsmoothed (one bin), zero from 5 Hz: k windows' average needs no smoothing across frequency.
+                pooled[k, "fine"] = pooled_estimate(wins, fs, noise.FLOOR_FROM_HZ, smooth_hz=0.0)
                 pooled["core", k] = noise.pooled_input_spectrum(wins, fs)
             per_cls[cls] = (nv, linalg.cho_factor(prior + np.diag(sn), lower=True),
                             true_error_spectrum(lv, lth, fs, nv, n), pooled)
