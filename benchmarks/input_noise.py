@@ -92,6 +92,20 @@ def with_input_noise(w: Window, clean: Window, v_rel: float, th_rad: float, rng:
     return Window(t=w.t, V=w.V + ev, theta=w.theta + et, P=w.P, Q=w.Q, f0=w.f0, bus=w.bus, meta=w.meta)
 
 
+def noisy_draws(cases: dict, seed: int, n: int, levels=(1, 2, 3)):
+    """The supplement's noisy windows in their draw order: (i, level, class, case, window) for the first n windows of
+    ``cases`` ({level: cases}) and each noisy PMU class, one generator per level and class seeded [seed, level, k] and
+    drawn for every class, the exact one too (as ``input_noise_bound`` draws them)."""
+    rngs = {(level, k): np.random.default_rng([seed, level, k]) for level in levels for k in range(len(INPUT_NOISE))}
+    for i in range(n):
+        for level in levels:
+            c = cases[level][i]
+            for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
+                w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])
+                if cls != "none":
+                    yield i, level, cls, c, w
+
+
 def _one(w: Window, candidates: dict | None = None) -> dict:
     """Every candidate on one window, in turn."""
     out = {}

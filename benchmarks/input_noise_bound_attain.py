@@ -51,7 +51,7 @@ import numpy as np  # noqa: E402
 
 from aslm_core import identify, input_weighting, noise, preprocess  # noqa: E402
 from benchmarks import common  # noqa: E402
-from benchmarks.input_noise import INPUT_NOISE, with_input_noise  # noqa: E402
+from benchmarks.input_noise import INPUT_NOISE, noisy_draws  # noqa: E402
 from benchmarks.input_noise_bound import LEVELS, TAIL, long_inputs  # noqa: E402
 from benchmarks.input_noise_bound_spectrum import _E, _sqrtm, signal_spectrum, transfer  # noqa: E402
 from benchmarks.input_noise_variants import response_at  # noqa: E402
@@ -351,30 +351,20 @@ def windows_run(n: int, seed: int, taper: str) -> dict:
     """``--windows`` (module docstring): per level and noisy class the per-window D/D_real of the default and of the
     maximum likelihood on the window's DFTs, and per window the model's misfit on the clean record."""
     cases = {level: common.cases(n, level=level, seed=seed) for level in LEVELS}
-    rngs = {(level, k): np.random.default_rng([seed, level, k]) for level in LEVELS for k in range(len(INPUT_NOISE))}
     per: dict[str, dict[str, list]] = {}
-    mis = []
-    for i in range(n):
-        mis.append(misfit(cases[LEVELS[-1]][i], taper))
-        for level in LEVELS:
-            c = cases[level][i]
-            for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
-                w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])  # drawn for every class
-                if cls == "none":
-                    continue
-                r = identify(w, config=TAIL)
-                cell = per.setdefault(f"{level}|{cls}", {"default": [], "window_ml": []})
-                cell["default"].append((r.d / c.truth.d).tolist())
-                model = window_model(w, r.d, float(r.quality.get("skip_s", 1.0)), taper)
-                if model is None:
-                    cell["window_ml"].append([math.nan] * 4)
-                    continue
-                freqs, z, hf, dhf, ru, ry, sx0 = model
-                sel = (freqs > 0) & (freqs <= TOP_HZ)
-                delta, _ = ml_fit(z[sel], freqs[sel], hf[sel], dhf[:, sel], sx0[sel], ru, ry, True)
-                cell["window_ml"].append(((r.d + delta[:4]) / c.truth.d).tolist())
-        if (i + 1) % 10 == 0:
-            print(f"{i + 1} windows", flush=True)
+    mis = [misfit(cases[LEVELS[-1]][i], taper) for i in range(n)]
+    for _, level, cls, c, w in noisy_draws(cases, seed, n, LEVELS):
+        r = identify(w, config=TAIL)
+        cell = per.setdefault(f"{level}|{cls}", {"default": [], "window_ml": []})
+        cell["default"].append((r.d / c.truth.d).tolist())
+        model = window_model(w, r.d, float(r.quality.get("skip_s", 1.0)), taper)
+        if model is None:
+            cell["window_ml"].append([math.nan] * 4)
+            continue
+        freqs, z, hf, dhf, ru, ry, sx0 = model
+        sel = (freqs > 0) & (freqs <= TOP_HZ)
+        delta, _ = ml_fit(z[sel], freqs[sel], hf[sel], dhf[:, sel], sx0[sel], ru, ry, True)
+        cell["window_ml"].append(((r.d + delta[:4]) / c.truth.d).tolist())
     return {"per_window": per, "misfit": mis}
 
 

@@ -65,7 +65,7 @@ from aslm_core import IdentifyConfig, WindowError, identify, input_weighting, mo
 from aslm_core.preprocess import prepare  # noqa: E402
 from aslm_core.problem import Problem  # noqa: E402
 from benchmarks import common  # noqa: E402
-from benchmarks.input_noise import CONFIRM_SEED, INPUT_NOISE, with_input_noise  # noqa: E402
+from benchmarks.input_noise import CONFIRM_SEED, INPUT_NOISE, noisy_draws, with_input_noise  # noqa: E402
 from benchmarks.input_noise_bound import LEVELS, MODEL, long_inputs, static_coefficients  # noqa: E402
 
 #: Nuisance band widths of the learnt spectrum [Hz]; the first is the reference (module docstring).
@@ -386,29 +386,20 @@ TAIL_SHARE = 0.1
 def efficiency(per_window_bounds: list[dict], cases: dict, seed: int) -> dict:
     """``--efficiency`` (module docstring): per level and class, from the windows' reference bounds and the default's D
     and standard errors on ``input_noise_bound``'s draws for ``seed``, the figures the module docstring lists."""
-    n = len(per_window_bounds)
-    rngs = {(level, k): np.random.default_rng([seed, level, k]) for level in LEVELS for k in range(len(INPUT_NOISE))}
     z: dict[str, list] = {}
     se: dict[str, list] = {}
     var: dict[str, list] = {}
-    for i in range(n):
-        for level in LEVELS:
-            c = cases[level][i]
-            for k, (cls, v_rel, th) in enumerate(INPUT_NOISE):
-                w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])  # drawn for every class
-                if cls == "none":
-                    continue
-                bvar = np.array(per_window_bounds[i][str(level)][f"{cls}|{REFERENCE}"])
-                bound = np.sqrt(bvar)
-                try:
-                    r = identify(w, config=IdentifyConfig())
-                except WindowError:
-                    continue
-                truth = np.asarray(c.truth.d, dtype=np.float64)
-                z.setdefault(f"{level}|{cls}", []).append(((r.d / truth - 1.0) / bound).tolist())
-                var.setdefault(f"{level}|{cls}", []).append(bvar.tolist())
-                se.setdefault(f"{level}|{cls}", []).append(
-                    (np.array([r.stderr[p] for p in common.PARAMS]) / truth / bound).tolist())
+    for i, level, cls, c, w in noisy_draws(cases, seed, len(per_window_bounds), LEVELS):
+        bvar = np.array(per_window_bounds[i][str(level)][f"{cls}|{REFERENCE}"])
+        bound = np.sqrt(bvar)
+        try:
+            r = identify(w, config=IdentifyConfig())
+        except WindowError:
+            continue
+        truth = np.asarray(c.truth.d, dtype=np.float64)
+        z.setdefault(f"{level}|{cls}", []).append(((r.d / truth - 1.0) / bound).tolist())
+        var.setdefault(f"{level}|{cls}", []).append(bvar.tolist())
+        se.setdefault(f"{level}|{cls}", []).append((np.array([r.stderr[p] for p in common.PARAMS]) / truth / bound).tolist())
     out = {}
     for cell, zs in z.items():
         zs = np.array(zs)
