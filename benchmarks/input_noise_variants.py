@@ -19,6 +19,11 @@ per level, both PMU classes), every noisy window is identified by the default (`
   where it raises the diagonal above 2 or 1.5 × the model's (a significant excess);
 * ``em`` (stop 45): the spectrum by the joint likelihood of the measured V, θ, P and Q with the inputs latent, H at the
   output-error D (:func:`em_spectrum`);
+* ``hist6``, ``hist6_fine_td`` (stop 46): end to end through :func:`aslm_core.identify`'s ``input_spectrum``, the
+  default given a minute of the bus's history (six noisy 10 s windows of another realisation of the same load and
+  network, :func:`history_periodograms`): pooled as the service's history option pools it (smoothed over 0.5 Hz), or
+  unsmoothed with the refinement whitened in the time domain (``input_weighting="temporal"``) up to 5 Hz and without the
+  residual floor (:func:`history_measure`);
 * ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
   thirty-third of the rate instead of a tenth (5 or 3 Hz at 100 frames/s);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
@@ -62,10 +67,15 @@ from scipy import optimize  # noqa: E402
 from aslm_core import WindowError, identify, input_weighting, noise, preprocess  # noqa: E402
 from aslm_core.problem import Problem  # noqa: E402
 from benchmarks import common  # noqa: E402
-from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, with_input_noise  # noqa: E402
+from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, long_inputs, with_input_noise  # noqa: E402
 
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
-            "floor_sig1.5")
+            "floor_sig1.5", "hist6", "hist6_fine_td")
+#: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
+HISTORY_VARIANTS = ("hist6", "hist6_fine_td")
+HISTORY_K = 6
+#: ``hist6_fine_td``: the refinement's band, up to a tenth of the rate as today but not above the floor band [Hz].
+HISTORY_BAND_HZ = 5.0
 #: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none", "floor_sig2": "significant_2",
@@ -295,13 +305,45 @@ def residual_floor(mode: str):
         input_weighting.disturbance_spectrum, input_weighting.whitening = _DISTURBANCE_SPECTRUM, _WHITENING
 
 
-def _measure(window, truth) -> tuple[list[float], list[float]]:
-    """D/D_real and the standard errors over D_real of the default identifier on the window (NaN where it refuses)."""
+def _measure(window, truth, config=TAIL, input_spectrum=None) -> tuple[list[float], list[float]]:
+    """D/D_real and the standard errors over D_real of the identifier (default: the default) on the window (NaN where it
+    refuses)."""
     try:
-        r = identify(window, config=TAIL)
+        r = identify(window, config=config, input_spectrum=input_spectrum)
     except WindowError:
         return [math.nan] * 4, [math.nan] * 4
     return (r.d / truth).tolist(), (np.array([r.stderr[p] for p in common.PARAMS]) / truth).tolist()
+
+
+def history_periodograms(case, k: int, v_rel: float, th: float, rng: np.random.Generator) -> list:
+    """The periodograms of k noisy 10 s windows of another realisation of the case's load and network (the bus's
+    previous windows, as ``input_noise_bound.history_spectrum`` draws them), with the class's white noise on V and θ."""
+    n = case.clean.V.size
+    fs = 1.0 / float(np.median(np.diff(case.clean.t)))
+    lv, lth = long_inputs(case, k * n / fs)
+    std = np.array([v_rel * float(np.mean(case.clean.V)), th])[:, None]
+    out = []
+    for j in range(k):
+        x = np.stack([lv[j * n:(j + 1) * n], lth[j * n:(j + 1) * n]])
+        out.append(noise.input_periodogram(x + std * rng.standard_normal(x.shape), fs))
+    return out
+
+
+def history_measure(variant: str, periodograms: list, window, truth) -> tuple[list[float], list[float]]:
+    """``hist6``: the default given the pooled spectrum as the service's history gives it (smoothed over 0.5 Hz);
+    ``hist6_fine_td``: given it unsmoothed, with the refinement whitened in the time domain up to
+    :data:`HISTORY_BAND_HZ` and without the residual floor (stop 46's lead)."""
+    if variant == "hist6":
+        return _measure(window, truth, input_spectrum=noise.pooled_spectrum(periodograms))
+    fs = periodograms[-1].fs
+    old = input_weighting.BAND_FRACTION, input_weighting.RESIDUAL_SMOOTH_HZ
+    input_weighting.BAND_FRACTION = min(old[0], HISTORY_BAND_HZ / fs)
+    input_weighting.RESIDUAL_SMOOTH_HZ = 0.0
+    try:
+        return _measure(window, truth, config=replace(TAIL, input_weighting="temporal"),
+                        input_spectrum=noise.pooled_spectrum(periodograms, smooth_hz=0.0))
+    finally:
+        input_weighting.BAND_FRACTION, input_weighting.RESIDUAL_SMOOTH_HZ = old
 
 
 def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict]:
@@ -311,6 +353,7 @@ def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict]:
     rngs = {(level, k): np.random.default_rng([seed, level, k]) for level in LEVELS for k in range(len(INPUT_NOISE))}
     per: dict[str, list] = {}
     per_se: dict[str, list] = {}
+    history: dict = {}
     t0 = time.perf_counter()
     for i in range(n):
         for level in LEVELS:
@@ -321,7 +364,12 @@ def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict]:
                     continue
                 rows = {"default": _measure(w, c.truth.d)}
                 for variant in variants:
-                    if variant == "widths":
+                    if variant in HISTORY_VARIANTS:
+                        if (i, k) not in history:
+                            history[i, k] = history_periodograms(cases[LEVELS[0]][i], HISTORY_K, v_rel, th,
+                                                                 np.random.default_rng([seed, 7, i, k]))
+                        rows[variant] = history_measure(variant, history[i, k], w, c.truth.d)
+                    elif variant == "widths":
                         runs = [rows["default"]]
                         for hz in WIDTHS_HZ[1:]:
                             with smoother_width(hz):

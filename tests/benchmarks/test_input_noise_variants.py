@@ -130,3 +130,14 @@ def test_the_em_spectrum_is_a_spectrum_near_the_windows_own_where_the_signal_is_
     per, _ = iv.run(1, 41, ["em"])
     key = "2|0.1 % / 1e-3 rad|"
     assert not np.allclose(np.array(per[key + "em"]), np.array(per[key + "default"]), rtol=0, atol=1e-9)
+
+
+def test_the_history_variants_reach_identify_and_restore_the_refinement():
+    """Stop 46's ``hist6`` and ``hist6_fine_td`` move the answer on a noisy window, differ from each other, and leave the
+    refinement's band and residual floor as they were."""
+    per, _ = iv.run(1, 41, ["hist6", "hist6_fine_td"])
+    assert input_weighting.BAND_FRACTION == 0.1 and input_weighting.RESIDUAL_SMOOTH_HZ == 1.0
+    key = "3|0.1 % / 1e-3 rad|"
+    d, h, f = (np.array(per[key + name]) for name in ("default", "hist6", "hist6_fine_td"))
+    assert not np.allclose(h, d, rtol=0, atol=1e-9)
+    assert not np.allclose(f, h, rtol=0, atol=1e-9)
