@@ -45,7 +45,8 @@ D/D_real).
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_sig2,floor_sig1.5 --tag floorsig
 
 Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)"; the floor
-variants, ``em`` and the bands "Stop 45: the bound with the inputs' spectrum learnt from the window".
+variants, ``em`` and the bands "Stop 45: the bound with the inputs' spectrum learnt from the window"; ``floor_sig*`` and
+the history variants "Stop 46: the learnt bound is within reach of maximum likelihood; where the default leaves it".
 """
 
 from __future__ import annotations
