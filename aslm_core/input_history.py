@@ -19,6 +19,9 @@ from aslm_core.noise import InputPeriodogram, InputSpectrum, poolable, pooled_sp
 HISTORY_WINDOWS = 6
 #: Oldest start of a pooled window before the start of the window identified [s] (the runs' five minutes).
 HISTORY_MAX_AGE_S = 300.0
+#: Width of the moving average across frequency over the pooled periodograms [Hz]: none, since the refinement
+#: given a history drops its residual floor and needs the spectrum's fine structure (docs/numerics.md, "Stop 47").
+HISTORY_SMOOTH_HZ = 0.0
 
 
 class InputHistory:
@@ -82,12 +85,13 @@ class InputHistory:
         -------
         InputSpectrum or None
             :func:`aslm_core.noise.pooled_spectrum` of the held windows that ended before ``start`` and began
-            at most ``max_age_s`` before it; None unless there are ``k`` of them.
+            at most ``max_age_s`` before it, not smoothed across frequency (:data:`HISTORY_SMOOTH_HZ`); None unless
+            there are ``k`` of them.
         """
         usable = [h for h in self._held if h[1] < start and h[0] >= start - self.max_age_s]
         if len(usable) < self.k:
             return None
         key = tuple(h[3] for h in usable)
         if self._cached is None or self._cached[0] != key:
-            self._cached = (key, pooled_spectrum([h[2] for h in usable]))
+            self._cached = (key, pooled_spectrum([h[2] for h in usable], smooth_hz=HISTORY_SMOOTH_HZ))
         return self._cached[1]

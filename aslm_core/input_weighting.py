@@ -30,7 +30,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from aslm_core import motor, optimize, static
-from aslm_core.noise import InputSpectrum, reflected_mean
+from aslm_core.noise import FLOOR_FROM_HZ, InputSpectrum, reflected_mean
 from aslm_core.preprocess import Prepared, prepare, white_floor
 from aslm_core.problem import Problem
 from aslm_core.window import Window
@@ -48,6 +48,12 @@ RESIDUAL_SMOOTH_HZ = 1.0
 #: Highest frequency the fit uses, as a fraction of the reporting rate [-]: where the simulator's cubic
 #: interpolation of the inputs between samples is within ~0.5 % of a sinusoid's amplitude (5 % at 0.2).
 BAND_FRACTION = 0.1
+#: With the inputs' spectrum of the bus's history (``identify(..., input_spectrum=)``, pooled unsmoothed by
+#: :class:`aslm_core.input_history.InputHistory`): the refinement whitens in the time domain, on the bins below this
+#: frequency (where that spectrum is known: it is zero from the floor band up) or a tenth of the rate, the lower, and
+#: without the residual floor, since the smoother's error P_x is then good enough for S to stand without it
+#: (docs/numerics.md, "Stop 47") [Hz].  None: the window's own form.
+HISTORY_BAND_HZ: float | None = FLOOR_FROM_HZ
 #: ``temporal`` form: S above the band is multiplied by this, so the whitened fit all but ignores those frequencies
 #: (the spectral form gives them weight zero, which a covariance cannot) [-].
 BAND_DOWNWEIGHT = 1e4
@@ -246,13 +252,14 @@ def _stack(w: tuple[np.ndarray, np.ndarray, np.ndarray], xp: np.ndarray, xq: np.
 
 def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.ndarray],
                     white_var: tuple[float, float], band_hz: float = math.inf,
-                    form: str = "spectral") -> Weighting | None:
+                    form: str = "spectral", residual_floor: bool = True) -> Weighting | None:
     """The window's whitening at D: H at D and the static coefficients of the plain fit there, the bins
     above ``band_hz`` [Hz] given zero weight (``form="temporal"``: S there multiplied by
     :data:`BAND_DOWNWEIGHT`).  ``form``: ``spectral`` whitens per rfft bin of the tapered samples, ``temporal``
     by the Cholesky factor of the covariance S implies over the samples (:func:`temporal_covariance`; no taper,
-    no circular wrap).  None when the model cannot be simulated at D or that covariance is not positive
-    definite."""
+    no circular wrap).  ``residual_floor``: S's diagonal floored by the residual's periodogram smoothed over
+    :data:`RESIDUAL_SMOOTH_HZ` (if positive).  None when the model cannot be simulated at D or that covariance is
+    not positive definite."""
     pb = problem
     if not _simulate(pb, d):
         return None
@@ -268,7 +275,7 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
     grid = np.fft.rfftfreq(2 * pb.l, pb.dt) if temporal else freqs
     hz = np.concatenate([h, np.zeros_like(h)]) if temporal else h
     s = disturbance_spectrum(hz, grid, *input_error, white_var)
-    if RESIDUAL_SMOOTH_HZ > 0:
+    if residual_floor and RESIDUAL_SMOOTH_HZ > 0:
 
         width = max(1, int(round(RESIDUAL_SMOOTH_HZ * pb.l * pb.dt)))
         kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
@@ -377,7 +384,8 @@ def _descend(problem, d0: np.ndarray, weighting: Weighting, margin: float) -> di
     return {"d": d, "cost": cost, "iterations": it, "e": e, "jac": jac}
 
 
-def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, margin: float) -> dict | None:
+def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, margin: float,
+           history: bool = False) -> dict | None:
     """D refined by the S-weighted fit from the output-error D (module docstring).
 
     Parameters
@@ -394,6 +402,9 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
         Samples skipped at the start [s] (the output-error fit's).
     margin : float
         Equilibrium margin of the feasible set (``identify.EQUILIBRIUM_MARGIN``).
+    history : bool
+        The smoother used the inputs' spectrum of the bus's history: the fit then takes
+        :data:`HISTORY_BAND_HZ`'s form (time domain, its band, no residual floor) instead of the configured one.
 
     Returns
     -------
@@ -407,10 +418,13 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     pb = Problem(prep, f0, replace(config, skip_s=skip_s))
     white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
     d = np.array(d0, dtype=np.float64)
+    band, form, floor = BAND_FRACTION / pb.dt, config.input_weighting, True
+    if history and HISTORY_BAND_HZ:
+        band, form, floor = min(band, math.nextafter(HISTORY_BAND_HZ, 0.0)), "temporal", False
     iters = 0
     out = None
     for _ in range(ROUNDS):
-        weighting = build_weighting(pb, d, prep.input_error, white, BAND_FRACTION / pb.dt, config.input_weighting)
+        weighting = build_weighting(pb, d, prep.input_error, white, band, form, floor)
         if weighting is None:
             return None
         out = _descend(pb, d, weighting, margin)
@@ -471,14 +485,14 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
                    input_tail=config.input_spectrum_tail)
     if prep.input_error is None:
         return None
-    out = refine(prep, window.f0, config, d0, skip_s, margin)
+    used = input_spectrum is not None and all(white_floor(prep.noise, c) and prep.noise.get(f"noise_{c}", 0.0) > 0.0
+                                              for c in ("v", "theta"))
+    out = refine(prep, window.f0, config, d0, skip_s, margin, history=used)
     if out is None:
         return None
     res = out["problem"].residuals(out["d"], jacobian=False)
     if res is None:
         return None
     out["objective"] = out["problem"].cost(res[0], res[1])
-    used = input_spectrum is not None and all(white_floor(prep.noise, c) and prep.noise.get(f"noise_{c}", 0.0) > 0.0
-                                              for c in ("v", "theta"))
     out["spectrum_windows"] = input_spectrum.n_windows if used else 0
     return out

@@ -21,9 +21,10 @@ per level, both PMU classes), every noisy window is identified by the default (`
   output-error D (:func:`em_spectrum`);
 * ``hist6``, ``hist6_fine_td`` (stop 46): end to end through :func:`aslm_core.identify`'s ``input_spectrum``, the
   default given a minute of the bus's history (six noisy 10 s windows of another realisation of the same load and
-  network, :func:`history_periodograms`): pooled as the service's history option pools it (smoothed over 0.5 Hz), or
-  unsmoothed with the refinement whitened in the time domain (``input_weighting="temporal"``) up to 5 Hz and without the
-  residual floor (:func:`history_measure`);
+  network, :func:`history_periodograms`, held by an :class:`aslm_core.input_history.InputHistory` as the service's
+  scheduler holds them): ``hist6_fine_td`` as the core takes it since stop 47 (pooled unsmoothed, the refinement whitened
+  in the time domain up to 5 Hz without the residual floor), ``hist6`` as it took it before (stop 41's: smoothed over
+  0.5 Hz, the window's own refinement; :func:`history_measure`);
 * ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
   thirty-third of the rate instead of a tenth (5 or 3 Hz at 100 frames/s);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
@@ -43,10 +44,12 @@ D/D_real).
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants em --tag em
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants band5,band3 --tag band
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_sig2,floor_sig1.5 --tag floorsig
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants hist6,hist6_fine_td --tag hist
 
 Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)"; the floor
 variants, ``em`` and the bands "Stop 45: the bound with the inputs' spectrum learnt from the window"; ``floor_sig*`` and
-the history variants "Stop 46: the learnt bound is within reach of maximum likelihood; where the default leaves it".
+the history variants "Stop 46: the learnt bound is within reach of maximum likelihood; where the default leaves it"
+and "Stop 47: the history's spectrum unsmoothed, the refinement in the time domain".
 """
 
 from __future__ import annotations
@@ -65,7 +68,7 @@ from dataclasses import replace  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import optimize  # noqa: E402
 
-from aslm_core import WindowError, identify, input_weighting, noise, preprocess  # noqa: E402
+from aslm_core import WindowError, identify, input_history, input_weighting, noise, preprocess  # noqa: E402
 from aslm_core.problem import Problem  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, long_inputs, with_input_noise  # noqa: E402
@@ -75,8 +78,6 @@ VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", 
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
 HISTORY_VARIANTS = ("hist6", "hist6_fine_td")
 HISTORY_K = 6
-#: ``hist6_fine_td``: the refinement's band, up to a tenth of the rate as today but not above the floor band [Hz].
-HISTORY_BAND_HZ = 5.0
 #: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none", "floor_sig2": "significant_2",
@@ -331,29 +332,34 @@ def history_periodograms(case, k: int, v_rel: float, th: float, rng: np.random.G
 
 
 def history_measure(variant: str, periodograms: list, window, truth) -> tuple[list[float], list[float]]:
-    """``hist6``: the default given the pooled spectrum as the service's history gives it (smoothed over 0.5 Hz);
-    ``hist6_fine_td``: given it unsmoothed, with the refinement whitened in the time domain up to
-    :data:`HISTORY_BAND_HZ` and without the residual floor (stop 46's lead)."""
-    if variant == "hist6":
-        return _measure(window, truth, input_spectrum=noise.pooled_spectrum(periodograms))
-    fs = periodograms[-1].fs
-    old = input_weighting.BAND_FRACTION, input_weighting.RESIDUAL_SMOOTH_HZ
-    input_weighting.BAND_FRACTION = min(old[0], HISTORY_BAND_HZ / fs)
-    input_weighting.RESIDUAL_SMOOTH_HZ = 0.0
+    """The default given the spectrum of an :class:`~aslm_core.input_history.InputHistory` holding the periodograms
+    (consecutive windows ending before the identified one): ``hist6_fine_td`` as the core takes it (since stop 47:
+    unsmoothed, the refinement in the time domain up to :data:`aslm_core.input_weighting.HISTORY_BAND_HZ` without the
+    residual floor); ``hist6`` as it took it before (smoothed over 0.5 Hz, the window's own refinement form)."""
+    held = input_history.InputHistory(k=len(periodograms))
+    for j, g in enumerate(periodograms):
+        held.add(j * g.n / g.fs, ((j + 1) * g.n - 1) / g.fs, g)
+    start = len(periodograms) * periodograms[-1].n / periodograms[-1].fs
+    if variant == "hist6_fine_td":
+        return _measure(window, truth, input_spectrum=held.spectrum(start))
+    old = input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ
+    input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ = noise.WIENER_SMOOTH_HZ, None
     try:
-        return _measure(window, truth, config=replace(TAIL, input_weighting="temporal"),
-                        input_spectrum=noise.pooled_spectrum(periodograms, smooth_hz=0.0))
+        return _measure(window, truth, input_spectrum=held.spectrum(start))
     finally:
-        input_weighting.BAND_FRACTION, input_weighting.RESIDUAL_SMOOTH_HZ = old
+        input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ = old
 
 
-def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict]:
+def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict, dict]:
     """Per level, noisy class and row (``default`` and the variants' rows): the per-window D/D_real, and their
-    standard errors over D_real (the median of the widths takes the 0.5 Hz run's, the run nearest it its own)."""
+    standard errors over D_real (the median of the widths takes the 0.5 Hz run's, the run nearest it its own); and
+    the median ms per identification of the default and the history variants (each window's rows run in turn, one
+    thread)."""
     cases = {level: common.cases(n, level=level, seed=seed) for level in LEVELS}
     rngs = {(level, k): np.random.default_rng([seed, level, k]) for level in LEVELS for k in range(len(INPUT_NOISE))}
     per: dict[str, list] = {}
     per_se: dict[str, list] = {}
+    times: dict[str, list] = {}  # row -> seconds per identification (history variants and the default)
     history: dict = {}
     t0 = time.perf_counter()
     for i in range(n):
@@ -363,13 +369,17 @@ def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict]:
                 w = with_input_noise(c.window, c.clean, v_rel, th, rngs[level, k])  # drawn for every class, as there
                 if cls == "none":
                     continue
+                t1 = time.perf_counter()
                 rows = {"default": _measure(w, c.truth.d)}
+                times.setdefault("default", []).append(time.perf_counter() - t1)
                 for variant in variants:
                     if variant in HISTORY_VARIANTS:
                         if (i, k) not in history:
                             history[i, k] = history_periodograms(cases[LEVELS[0]][i], HISTORY_K, v_rel, th,
                                                                  np.random.default_rng([seed, 7, i, k]))
+                        t1 = time.perf_counter()
                         rows[variant] = history_measure(variant, history[i, k], w, c.truth.d)
+                        times.setdefault(variant, []).append(time.perf_counter() - t1)
                     elif variant == "widths":
                         runs = [rows["default"]]
                         for hz in WIDTHS_HZ[1:]:
@@ -401,7 +411,8 @@ def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict]:
         rows_ = np.arange(runs.shape[0])
         per[f"{base}|widths_median"], per_se[f"{base}|widths_median"] = med.tolist(), ses[:, 0].tolist()
         per[f"{base}|widths_medoid"], per_se[f"{base}|widths_medoid"] = mdo.tolist(), ses[rows_, pick].tolist()
-    return per, per_se
+    ms = {k: 1e3 * float(np.median(v)) for k, v in times.items()}
+    return per, per_se, ms
 
 
 def combine_widths(runs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -483,7 +494,7 @@ def main(argv=None) -> dict:
         raise SystemExit(f"unknown variants {unknown}; known: {', '.join(VARIANTS)}")
     n = args.n or (3 if args.quick else 300)
     t0 = time.perf_counter()
-    per, per_se = run(n, args.seed, variants)
+    per, per_se, ms = run(n, args.seed, variants)
     summ = summary(per)
     cover = coverage(per, per_se)
     print("coverage of ±1.96 SE over the noisy cells × parameters, min–max (inside 90–97 % of 24): "
@@ -495,13 +506,14 @@ def main(argv=None) -> dict:
               + " / ".join(f"{x:.2f}" for x in s["tm_ratio_01pct"])
               + "; off > 20 % default → variant: "
               + ", ".join(f"{cls}: {a} → {b}" for cls, (a, b) in s["off_20pct_default_variant"].items()))
+    print("ms per identification, median: " + ", ".join(f"{k} {v:.1f}" for k, v in ms.items()))
     honest = honest_counts(per, common.RESULTS / "input_noise_bound_n300.json") if args.seed == 43 else None
     if honest:
         print("issue 11's honest version (σ ≤ 1.3 × the structural bound), noisy cells × parameters met of 24: "
               + ", ".join(f"{k} {v}" for k, v in sorted(honest.items())))
     out = {"machine": common.machine(), "n": n, "seed": args.seed, "variants": variants, "summary": summ,
            "honest_version_met": honest, "coverage_95": cover, "per_window_se": per_se,
-           "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
+           "ms_median": ms, "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
     if not args.no_write:
         common.write_json(f"input_noise_variants_seed{args.seed}" + (f"_{args.tag}" if args.tag else "")
                           + ("_quick" if args.quick else ""), out)

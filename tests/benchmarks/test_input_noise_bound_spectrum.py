@@ -152,7 +152,7 @@ def test_default_on_other_seeds_uses_the_draws_of_the_other_benchmarks():
 
     cases = {level: common.cases(1, level=level, seed=41) for level in LEVELS}
     own = default_ratios(cases, 41, 1)[0]
-    per, _ = iv.run(1, 41, [])
+    per, _, _ = iv.run(1, 41, [])
     for level in LEVELS:
         for cls, ratio in own[level].items():
             np.testing.assert_allclose(ratio, per[f"{level}|{cls}|default"][0], rtol=1e-12)

@@ -8,14 +8,14 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from aslm_core import identify, input_weighting, noise, preprocess  # noqa: E402
+from aslm_core import identify, input_history, input_weighting, noise, preprocess  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks import input_noise_variants as iv  # noqa: E402
 from benchmarks.input_noise_bound import INPUT_NOISE, TAIL, with_input_noise  # noqa: E402
 
 
 def test_each_variant_changes_the_answer_and_the_core_is_restored_afterwards():
-    per, per_se = iv.run(1, 41, ["pq", "wpl", "widths"])
+    per, per_se, _ = iv.run(1, 41, ["pq", "wpl", "widths"])
     assert set(per_se) == set(per)
     assert input_weighting.weighted_fit is iv._WEIGHTED_FIT and noise.wiener_smooth is iv._WIENER_SMOOTH
     key = "2|0.1 % / 1e-3 rad|"
@@ -70,7 +70,7 @@ def test_the_floor_variants_reach_the_refinements_weighting_and_restore_it():
     """Stop 45's residual-floor and band variants move the refinement's answer on a noisy window, keep the model's S where it has
     input-error content (``outside``: below the floor's reach, the weighting equals the model's), and leave
     ``input_weighting`` as it was."""
-    per, _ = iv.run(1, 41, ["floor_outside", "no_floor", "band3"])
+    per, _, _ = iv.run(1, 41, ["floor_outside", "no_floor", "band3"])
     assert input_weighting.disturbance_spectrum is iv._DISTURBANCE_SPECTRUM
     assert input_weighting.whitening is iv._WHITENING and input_weighting.RESIDUAL_SMOOTH_HZ == 1.0
     assert input_weighting.BAND_FRACTION == 0.1
@@ -127,16 +127,17 @@ def test_the_em_spectrum_is_a_spectrum_near_the_windows_own_where_the_signal_is_
     for c in range(2):
         ratio = s[band, c, c].real.sum() / own[band, c, c].real.sum()
         assert 0.5 < ratio < 2.0, (c, ratio)
-    per, _ = iv.run(1, 41, ["em"])
+    per, _, _ = iv.run(1, 41, ["em"])
     key = "2|0.1 % / 1e-3 rad|"
     assert not np.allclose(np.array(per[key + "em"]), np.array(per[key + "default"]), rtol=0, atol=1e-9)
 
 
 def test_the_history_variants_reach_identify_and_restore_the_refinement():
     """Stop 46's ``hist6`` and ``hist6_fine_td`` move the answer on a noisy window, differ from each other, and leave the
-    refinement's band and residual floor as they were."""
-    per, _ = iv.run(1, 41, ["hist6", "hist6_fine_td"])
+    refinement's band and residual floor, and the history's form, as they were."""
+    per, _, _ = iv.run(1, 41, ["hist6", "hist6_fine_td"])
     assert input_weighting.BAND_FRACTION == 0.1 and input_weighting.RESIDUAL_SMOOTH_HZ == 1.0
+    assert input_weighting.HISTORY_BAND_HZ == 5.0 and input_history.HISTORY_SMOOTH_HZ == 0.0
     key = "3|0.1 % / 1e-3 rad|"
     d, h, f = (np.array(per[key + name]) for name in ("default", "hist6", "hist6_fine_td"))
     assert not np.allclose(h, d, rtol=0, atol=1e-9)
