@@ -22,9 +22,10 @@ per level, both PMU classes), every noisy window is identified by the default (`
 * ``hist6``, ``hist6_fine_td`` (stop 46): end to end through :func:`aslm_core.identify`'s ``input_spectrum``, the
   default given a minute of the bus's history (six noisy 10 s windows of another realisation of the same load and
   network, :func:`history_periodograms`, held by an :class:`aslm_core.input_history.InputHistory` as the service's
-  scheduler holds them): ``hist6_fine_td`` as the core takes it since stop 47 (pooled unsmoothed, the refinement whitened
-  in the time domain up to 5 Hz without the residual floor), ``hist6`` as it took it before (stop 41's: smoothed over
-  0.5 Hz, the window's own refinement; :func:`history_measure`);
+  scheduler holds them): ``hist6`` as the core takes it (stop 41's form: smoothed over 0.5 Hz, the window's own
+  refinement), ``hist6_fine_td`` with the core's history knobs set (pooled unsmoothed, the refinement whitened in the
+  time domain below 5 Hz without the residual floor; stop 47 confirmed it on seed 54 and kept it off;
+  :func:`history_measure`);
 * ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
   thirty-third of the rate instead of a tenth (5 or 3 Hz at 100 frames/s);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
@@ -333,17 +334,18 @@ def history_periodograms(case, k: int, v_rel: float, th: float, rng: np.random.G
 
 def history_measure(variant: str, periodograms: list, window, truth) -> tuple[list[float], list[float]]:
     """The default given the spectrum of an :class:`~aslm_core.input_history.InputHistory` holding the periodograms
-    (consecutive windows ending before the identified one): ``hist6_fine_td`` as the core takes it (since stop 47:
-    unsmoothed, the refinement in the time domain up to :data:`aslm_core.input_weighting.HISTORY_BAND_HZ` without the
-    residual floor); ``hist6`` as it took it before (smoothed over 0.5 Hz, the window's own refinement form)."""
+    (consecutive windows ending before the identified one): ``hist6`` as the core takes it (smoothed over 0.5 Hz, the
+    window's own refinement form); ``hist6_fine_td`` with :data:`aslm_core.input_history.HISTORY_SMOOTH_HZ` 0 and
+    :data:`aslm_core.input_weighting.HISTORY_BAND_HZ` 5 Hz (unsmoothed, the refinement in the time domain below 5 Hz
+    without the residual floor)."""
     held = input_history.InputHistory(k=len(periodograms))
     for j, g in enumerate(periodograms):
         held.add(j * g.n / g.fs, ((j + 1) * g.n - 1) / g.fs, g)
     start = len(periodograms) * periodograms[-1].n / periodograms[-1].fs
-    if variant == "hist6_fine_td":
+    if variant == "hist6":
         return _measure(window, truth, input_spectrum=held.spectrum(start))
     old = input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ
-    input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ = noise.WIENER_SMOOTH_HZ, None
+    input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ = 0.0, noise.FLOOR_FROM_HZ
     try:
         return _measure(window, truth, input_spectrum=held.spectrum(start))
     finally:
