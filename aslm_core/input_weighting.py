@@ -54,6 +54,10 @@ BAND_FRACTION = 0.1
 #: HISTORY_SMOOTH_HZ` 0).  None (the default): the window's own form.  Stop 47's confirmation kept it off: fewer
 #: far-off windows, but not the σ its rule asked for (docs/numerics.md, "Stop 47") [Hz].
 HISTORY_BAND_HZ: float | None = None
+#: That form's guard: where its whitened residual's mean square χ² exceeds this, S without the floor understates the
+#: window's residual (the history misses input error the window has) and the fit is redone with the floor [-].
+#: None: no guard.
+HISTORY_CHI2_MAX: float | None = None
 #: ``temporal`` form: S above the band is multiplied by this, so the whitened fit all but ignores those frequencies
 #: (the spectral form gives them weight zero, which a covariance cannot) [-].
 BAND_DOWNWEIGHT = 1e4
@@ -404,7 +408,8 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
         Equilibrium margin of the feasible set (``identify.EQUILIBRIUM_MARGIN``).
     history : bool
         The smoother used the inputs' spectrum of the bus's history: with :data:`HISTORY_BAND_HZ` set, the fit
-        then takes its form (time domain, the bins below it, no residual floor) instead of the configured one.
+        then takes its form (time domain, the bins below it, no residual floor) instead of the configured one,
+        redone with the floor where its χ² exceeds :data:`HISTORY_CHI2_MAX` (if set).
 
     Returns
     -------
@@ -416,11 +421,24 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     """
 
     pb = Problem(prep, f0, replace(config, skip_s=skip_s))
-    white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
-    d = np.array(d0, dtype=np.float64)
     band, form, floor = BAND_FRACTION / pb.dt, config.input_weighting, True
     if history and HISTORY_BAND_HZ:
         band, form, floor = min(band, math.nextafter(HISTORY_BAND_HZ, 0.0)), "temporal", False
+    out = _weighted_descent(pb, prep, d0, margin, band, form, floor)
+    if out is not None and not floor and HISTORY_CHI2_MAX and out["chi2"] > HISTORY_CHI2_MAX:
+        again = _weighted_descent(pb, prep, d0, margin, band, form, True)
+        if again is not None:
+            again["iterations"] += out["iterations"]
+            out = again
+    return out
+
+
+def _weighted_descent(pb: Problem, prep: Prepared, d0: np.ndarray, margin: float, band: float, form: str,
+                      floor: bool) -> dict | None:
+    """:func:`refine`'s fit in one form (:func:`build_weighting`'s ``band_hz``, ``form``, ``residual_floor``) from d0;
+    its dict, or None."""
+    white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
+    d = np.array(d0, dtype=np.float64)
     iters = 0
     out = None
     for _ in range(ROUNDS):

@@ -25,7 +25,9 @@ per level, both PMU classes), every noisy window is identified by the default (`
   scheduler holds them): ``hist6`` as the core takes it (stop 41's form: smoothed over 0.5 Hz, the window's own
   refinement), ``hist6_fine_td`` with the core's history knobs set (pooled unsmoothed, the refinement whitened in the
   time domain below 5 Hz without the residual floor; stop 47 confirmed it on seed 54 and kept it off;
-  :func:`history_measure`);
+  :func:`history_measure`); ``hist6_guard1.3``, ``hist6_guard1.5`` (stop 47): that form redone with the floor where its
+  whitened residual's χ² exceeds 1.3 or 1.5 (``input_weighting.HISTORY_CHI2_MAX``; the JSON's ``guard_fired`` counts
+  the windows per row);
 * ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
   thirty-third of the rate instead of a tenth (5 or 3 Hz at 100 frames/s);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
@@ -75,9 +77,13 @@ from benchmarks import common  # noqa: E402
 from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, long_inputs, with_input_noise  # noqa: E402
 
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
-            "floor_sig1.5", "hist6", "hist6_fine_td")
+            "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5")
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
-HISTORY_VARIANTS = ("hist6", "hist6_fine_td")
+HISTORY_VARIANTS = ("hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5")
+#: ``hist6_guard*``: the χ² above which the history's form is redone with the residual floor.
+HISTORY_GUARDS = {"hist6_guard1.3": 1.3, "hist6_guard1.5": 1.5}
+#: Per history variant, the windows on which the guard refitted with the floor (counted by :func:`history_measure`).
+GUARD_FIRED: dict[str, int] = {}
 HISTORY_K = 6
 #: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
@@ -344,12 +350,24 @@ def history_measure(variant: str, periodograms: list, window, truth) -> tuple[li
     start = len(periodograms) * periodograms[-1].n / periodograms[-1].fs
     if variant == "hist6":
         return _measure(window, truth, input_spectrum=held.spectrum(start))
-    old = input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ
+    old = (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
+           input_weighting.build_weighting)
+    floors = []
+
+    def counted(*args, **kwargs):
+        floors.append(args[6] if len(args) > 6 else kwargs.get("residual_floor", True))
+        return old[3](*args, **kwargs)
+
     input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ = 0.0, noise.FLOOR_FROM_HZ
+    input_weighting.HISTORY_CHI2_MAX, input_weighting.build_weighting = HISTORY_GUARDS.get(variant), counted
     try:
         return _measure(window, truth, input_spectrum=held.spectrum(start))
     finally:
-        input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ = old
+        (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
+         input_weighting.build_weighting) = old
+        # The history's form asks for S without the floor first; a later call with it is the guard's refit.
+        fired = False in floors and any(floors[floors.index(False) + 1:])
+        GUARD_FIRED[variant] = GUARD_FIRED.get(variant, 0) + int(fired)
 
 
 def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict, dict]:
@@ -496,7 +514,11 @@ def main(argv=None) -> dict:
         raise SystemExit(f"unknown variants {unknown}; known: {', '.join(VARIANTS)}")
     n = args.n or (3 if args.quick else 300)
     t0 = time.perf_counter()
+    GUARD_FIRED.clear()
     per, per_se, ms = run(n, args.seed, variants)
+    if GUARD_FIRED:
+        print("history form refitted with the floor by its χ² guard, windows: "
+              + ", ".join(f"{k} {v}" for k, v in GUARD_FIRED.items()))
     summ = summary(per)
     cover = coverage(per, per_se)
     print("coverage of ±1.96 SE over the noisy cells × parameters, min–max (inside 90–97 % of 24): "
@@ -515,7 +537,7 @@ def main(argv=None) -> dict:
               + ", ".join(f"{k} {v}" for k, v in sorted(honest.items())))
     out = {"machine": common.machine(), "n": n, "seed": args.seed, "variants": variants, "summary": summ,
            "honest_version_met": honest, "coverage_95": cover, "per_window_se": per_se,
-           "ms_median": ms, "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
+           "ms_median": ms, "guard_fired": dict(GUARD_FIRED), "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
     if not args.no_write:
         common.write_json(f"input_noise_variants_seed{args.seed}" + (f"_{args.tag}" if args.tag else "")
                           + ("_quick" if args.quick else ""), out)

@@ -138,3 +138,13 @@ def test_the_history_form_of_the_refinement_is_a_switch_off_by_default(monkeypat
     assert form_pooled == "temporal" and floor_pooled is False
     assert 5.0 - 1e-9 < band_pooled < 5.0  # the bin at 5 Hz itself is out: the history's spectrum is zero from there
     assert np.all(np.abs(pooled.d / D_TRUE - 1) < 0.25), pooled.d
+    # Its χ² guard: above the threshold the fit is redone with the floor, in the same band and form.
+    del calls[:]
+    monkeypatch.setattr(iw, "HISTORY_CHI2_MAX", 0.5 * pooled.quality["weighted_chi2"])
+    guarded = identify(windows[6], input_spectrum=spectrum)
+    assert [c[2] for c in calls] == [False, True] and calls[1][:2] == calls[0][:2]
+    assert not np.array_equal(guarded.d, pooled.d)
+    del calls[:]
+    monkeypatch.setattr(iw, "HISTORY_CHI2_MAX", 2.0 * pooled.quality["weighted_chi2"])
+    np.testing.assert_array_equal(identify(windows[6], input_spectrum=spectrum).d, pooled.d)
+    assert [c[2] for c in calls] == [False]
