@@ -79,9 +79,13 @@ from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, long_inputs,
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
             "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5")
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
-HISTORY_VARIANTS = ("hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5")
-#: ``hist6_guard*``: the χ² above which the history's form is redone with the residual floor.
-HISTORY_GUARDS = {"hist6_guard1.3": 1.3, "hist6_guard1.5": 1.5}
+#: Each history variant's form, set whatever the core's defaults: (``input_history.HISTORY_SMOOTH_HZ``,
+#: ``input_weighting.HISTORY_BAND_HZ``, ``input_weighting.HISTORY_CHI2_MAX``).
+HISTORY_FORMS = {"hist6": (noise.WIENER_SMOOTH_HZ, None, None),  # stop 41's form
+                 "hist6_fine_td": (0.0, noise.FLOOR_FROM_HZ, None),
+                 "hist6_guard1.3": (0.0, noise.FLOOR_FROM_HZ, 1.3),
+                 "hist6_guard1.5": (0.0, noise.FLOOR_FROM_HZ, 1.5)}
+HISTORY_VARIANTS = tuple(HISTORY_FORMS)
 #: Per history variant, the windows on which the guard refitted with the floor (counted by :func:`history_measure`).
 GUARD_FIRED: dict[str, int] = {}
 HISTORY_K = 6
@@ -340,16 +344,14 @@ def history_periodograms(case, k: int, v_rel: float, th: float, rng: np.random.G
 
 def history_measure(variant: str, periodograms: list, window, truth) -> tuple[list[float], list[float]]:
     """The default given the spectrum of an :class:`~aslm_core.input_history.InputHistory` holding the periodograms
-    (consecutive windows ending before the identified one): ``hist6`` as the core takes it (smoothed over 0.5 Hz, the
-    window's own refinement form); ``hist6_fine_td`` with :data:`aslm_core.input_history.HISTORY_SMOOTH_HZ` 0 and
-    :data:`aslm_core.input_weighting.HISTORY_BAND_HZ` 5 Hz (unsmoothed, the refinement in the time domain below 5 Hz
-    without the residual floor)."""
+    (consecutive windows ending before the identified one), in the variant's form (:data:`HISTORY_FORMS`): ``hist6``
+    stop 41's (smoothed over 0.5 Hz, the window's own refinement form); ``hist6_fine_td`` unsmoothed, the refinement in
+    the time domain below 5 Hz without the residual floor; ``hist6_guard*`` that, redone with the floor above the χ².
+    Counts in :data:`GUARD_FIRED` whether the fit was redone with the floor."""
     held = input_history.InputHistory(k=len(periodograms))
     for j, g in enumerate(periodograms):
         held.add(j * g.n / g.fs, ((j + 1) * g.n - 1) / g.fs, g)
     start = len(periodograms) * periodograms[-1].n / periodograms[-1].fs
-    if variant == "hist6":
-        return _measure(window, truth, input_spectrum=held.spectrum(start))
     old = (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
            input_weighting.build_weighting)
     floors = []
@@ -358,8 +360,9 @@ def history_measure(variant: str, periodograms: list, window, truth) -> tuple[li
         floors.append(args[6] if len(args) > 6 else kwargs.get("residual_floor", True))
         return old[3](*args, **kwargs)
 
-    input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ = 0.0, noise.FLOOR_FROM_HZ
-    input_weighting.HISTORY_CHI2_MAX, input_weighting.build_weighting = HISTORY_GUARDS.get(variant), counted
+    (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ,
+     input_weighting.HISTORY_CHI2_MAX) = HISTORY_FORMS[variant]
+    input_weighting.build_weighting = counted
     try:
         return _measure(window, truth, input_spectrum=held.spectrum(start))
     finally:
@@ -367,7 +370,8 @@ def history_measure(variant: str, periodograms: list, window, truth) -> tuple[li
          input_weighting.build_weighting) = old
         # The history's form asks for S without the floor first; a later call with it is the guard's refit.
         fired = False in floors and any(floors[floors.index(False) + 1:])
-        GUARD_FIRED[variant] = GUARD_FIRED.get(variant, 0) + int(fired)
+        if HISTORY_FORMS[variant][2] is not None:
+            GUARD_FIRED[variant] = GUARD_FIRED.get(variant, 0) + int(fired)
 
 
 def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict, dict]:
