@@ -13,15 +13,16 @@ from __future__ import annotations
 
 from collections import deque
 
-from aslm_core.noise import WIENER_SMOOTH_HZ, InputPeriodogram, InputSpectrum, poolable, pooled_spectrum
+from aslm_core.noise import InputPeriodogram, InputSpectrum, poolable, pooled_spectrum
 
 #: Windows pooled into the inputs' spectrum (a minute of 10 s windows: the development runs' K = 6) [-].
 HISTORY_WINDOWS = 6
 #: Oldest start of a pooled window before the start of the window identified [s] (the runs' five minutes).
 HISTORY_MAX_AGE_S = 300.0
-#: Width of the moving average across frequency over the pooled periodograms [Hz] (``pooled_spectrum``'s default;
-#: 0 with :data:`aslm_core.input_weighting.HISTORY_BAND_HZ` set, the form stop 47's confirmation kept off).
-HISTORY_SMOOTH_HZ = WIENER_SMOOTH_HZ
+#: Width of the moving average across frequency over the pooled periodograms [Hz]: none, since the refinement given
+#: a history drops its residual floor (:data:`aslm_core.input_weighting.HISTORY_BAND_HZ`) and needs the spectrum's
+#: fine structure (docs/numerics.md, "Stop 47").
+HISTORY_SMOOTH_HZ = 0.0
 
 
 class InputHistory:
@@ -85,7 +86,7 @@ class InputHistory:
         -------
         InputSpectrum or None
             :func:`aslm_core.noise.pooled_spectrum` of the held windows that ended before ``start`` and began
-            at most ``max_age_s`` before it, smoothed across frequency over :data:`HISTORY_SMOOTH_HZ`; None unless
+            at most ``max_age_s`` before it, not smoothed across frequency (:data:`HISTORY_SMOOTH_HZ`); None unless
             there are ``k`` of them.
         """
         usable = [h for h in self._held if h[1] < start and h[0] >= start - self.max_age_s]

@@ -30,7 +30,7 @@ import numpy as np
 from scipy import linalg, signal
 
 from aslm_core import motor, optimize, static
-from aslm_core.noise import InputSpectrum, reflected_mean
+from aslm_core.noise import FLOOR_FROM_HZ, InputSpectrum, reflected_mean
 from aslm_core.preprocess import Prepared, prepare, white_floor
 from aslm_core.problem import Problem
 from aslm_core.window import Window
@@ -48,16 +48,16 @@ RESIDUAL_SMOOTH_HZ = 1.0
 #: Highest frequency the fit uses, as a fraction of the reporting rate [-]: where the simulator's cubic
 #: interpolation of the inputs between samples is within ~0.5 % of a sinusoid's amplitude (5 % at 0.2).
 BAND_FRACTION = 0.1
-#: With the inputs' spectrum of the bus's history (``identify(..., input_spectrum=)``): if set, the refinement
-#: whitens in the time domain on the bins below this frequency (or a tenth of the rate, the lower) without the
-#: residual floor, the form that stop 46 found for an unsmoothed history (:data:`aslm_core.input_history.
-#: HISTORY_SMOOTH_HZ` 0).  None (the default): the window's own form.  Stop 47's confirmation kept it off: fewer
-#: far-off windows, but not the σ its rule asked for (docs/numerics.md, "Stop 47") [Hz].
-HISTORY_BAND_HZ: float | None = None
+#: With the inputs' spectrum of the bus's history (``identify(..., input_spectrum=)``, pooled unsmoothed by
+#: :class:`aslm_core.input_history.InputHistory`), the refinement whitens in the time domain on the bins below this
+#: frequency (where that spectrum is known: it is zero from the floor band up) or a tenth of the rate, the lower,
+#: without the residual floor: the history's smoother error P_x is good enough for S to stand without it
+#: (docs/numerics.md, "Stop 47") [Hz].  None: the window's own form, with a history too.
+HISTORY_BAND_HZ: float | None = FLOOR_FROM_HZ
 #: That form's guard: where its whitened residual's mean square χ² exceeds this, S without the floor understates the
-#: window's residual (the history misses input error the window has) and the fit is redone with the floor [-].
-#: None: no guard.
-HISTORY_CHI2_MAX: float | None = None
+#: window's residual (the history misses input error the window has) and the fit is redone with the floor.  About
+#: 5 standard deviations of χ² at 100 frames/s; it refits ~8 % of noisy windows [-].  None: no guard.
+HISTORY_CHI2_MAX: float | None = 1.5
 #: ``temporal`` form: S above the band is multiplied by this, so the whitened fit all but ignores those frequencies
 #: (the spectral form gives them weight zero, which a covariance cannot) [-].
 BAND_DOWNWEIGHT = 1e4
@@ -407,9 +407,9 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     margin : float
         Equilibrium margin of the feasible set (``identify.EQUILIBRIUM_MARGIN``).
     history : bool
-        The smoother used the inputs' spectrum of the bus's history: with :data:`HISTORY_BAND_HZ` set, the fit
-        then takes its form (time domain, the bins below it, no residual floor) instead of the configured one,
-        redone with the floor where its χ² exceeds :data:`HISTORY_CHI2_MAX` (if set).
+        The smoother used the inputs' spectrum of the bus's history: the fit then takes :data:`HISTORY_BAND_HZ`'s
+        form (time domain, the bins below it, no residual floor) instead of the configured one, redone with the
+        floor where its χ² exceeds :data:`HISTORY_CHI2_MAX`.
 
     Returns
     -------

@@ -33,7 +33,8 @@ def test_the_history_pools_its_last_k_windows_as_pooling_the_windows_does():
         assert hist.add(10.0 * j, 10.0 * j + 9.98, noise.input_periodogram(x, FS))
     assert len(hist) == 6  # the oldest of the seven left
     got = hist.spectrum(70.0)
-    want = noise.pooled_input_spectrum(wins[1:7], FS)
+    # Unsmoothed across frequency: the refinement given a history drops its residual floor and needs the fine structure.
+    want = noise.pooled_spectrum([noise.input_periodogram(x, FS) for x in wins[1:7]], smooth_hz=0.0)
     assert got.n_windows == 6
     np.testing.assert_array_equal(got.freqs, want.freqs)
     np.testing.assert_array_equal(got.s, want.s)
@@ -106,11 +107,11 @@ def test_identify_says_when_its_refinement_used_the_history():
     assert "input_spectrum_windows" not in exact.quality
 
 
-def test_the_history_form_of_the_refinement_is_a_switch_off_by_default(monkeypatch):
+def test_given_a_history_the_refinement_whitens_in_time_below_5_hz_without_the_residual_floor(monkeypatch):
     """At 100 frames/s the window's own refinement fits per frequency up to a tenth of the rate (10 Hz) with S's
-    diagonal floored by the residual, with a history too by default; with ``HISTORY_BAND_HZ`` set (stop 46's form,
-    kept off by stop 47's confirmation), given a history it whitens in the time domain on the bins below 5 Hz
-    without the floor, and alone it is unchanged."""
+    diagonal floored by the residual; given a history's spectrum it whitens in the time domain on the bins below
+    5 Hz (where that spectrum is known) without the floor (docs/numerics.md, "Stop 47"), redone with the floor where
+    its χ² exceeds ``HISTORY_CHI2_MAX``; with ``HISTORY_BAND_HZ`` None it takes the window's own form."""
     fs, n = 100.0, 1000
     rec = equation_window(seed=4, fs=fs, fine=2, duration=70.0)
     windows = [_with_noise(Window(rec.t[j * n:(j + 1) * n], rec.V[j * n:(j + 1) * n], rec.theta[j * n:(j + 1) * n],
@@ -128,23 +129,29 @@ def test_the_history_form_of_the_refinement_is_a_switch_off_by_default(monkeypat
 
     monkeypatch.setattr(iw, "build_weighting", spy)
     spectrum = hist.spectrum(float(windows[6].t[0]))
-    identify(windows[6], input_spectrum=spectrum)
-    monkeypatch.setattr(iw, "HISTORY_BAND_HZ", noise.FLOOR_FROM_HZ)
     alone = identify(windows[6])
-    pooled = identify(windows[6], input_spectrum=spectrum)
+    pooled = identify(windows[6], input_spectrum=spectrum)  # the module's defaults
     assert pooled.quality["input_spectrum_windows"] == 6.0 and "input_spectrum_windows" not in alone.quality
-    default, (band_alone, form_alone, floor_alone), (band_pooled, form_pooled, floor_pooled) = calls
-    assert default == (band_alone, form_alone, floor_alone) == (pytest.approx(10.0), "spectral", True)
+    assert np.all(np.abs(pooled.d / D_TRUE - 1) < 0.25), pooled.d
+    (band_alone, form_alone, floor_alone), (band_pooled, form_pooled, floor_pooled) = calls[:2]
+    assert (band_alone, form_alone, floor_alone) == (pytest.approx(10.0), "spectral", True)
     assert form_pooled == "temporal" and floor_pooled is False
     assert 5.0 - 1e-9 < band_pooled < 5.0  # the bin at 5 Hz itself is out: the history's spectrum is zero from there
-    assert np.all(np.abs(pooled.d / D_TRUE - 1) < 0.25), pooled.d
     # Its χ² guard: above the threshold the fit is redone with the floor, in the same band and form.
+    monkeypatch.setattr(iw, "HISTORY_CHI2_MAX", None)
     del calls[:]
-    monkeypatch.setattr(iw, "HISTORY_CHI2_MAX", 0.5 * pooled.quality["weighted_chi2"])
+    unguarded = identify(windows[6], input_spectrum=spectrum)
+    assert [c[2] for c in calls] == [False]
+    chi2 = unguarded.quality["weighted_chi2"]
+    monkeypatch.setattr(iw, "HISTORY_CHI2_MAX", 0.5 * chi2)
+    del calls[:]
     guarded = identify(windows[6], input_spectrum=spectrum)
     assert [c[2] for c in calls] == [False, True] and calls[1][:2] == calls[0][:2]
-    assert not np.array_equal(guarded.d, pooled.d)
+    assert not np.array_equal(guarded.d, unguarded.d)
+    monkeypatch.setattr(iw, "HISTORY_CHI2_MAX", 2.0 * chi2)
+    np.testing.assert_array_equal(identify(windows[6], input_spectrum=spectrum).d, unguarded.d)
+    # Switched off, a history leaves the window's own form.
+    monkeypatch.setattr(iw, "HISTORY_BAND_HZ", None)
     del calls[:]
-    monkeypatch.setattr(iw, "HISTORY_CHI2_MAX", 2.0 * pooled.quality["weighted_chi2"])
-    np.testing.assert_array_equal(identify(windows[6], input_spectrum=spectrum).d, pooled.d)
-    assert [c[2] for c in calls] == [False]
+    identify(windows[6], input_spectrum=spectrum)
+    assert calls == [(pytest.approx(10.0), "spectral", True)]

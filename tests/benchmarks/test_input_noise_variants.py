@@ -137,7 +137,8 @@ def test_the_history_variants_reach_identify_and_restore_the_refinement():
     refinement's band and residual floor, and the history's form, as they were."""
     per, _, _ = iv.run(1, 41, ["hist6", "hist6_fine_td"])
     assert input_weighting.BAND_FRACTION == 0.1 and input_weighting.RESIDUAL_SMOOTH_HZ == 1.0
-    assert input_weighting.HISTORY_BAND_HZ is None and input_history.HISTORY_SMOOTH_HZ == 0.5
+    assert (input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX, input_history.HISTORY_SMOOTH_HZ) == (
+        5.0, 1.5, 0.0)
     key = "3|0.1 % / 1e-3 rad|"
     d, h, f = (np.array(per[key + name]) for name in ("default", "hist6", "hist6_fine_td"))
     assert not np.allclose(h, d, rtol=0, atol=1e-9)
