@@ -86,8 +86,9 @@ class ServiceSettings(BaseSettings):
     input_history_windows: int = Field(
         0, description="Noisy V and θ: k > 0 has the identifier's refinement smooth them with their spectrum pooled "
                        "from the bus's last k non-overlapping noisy windows, once it has k begun within input_history_s "
-                       "before the window (6 is the measured choice); 0 (default): each window alone, as the CLI and "
-                       "the Python API (docs/numerics.md, \"Stop 41: the service keeps the inputs' spectrum\")",
+                       "before the window (6 is the measured choice), and whiten its fit in the time domain (~0.1 s "
+                       "per window instead of ~0.01 s); 0 (default): each window alone, as the CLI and the Python API "
+                       "(docs/numerics.md, \"Stop 41: the service keeps the inputs' spectrum\" and \"Stop 47\")",
     )
     input_history_s: float = Field(
         300.0, description="Oldest start of a window the inputs' spectrum is pooled from, before the window identified "
