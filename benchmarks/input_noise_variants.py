@@ -374,12 +374,12 @@ def history_measure(variant: str, periodograms: list, window, truth) -> tuple[li
             GUARD_FIRED[variant] = GUARD_FIRED.get(variant, 0) + int(fired)
 
 
-def run(n: int, seed: int, variants: list[str]) -> tuple[dict, dict, dict]:
+def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict, dict, dict]:
     """Per level, noisy class and row (``default`` and the variants' rows): the per-window D/D_real, and their
     standard errors over D_real (the median of the widths takes the 0.5 Hz run's, the run nearest it its own); and
     the median ms per identification of the default and the history variants (each window's rows run in turn, one
     thread)."""
-    cases = {level: common.cases(n, level=level, seed=seed) for level in LEVELS}
+    cases = {level: common.cases(n, level=level, seed=seed, fs=fs) for level in LEVELS}
     rngs = {(level, k): np.random.default_rng([seed, level, k]) for level in LEVELS for k in range(len(INPUT_NOISE))}
     per: dict[str, list] = {}
     per_se: dict[str, list] = {}
@@ -511,6 +511,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--variants", default=",".join(VARIANTS[:5]),
                     help=f"comma-separated, of {', '.join(VARIANTS)} (default: stop 44's five)")
     ap.add_argument("--tag", default="", help="suffix of the JSON's name (e.g. floor), so runs of other variants sit beside")
+    ap.add_argument("--fs", type=float, default=100.0, help="reporting rate [frames/s] (JSON name suffix _fs<rate> if not 100)")
     args = ap.parse_args(argv)
     variants = [v for v in args.variants.split(",") if v]
     unknown = sorted(set(variants) - set(VARIANTS))
@@ -519,7 +520,7 @@ def main(argv=None) -> dict:
     n = args.n or (3 if args.quick else 300)
     t0 = time.perf_counter()
     GUARD_FIRED.clear()
-    per, per_se, ms = run(n, args.seed, variants)
+    per, per_se, ms = run(n, args.seed, variants, args.fs)
     if GUARD_FIRED:
         print("history form refitted with the floor by its χ² guard, windows: "
               + ", ".join(f"{k} {v}" for k, v in GUARD_FIRED.items()))
@@ -539,11 +540,12 @@ def main(argv=None) -> dict:
     if honest:
         print("issue 11's honest version (σ ≤ 1.3 × the structural bound), noisy cells × parameters met of 24: "
               + ", ".join(f"{k} {v}" for k, v in sorted(honest.items())))
-    out = {"machine": common.machine(), "n": n, "seed": args.seed, "variants": variants, "summary": summ,
+    out = {"machine": common.machine(), "n": n, "seed": args.seed, "fs": args.fs, "variants": variants, "summary": summ,
            "honest_version_met": honest, "coverage_95": cover, "per_window_se": per_se,
            "ms_median": ms, "guard_fired": dict(GUARD_FIRED), "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
     if not args.no_write:
         common.write_json(f"input_noise_variants_seed{args.seed}" + (f"_{args.tag}" if args.tag else "")
+                          + (f"_fs{args.fs:g}" if args.fs != 100.0 else "")
                           + ("_quick" if args.quick else ""), out)
     return out
 
