@@ -27,7 +27,8 @@ per level, both PMU classes), every noisy window is identified by the default (`
   time domain below 5 Hz without the residual floor; stop 47 confirmed it on seed 54 and kept it off;
   :func:`history_measure`); ``hist6_guard1.3``, ``hist6_guard1.5`` (stop 47): that form redone with the floor where its
   whitened residual's χ² exceeds 1.3 or 1.5 (``input_weighting.HISTORY_CHI2_MAX``; the JSON's ``guard_fired`` counts
-  the windows per row);
+  the windows per row); any of these with the suffix ``_of1``: given the next case's history instead, another load
+  and network (a stale history, as ``input_noise_bound --history-of 1``);
 * ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
   thirty-third of the rate instead of a tenth (5 or 3 Hz at 100 frames/s);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
@@ -86,6 +87,8 @@ HISTORY_FORMS = {"hist6": (noise.WIENER_SMOOTH_HZ, None, None),  # stop 41's for
                  "hist6_guard1.3": (0.0, noise.FLOOR_FROM_HZ, 1.3),
                  "hist6_guard1.5": (0.0, noise.FLOOR_FROM_HZ, 1.5)}
 HISTORY_VARIANTS = tuple(HISTORY_FORMS)
+#: Suffix of a history variant given the next case's history (another load and network: a stale history).
+STALE = "_of1"
 #: Per history variant, the windows on which the guard refitted with the floor (counted by :func:`history_measure`).
 GUARD_FIRED: dict[str, int] = {}
 HISTORY_K = 6
@@ -342,12 +345,13 @@ def history_periodograms(case, k: int, v_rel: float, th: float, rng: np.random.G
     return out
 
 
-def history_measure(variant: str, periodograms: list, window, truth) -> tuple[list[float], list[float]]:
+def history_measure(variant: str, periodograms: list, window, truth,
+                    label: str | None = None) -> tuple[list[float], list[float]]:
     """The default given the spectrum of an :class:`~aslm_core.input_history.InputHistory` holding the periodograms
     (consecutive windows ending before the identified one), in the variant's form (:data:`HISTORY_FORMS`): ``hist6``
     stop 41's (smoothed over 0.5 Hz, the window's own refinement form); ``hist6_fine_td`` unsmoothed, the refinement in
     the time domain below 5 Hz without the residual floor; ``hist6_guard*`` that, redone with the floor above the χ².
-    Counts in :data:`GUARD_FIRED` whether the fit was redone with the floor."""
+    Counts in :data:`GUARD_FIRED` (under ``label``, the variant by default) whether the fit was redone with the floor."""
     held = input_history.InputHistory(k=len(periodograms))
     for j, g in enumerate(periodograms):
         held.add(j * g.n / g.fs, ((j + 1) * g.n - 1) / g.fs, g)
@@ -371,7 +375,7 @@ def history_measure(variant: str, periodograms: list, window, truth) -> tuple[li
         # The history's form asks for S without the floor first; a later call with it is the guard's refit.
         fired = False in floors and any(floors[floors.index(False) + 1:])
         if HISTORY_FORMS[variant][2] is not None:
-            GUARD_FIRED[variant] = GUARD_FIRED.get(variant, 0) + int(fired)
+            GUARD_FIRED[label or variant] = GUARD_FIRED.get(label or variant, 0) + int(fired)
 
 
 def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict, dict, dict]:
@@ -397,12 +401,14 @@ def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict
                 rows = {"default": _measure(w, c.truth.d)}
                 times.setdefault("default", []).append(time.perf_counter() - t1)
                 for variant in variants:
-                    if variant in HISTORY_VARIANTS:
-                        if (i, k) not in history:
-                            history[i, k] = history_periodograms(cases[LEVELS[0]][i], HISTORY_K, v_rel, th,
-                                                                 np.random.default_rng([seed, 7, i, k]))
+                    if variant in HISTORY_VARIANTS or variant.removesuffix(STALE) in HISTORY_VARIANTS:
+                        # A stale history (suffix _of1) is the next case's own: another load and network.
+                        j = (i + 1) % n if variant.endswith(STALE) else i
+                        if (j, k) not in history:
+                            history[j, k] = history_periodograms(cases[LEVELS[0]][j], HISTORY_K, v_rel, th,
+                                                                 np.random.default_rng([seed, 7, j, k]))
                         t1 = time.perf_counter()
-                        rows[variant] = history_measure(variant, history[i, k], w, c.truth.d)
+                        rows[variant] = history_measure(variant.removesuffix(STALE), history[j, k], w, c.truth.d, variant)
                         times.setdefault(variant, []).append(time.perf_counter() - t1)
                     elif variant == "widths":
                         runs = [rows["default"]]
@@ -514,7 +520,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--fs", type=float, default=100.0, help="reporting rate [frames/s] (JSON name suffix _fs<rate> if not 100)")
     args = ap.parse_args(argv)
     variants = [v for v in args.variants.split(",") if v]
-    unknown = sorted(set(variants) - set(VARIANTS))
+    unknown = sorted(set(variants) - set(VARIANTS) - {h + STALE for h in HISTORY_VARIANTS})
     if unknown:
         raise SystemExit(f"unknown variants {unknown}; known: {', '.join(VARIANTS)}")
     n = args.n or (3 if args.quick else 300)

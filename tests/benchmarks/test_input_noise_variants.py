@@ -135,11 +135,12 @@ def test_the_em_spectrum_is_a_spectrum_near_the_windows_own_where_the_signal_is_
 def test_the_history_variants_reach_identify_and_restore_the_refinement():
     """Stop 46's ``hist6`` and ``hist6_fine_td`` move the answer on a noisy window, differ from each other, and leave the
     refinement's band and residual floor, and the history's form, as they were."""
-    per, _, _ = iv.run(1, 41, ["hist6", "hist6_fine_td"])
+    per, _, _ = iv.run(2, 41, ["hist6", "hist6_fine_td", "hist6_of1"])
     assert input_weighting.BAND_FRACTION == 0.1 and input_weighting.RESIDUAL_SMOOTH_HZ == 1.0
     assert (input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX, input_history.HISTORY_SMOOTH_HZ) == (
         5.0, 1.5, 0.0)
     key = "3|0.1 % / 1e-3 rad|"
-    d, h, f = (np.array(per[key + name]) for name in ("default", "hist6", "hist6_fine_td"))
+    d, h, f, o = (np.array(per[key + name]) for name in ("default", "hist6", "hist6_fine_td", "hist6_of1"))
     assert not np.allclose(h, d, rtol=0, atol=1e-9)
     assert not np.allclose(f, h, rtol=0, atol=1e-9)
+    assert not np.allclose(o, h, rtol=0, atol=1e-9)  # another case's history (a stale one) gives another answer
