@@ -37,11 +37,12 @@ per level, both PMU classes), every noisy window is identified by the default (`
 
 The spectrum variants reach the refinement through ``identify(..., input_spectrum=)``'s seam (the one the service's
 history uses) by standing in for :func:`aslm_core.input_weighting.weighted_fit` within this process; ``widths`` stands in
-for :func:`aslm_core.noise.wiener_smooth`, the floor variants for the refinement's spectrum and whitening functions.
-Nothing in ``aslm_core`` is changed.  Printed per variant: σ of D/D_real
-over the default's per cell (median and range over the noisy cells × parameters, Tm at 0.1 % / 1e-3 rad per DL) and the
-windows off by more than 20 % per class; JSON ``docs/results/input_noise_variants_seed<seed>[_<tag>].json`` (per window
-D/D_real).
+for :func:`aslm_core.noise.wiener_smooth`, the floor variants for the refinement's spectrum and whitening functions;
+the history variants set the core's history knobs (:data:`HISTORY_FORMS`).  Each is restored after the call.  Printed
+per variant: σ of D/D_real over the default's per cell (median and range over the noisy cells × parameters, Tm at
+0.1 % / 1e-3 rad per DL), the windows off by more than 20 % per class, the coverage of ±1.96 SE and the median ms per
+identification of the default and the history variants; JSON
+``docs/results/input_noise_variants_seed<seed>[_<tag>][_fs<rate>].json`` (per window D/D_real and SE).
 
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 [--n 300] [--variants pq,avg,ptail,wpl,widths]
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_outside,no_floor --tag floor
@@ -49,6 +50,10 @@ D/D_real).
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants band5,band3 --tag band
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_sig2,floor_sig1.5 --tag floorsig
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants hist6,hist6_fine_td --tag hist
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants hist6_guard1.3,hist6_guard1.5 --tag guard
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 55 --variants hist6,hist6_guard1.5 --tag confirm
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --n 150 --fs 120 --variants hist6,hist6_guard1.5 --tag hist
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 54 --variants hist6_of1,hist6_guard1.5_of1 --tag stale
 
 Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)"; the floor
 variants, ``em`` and the bands "Stop 45: the bound with the inputs' spectrum learnt from the window"; ``floor_sig*`` and
