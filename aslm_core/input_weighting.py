@@ -17,7 +17,10 @@ projected out after whitening, and D is refined by Levenberg–Marquardt steps u
 constraint (:func:`aslm_core.optimize.qp_step`) on the Wiener-smoothed V, θ and the measured P, Q (no
 low-pass: the weighting takes its place), over the bins up to a tenth of the reporting rate (above it the
 simulator's cubic interpolation of the inputs departs from their content and biased D at coarse rates).  Standard errors from the whitened problem's information, scaled
-by the whitened residual's variance.  Measurements: docs/numerics.md.
+by the whitened residual's variance.  Given the inputs' spectrum of the bus's history, whose P_x is good enough to
+drop the floor, the fit whitens in the time domain below 5 Hz without it, and is redone with it where the whitened
+residual's χ² says S understates the residual (:data:`HISTORY_BAND_HZ`, :data:`HISTORY_CHI2_MAX`).  Measurements:
+docs/numerics.md.
 """
 
 from __future__ import annotations

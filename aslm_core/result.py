@@ -191,7 +191,8 @@ class IdentificationResult:
         spectrum: ~1 for valid instruments) [-], ``iv_overid_p`` (its χ² upper-tail probability) [-] and
         ``iv_overid_white`` (Sargan's, which assumes white innovations) [-]; where the S-weighted refinement
         answered, ``weighted_shift_z`` (the largest |D − output error's D| / SE over the parameters) [-] and, where
-        its smoother was given the inputs' spectrum of the bus's previous windows, ``input_spectrum_windows`` (how
+        its smoother was given the inputs' spectrum of the bus's previous windows (and its fit took the history's
+        time-domain form, :data:`aslm_core.input_weighting.HISTORY_BAND_HZ`), ``input_spectrum_windows`` (how
         many) [-]; where the
         gated estimator's IV answered, ``halves_z`` (the largest |D₁ − D₂| / √(SE₁² + SE₂²) of the two
         half-window IV fits; NaN when a half cannot be identified) [-].
