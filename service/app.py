@@ -65,7 +65,8 @@ class Service:
                          settings.storage_path)
             except (TypeError, ValueError) as exc:
                 log.warning("ignoring persisted period_s: %s", exc)
-        self.store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s, settings.max_buses)
+        self.store = BufferStore(settings.window_s, settings.frame_rate, settings.late_s, settings.max_buses,
+                                 history_s=settings.input_history_windows * settings.window_s)
         self.metrics = ServiceMetrics(self.store)
         self.metrics.period_s.set(self.period_s)
         self.latest = LatestResults.from_storage(self.storage)
@@ -119,7 +120,7 @@ class Service:
             diagnose_every=s.diagnose_every, on_diagnosis=self._on_diagnosis, clock=self.clock,
             on_start=self._period_started, diagnose_in_flight=max(1, s.workers - 1),
             bus_idle_s=s.bus_idle_s, on_evicted=self.latest.forget_skipped,
-            input_history=(s.input_history_windows, s.input_history_s) if s.input_history_windows > 0 else None,
+            input_history=s.input_history_windows or None,
         )
         self.scheduler.start()
         if self.rest:

@@ -275,16 +275,19 @@ class BufferStore:
     Parameters
     ----------
     window_s, frame_rate, late_s : float
-        Size the rings: ``(window_s + late_s + 3 s) * frame_rate`` frames, the 3 s covering the time
-        between a period's cut and the frames that keep arriving meanwhile.
+        Size the rings: ``(window_s + history_s + late_s + 3 s) * frame_rate`` frames, the 3 s covering the
+        time between a period's cut and the frames that keep arriving meanwhile.
+    history_s : float
+        Held besides the window: the windows before it that the identifier's input history pools [s].
     max_buses : int
         Buffers kept at most.  A new bus beyond it evicts the buses that went longest without a valid
         frame (a 64th of the cap at a time, so a flood of new names costs O(1) each on average), so
         stray keys cannot exhaust memory and cannot keep a real bus out either.
     """
 
-    def __init__(self, window_s: float, frame_rate: float, late_s: float, max_buses: int = 100_000) -> None:
-        self.capacity = int(math.ceil((window_s + late_s + 3.0) * frame_rate))
+    def __init__(self, window_s: float, frame_rate: float, late_s: float, max_buses: int = 100_000,
+                 history_s: float = 0.0) -> None:
+        self.capacity = int(math.ceil((window_s + history_s + late_s + 3.0) * frame_rate))
         self.tol = 0.25 / frame_rate
         self.late_s = late_s
         self.max_buses = max_buses

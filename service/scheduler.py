@@ -25,7 +25,6 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from aslm_core.params import DYNAMIC_NAMES
 from aslm_core.window import Window
@@ -36,9 +35,6 @@ from service.executors.base import Executor, TaskOutcome, WindowTask
 from service.models import BusResult, Identified, PeriodSummary
 from service.sinks.base import ResultBatch
 from service.timefmt import utc_text
-
-if TYPE_CHECKING:
-    from aslm_core.input_history import InputHistory
 
 log = logging.getLogger(__name__)
 
@@ -131,10 +127,11 @@ class Scheduler:
         never).
     on_evicted : callable, optional
         Called with the buses evicted after a period.
-    input_history : (int, float) or None
-        (k, max_age_s) of each bus's :class:`~aslm_core.input_history.InputHistory`: the identifier's
-        noisy-input refinement is given V's and θ's spectrum pooled from the bus's last k non-overlapping
-        noisy windows that began at most max_age_s [s] before the window; None: each window alone.
+    input_history : int or None
+        k: each bus's task carries the k windows just before its window, cut from its buffer (which must hold
+        them: :class:`~service.buffers.BufferStore`'s ``history_s``), and the identifier's noisy-input
+        refinement is given V's and θ's spectrum pooled from them (:func:`service.worker.history_spectrum`);
+        only where all k pass the window rules, else the window alone.  None: each window alone.
 
     Notes
     -----
@@ -156,7 +153,7 @@ class Scheduler:
                  clock: Clock = SYSTEM_CLOCK, on_start: Callable[[float, float, list[str]], None] | None = None,
                  diagnose_in_flight: int = 1, bus_idle_s: float | None = None,
                  on_evicted: Callable[[list[str]], None] | None = None,
-                 input_history: tuple[int, float] | None = None) -> None:
+                 input_history: int | None = None) -> None:
         self.store = store
         self.clock = clock
         self.executor = executor
@@ -189,7 +186,6 @@ class Scheduler:
         self.on_evicted = on_evicted
         self._skip_state: dict[str, str] = {}  # bus -> reason of its last reported skip
         self.input_history = input_history
-        self._inputs: dict[str, InputHistory] = {}  # bus -> its recent noisy windows' input periodograms
 
     def start(self) -> None:
         """Start the scheduling thread."""
@@ -332,11 +328,9 @@ class Scheduler:
                 continue
             self._skip_state.pop(bus, None)
             warm = self.warm_starts.get(bus)
-            held = self._inputs.get(bus)
             task = WindowTask(cut, warm_start=list(warm) if warm is not None else None,
                               options=self.options if warm is None else self.warm_options,
-                              input_spectrum=held.spectrum(float(cut.t[0])) if held is not None else None,
-                              keep_inputs=self.input_history is not None)
+                              history=self._history(buf, bus, end) if self.input_history else ())
             group.append((task, cut, warm is not None))
             if len(group) >= 64:  # submitted in groups: the workers start while the rest is cut
                 submit(group)
@@ -365,14 +359,6 @@ class Scheduler:
                         batch.windows[bus] = cut  # for the sinks that keep samples (tracking's joint fit)
                         self.warm_starts[bus] = [res.parameters.dynamic[k] for k in DYNAMIC_NAMES]
                         identified[bus] = (cut, outcome.value)
-                        if outcome.input_periodogram is not None and self.input_history is not None:
-                            held = self._inputs.get(bus)
-                            if held is None:
-                                # Imported here: it loads scipy, which the service's process needs only for this.
-                                from aslm_core.input_history import InputHistory
-
-                                held = self._inputs[bus] = InputHistory(*self.input_history)
-                            held.add(float(cut.t[0]), float(cut.t[-1]), outcome.input_periodogram)
                     else:
                         res = self._record(bus, boundary, period_s, "failed", outcome.reason, cut, warm, outcome)
                 except Exception as exc:  # noqa: BLE001 - e.g. a non-finite D: fails this bus only
@@ -402,6 +388,13 @@ class Scheduler:
                  summary.n_skipped, summary.latency_s)
         return summary
 
+    def _history(self, buf, bus: str, end: float) -> tuple[Window, ...]:
+        """The k windows of ``window_s`` just before the one ending at ``end`` [s], oldest first, cut from the bus's
+        buffer; empty unless every one passes the window rules (a partial history is one window's scatter again)."""
+        w, k = self.rules.window_s, self.input_history
+        pieces = tuple(buf.cut(end - (k + 1 - j) * w, end - (k - j) * w, f0=self.f0, bus=bus) for j in range(k))
+        return pieces if all(check_window(p, self.rules) is None for p in pieces) else ()
+
     def _evict_idle(self) -> None:
         """Forget buses not heard from for ``bus_idle_s`` (after their last results were written).
 
@@ -411,10 +404,9 @@ class Scheduler:
         evicted = [] if self.bus_idle_s is None else self.store.evict_idle(self.clock.now() - self.bus_idle_s)
         if evicted:
             log.info("evicted %d bus(es) idle for more than %g s", len(evicted), self.bus_idle_s)
-        gone = set(evicted) | {b for b in (*self._skip_state, *self._inputs) if self.store.buffer(b, create=False) is None}
+        gone = set(evicted) | {b for b in self._skip_state if self.store.buffer(b, create=False) is None}
         for bus in gone:
             self._skip_state.pop(bus, None)
-            self._inputs.pop(bus, None)
         if gone and self.on_evicted is not None:
             self.on_evicted(sorted(gone))
 

@@ -85,14 +85,10 @@ class ServiceSettings(BaseSettings):
     )
     input_history_windows: int = Field(
         0, description="Noisy V and θ: k > 0 has the identifier's refinement smooth them with their spectrum pooled "
-                       "from the bus's last k non-overlapping noisy windows, once it has k begun within input_history_s "
-                       "before the window (6 is the measured choice), and whiten its fit in the time domain (~0.1 s "
-                       "per window instead of ~0.01 s); 0 (default): each window alone, as the CLI and the Python API "
-                       "(docs/numerics.md, \"Stop 41: the service keeps the inputs' spectrum\" and \"Stop 47\")",
-    )
-    input_history_s: float = Field(
-        300.0, description="Oldest start of a window the inputs' spectrum is pooled from, before the window identified "
-                           "[s]: with a period T above input_history_s / input_history_windows the history is never full",
+                       "from the k windows just before the one identified, cut from the bus's buffer (which then holds "
+                       "k·window_s more), and whiten its fit in the time domain (~0.1 s per window instead of ~0.01 s); "
+                       "6 is the measured choice; 0 (default): each window alone, as the CLI and the Python API "
+                       "(docs/numerics.md, \"Stop 47\")",
     )
     diagnose_every: int = Field(
         4, description="Discrepancy diagnosis of every identified bus each k-th period (0: off); ~0.7 s of one "
@@ -185,8 +181,7 @@ class ServiceSettings(BaseSettings):
         return tuple(sources)
 
     # --- validation ------------------------------------------------------------------------------
-    @field_validator("period_s", "window_s", "frame_rate", "task_timeout_s", "f0", "max_gap_s", "retention_days",
-                     "input_history_s")
+    @field_validator("period_s", "window_s", "frame_rate", "task_timeout_s", "f0", "max_gap_s", "retention_days")
     @classmethod
     def _positive(cls, v: float, info) -> float:
         if not v > 0:

@@ -9,57 +9,63 @@ import dataclasses
 import importlib
 import math
 import time
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from aslm_core.window import Window
 from service.executors.base import TaskOutcome, WindowTask
 
-
-@dataclasses.dataclass
-class Returned:
-    """A worker function's value and what the scheduler keeps of the window besides it.
-
-    Attributes
-    ----------
-    value : dict
-        What :class:`TaskOutcome` carries as ``value``.
-    input_periodogram : aslm_core.noise.InputPeriodogram or None
-        The window's V and θ periodogram for the bus's input history.
-    """
-
-    value: dict
-    input_periodogram: Any = None
+if TYPE_CHECKING:
+    from aslm_core.noise import InputSpectrum
 
 
-def identify_window(task: WindowTask) -> dict | Returned:
+def identify_window(task: WindowTask) -> dict:
     """Default worker function: :func:`aslm_core.identify` on the task's window, with the inputs' spectrum
-    of the bus's previous windows where the task carries it.
+    pooled from the bus's windows before it where the task carries them (:func:`history_spectrum`).
 
     Returns
     -------
-    dict or Returned
-        ``IdentificationResult.to_dict()``; with ``task.keep_inputs``, in a :class:`Returned` with the
-        window's input periodogram where the identifier found its inputs noisy (the refinement ran).
+    dict
+        ``IdentificationResult.to_dict()``.
     """
     from aslm_core import IdentifyConfig, identify
 
     warm = np.asarray(task.warm_start, dtype=float) if task.warm_start is not None else None
     config = IdentifyConfig(**task.options)
-    result = identify(task.window, warm_start=warm, config=config, input_spectrum=task.input_spectrum)
-    if not task.keep_inputs:
-        return result_dict(result)
-    periodogram = None
-    if "weighted_chi2" in result.quality:  # the refinement ran: the inputs are noisy, the history has a use
-        from aslm_core import WindowError
-        from aslm_core.preprocess import input_periodogram
+    spectrum = history_spectrum(task.history, task.window, config.max_gap_samples) if task.history else None
+    return result_dict(identify(task.window, warm_start=warm, config=config, input_spectrum=spectrum))
 
+
+def history_spectrum(history: Sequence[Window], window: Window, max_gap_samples: int) -> InputSpectrum | None:
+    """The inputs' spectrum pooled from the windows before ``window`` (:class:`aslm_core.input_history.InputHistory`
+    of all of them), or None where one of them cannot give its periodogram (the window is then identified alone).
+
+    Parameters
+    ----------
+    history : sequence of aslm_core.Window
+        The bus's windows before ``window``, oldest first, not overlapping.
+    window : aslm_core.Window
+        The window to identify.
+    max_gap_samples : int
+        As :func:`aslm_core.preprocess.prepare`.
+
+    Returns
+    -------
+    aslm_core.noise.InputSpectrum or None
+    """
+    from aslm_core import WindowError
+    from aslm_core.input_history import InputHistory
+    from aslm_core.preprocess import input_periodogram
+
+    held = InputHistory(k=len(history), max_age_s=math.inf)
+    for w in history:
         try:
-            periodogram = input_periodogram(task.window, max_gap_samples=config.max_gap_samples)
-        except (WindowError, ValueError):  # the identification stands; the history only misses this window
-            periodogram = None
-    return Returned(result_dict(result), periodogram)
+            held.add(float(w.t[0]), float(w.t[-1]), input_periodogram(w, max_gap_samples=max_gap_samples))
+        except (WindowError, ValueError):
+            return None
+    return held.spectrum(float(window.t[0]))
 
 
 def result_dict(result) -> dict:
@@ -163,17 +169,14 @@ def finite(obj):
 def run_task(fn_path: str, task: WindowTask) -> TaskOutcome:
     """Run one task, turning every exception into a failed outcome with a reason.
 
-    The value's non-finite floats become None (:func:`finite`); a :class:`Returned` value hands its
-    input periodogram to the outcome.  The outcome carries the task's wall time and its thread's CPU
-    time [s].
+    The value's non-finite floats become None (:func:`finite`).  The outcome carries the task's wall time
+    and its thread's CPU time [s].
     """
     t0, c0 = time.perf_counter(), time.thread_time()
     try:
-        value, periodogram = resolve(task.fn or fn_path)(task), None
-        if isinstance(value, Returned):
-            value, periodogram = value.value, value.input_periodogram
+        value = resolve(task.fn or fn_path)(task)
         return TaskOutcome(ok=True, value=finite(value), elapsed_s=time.perf_counter() - t0,
-                           cpu_s=time.thread_time() - c0, input_periodogram=periodogram)
+                           cpu_s=time.thread_time() - c0)
     except Exception as exc:  # noqa: BLE001 - any failure fails this bus only
         reason = getattr(exc, "reason", None)
         reason = f"window:{reason}" if reason and type(exc).__name__ == "WindowError" else f"error:{type(exc).__name__}"

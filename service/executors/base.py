@@ -9,7 +9,6 @@ from typing import TYPE_CHECKING, Any, Protocol
 from aslm_core.window import Window
 
 if TYPE_CHECKING:
-    from aslm_core.noise import InputPeriodogram, InputSpectrum
     from service.window_ring import CompactWindow
 
 
@@ -37,12 +36,11 @@ class WindowTask:
     pool : list of CompactWindow or None
         The windows of the joint pooled fit of the tracked model (``service.worker:pooled_window``),
         oldest first, in float32 (:mod:`service.window_ring`).
-    input_spectrum : aslm_core.noise.InputSpectrum or None
-        V's and θ's spectrum pooled from the bus's previous windows, for the identifier's noisy-input
-        refinement (:class:`aslm_core.input_history.InputHistory`).
-    keep_inputs : bool
-        Return the window's input periodogram with the outcome (``TaskOutcome.input_periodogram``) for
-        the bus's history.
+    history : tuple of aslm_core.Window
+        The bus's windows just before ``window``, oldest first, non-overlapping, from its buffer (the service's
+        ``input_history_windows``): the worker pools their V and θ periodograms into the inputs' spectrum of the
+        identifier's noisy-input refinement (:class:`aslm_core.input_history.InputHistory`).  Empty: the window
+        alone.
     """
 
     window: Window | CompactWindow
@@ -52,8 +50,7 @@ class WindowTask:
     previous: dict | None = None
     background: bool = False
     pool: list[CompactWindow] | None = None
-    input_spectrum: InputSpectrum | None = None
-    keep_inputs: bool = False
+    history: tuple[Window, ...] = ()
 
     @property
     def bus(self) -> str:
@@ -70,8 +67,7 @@ class TaskOutcome:
 
     ``elapsed_s`` is the task's wall time in the worker [s], ``cpu_s`` the CPU time of the worker's
     thread meanwhile [s]: on a shared machine the wall time also counts the time the worker waited
-    for a core, so what a task costs is ``cpu_s``.  ``input_periodogram``: the window's, where the task
-    asked for it (``keep_inputs``) and its inputs were noisy.
+    for a core, so what a task costs is ``cpu_s``.
     """
 
     ok: bool
@@ -80,7 +76,6 @@ class TaskOutcome:
     message: str = ""
     elapsed_s: float = 0.0
     cpu_s: float = 0.0
-    input_periodogram: InputPeriodogram | None = None
 
 
 class Executor(Protocol):

@@ -145,12 +145,9 @@ def test_background_tasks_run_only_when_no_foreground_task_waits():
 
 
 def test_the_input_history_crosses_the_process_boundary():
-    """A real worker returns a noisy window's input periodogram with its result, and identifies a later window
-    with the spectrum pooled from six of them (what the scheduler does with ``input_history_windows``)."""
+    """A real worker given the six windows before a noisy window (what the scheduler cuts with
+    ``input_history_windows``) identifies it with their pooled spectrum; one of them unusable: the window alone."""
     from conftest import equation_window
-
-    from aslm_core.input_history import InputHistory
-    from aslm_core.noise import InputPeriodogram
 
     rec = equation_window(seed=4, fs=50.0, fine=4, duration=70.0)
     rng = np.random.default_rng(1)
@@ -158,18 +155,15 @@ def test_the_input_history_crosses_the_process_boundary():
     theta = rec.theta + 1e-3 * rng.standard_normal(rec.t.size)
     wins = [Window(rec.t[s], V[s], theta[s], rec.P[s], rec.Q[s], bus="b")
             for s in (slice(j * 500, (j + 1) * 500) for j in range(7))]
+    short = Window(wins[0].t[:5], wins[0].V[:5], wins[0].theta[:5], wins[0].P[:5], wins[0].Q[:5], bus="b")
     pool = LocalPool(1, "service.worker:identify_window", timeout_s=120)
     try:
         assert pool.wait_ready(600)
-        outs = [f.result(timeout=120) for f in pool.submit_many(
-            [WindowTask(w, options={"n_starts": 1}, keep_inputs=True) for w in wins[:6]])]
-        assert all(o.ok and isinstance(o.input_periodogram, InputPeriodogram) for o in outs), outs
-        history = InputHistory()
-        for w, o in zip(wins, outs, strict=False):
-            assert history.add(float(w.t[0]), float(w.t[-1]), o.input_periodogram)
-        last = pool.submit(WindowTask(wins[6], options={"n_starts": 1},
-                                      input_spectrum=history.spectrum(float(wins[6].t[0])))).result(timeout=120)
-        assert last.ok and last.input_periodogram is None  # not asked for
-        assert last.value["quality"]["input_spectrum_windows"] == 6.0
+        with_history, broken = (f.result(timeout=120) for f in pool.submit_many(
+            [WindowTask(wins[6], options={"n_starts": 1}, history=tuple(wins[:6])),
+             WindowTask(wins[6], options={"n_starts": 1}, history=(short, *wins[1:6]))]))
+        assert with_history.ok and with_history.value["quality"]["input_spectrum_windows"] == 6.0
+        assert broken.ok and "input_spectrum_windows" not in broken.value["quality"]
+        assert "weighted_chi2" in broken.value["quality"]  # identified alone, its refinement as without a history
     finally:
         pool.close()

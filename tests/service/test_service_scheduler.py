@@ -33,9 +33,9 @@ class Bench:
 
     def __init__(self, *, period_s: float = 10.0, start: float = T0, fn: str = FAKE, sinks: tuple = (),
                  rules: QualityRules = RULES, frame_rate: float = FS, options: dict | None = None,
-                 input_history: tuple[int, float] | None = None) -> None:
+                 input_history: int | None = None) -> None:
         self.clock = ManualClock(start)
-        self.store = BufferStore(rules.window_s, frame_rate, LATE_S)
+        self.store = BufferStore(rules.window_s, frame_rate, LATE_S, history_s=(input_history or 0) * rules.window_s)
         self.source = MemorySource()
         self.source.start(Inlet(self.store, max_future_s=5.0, f0=50.0, clock=self.clock))
         self.sink = MemorySink()
@@ -249,16 +249,18 @@ def test_the_real_identifier_runs_inline_and_is_warm_started(bench, eq_window):
         assert np.all(np.abs(d / D_TRUE - 1) < 0.05), d
 
 
-def test_noisy_inputs_are_smoothed_with_the_spectrum_of_the_bus_s_previous_windows(bench):
-    """With a history of k = 3 windows (the service's default 6 makes the test longer, not different): the
-    first three noisy windows are identified alone, the later ones with the spectrum of the three before (the
-    identifier's own mark in ``quality``), and a bus whose V and θ are exact keeps no history."""
+def test_noisy_inputs_are_smoothed_with_the_spectrum_of_the_windows_before_them_at_any_period(bench):
+    """With a history of k = 3 windows (the service's default 6 makes the test longer, not different) and a period
+    of 50 s: the buffer holds the three 10 s windows before the one identified, and the noisy bus's window is
+    identified with their spectrum (the identifier's own mark in ``quality``); a bus whose data began too late for
+    a full history, and one whose V and θ are exact, are identified alone."""
     from conftest import equation_window
 
     fs = 50.0
     rules = QualityRules(10.0, fs, 0.9, 0.2, 1e-5)
-    b = bench(period_s=10.0, start=T0 + 1.0, fn="service.worker:identify_window", rules=rules, frame_rate=fs,
-              options={"n_starts": 1}, input_history=(3, 300.0)).start()
+    b = bench(period_s=50.0, start=T0 + 1.0, fn="service.worker:identify_window", rules=rules, frame_rate=fs,
+              options={"n_starts": 1}, input_history=3).start()
+    assert b.store.capacity == int(np.ceil((10.0 + 30.0 + LATE_S + 3.0) * fs))
     rec = equation_window(seed=6, fs=fs, fine=4, duration=50.0)
     rng = np.random.default_rng(2)
     v_noisy = rec.V + 1e-3 * rng.standard_normal(rec.t.size)
@@ -269,12 +271,13 @@ def test_noisy_inputs_are_smoothed_with_the_spectrum_of_the_bus_s_previous_windo
         sel = (rec.t > 10 * (k - 1)) & (rec.t <= 10 * k)
         b.source.push_window("noisy", rec.t[sel] + T0, v_noisy[sel], th_noisy[sel], rec.P[sel], rec.Q[sel])
         b.source.push_window("exact", rec.t[sel] + T0, rec.V[sel], rec.theta[sel], rec.P[sel], rec.Q[sel])
-        b.run_to(end + LATE_S)
+        if k >= 3:  # its history would begin at 10 s
+            b.source.push_window("late", rec.t[sel] + T0, v_noisy[sel], th_noisy[sel], rec.P[sel], rec.Q[sel])
+    b.run_to(T0 + 50.0 + LATE_S)
     got = {bus: [r.parameters.quality.get("input_spectrum_windows") for r in b.sink.results if r.bus == bus]
-           for bus in ("noisy", "exact")}
-    assert got == {"noisy": [None, None, None, 3.0, 3.0], "exact": [None] * 5}
-    assert all(r.status == "ok" and "weighted_chi2" in r.parameters.quality for r in b.sink.results if r.bus == "noisy")
-    assert set(b.scheduler._inputs) == {"noisy"} and len(b.scheduler._inputs["noisy"]) == 3
+           for bus in ("noisy", "late", "exact")}
+    assert got == {"noisy": [3.0], "late": [None], "exact": [None]}
+    assert all(r.status == "ok" and "weighted_chi2" in r.parameters.quality for r in b.sink.results if r.bus != "exact")
 
 
 def test_the_service_runs_without_zenoh_on_a_manual_clock(tmp_path):
