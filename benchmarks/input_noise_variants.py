@@ -21,13 +21,13 @@ per level, both PMU classes), every noisy window is identified by the default (`
   output-error D (:func:`em_spectrum`);
 * ``hist6``, ``hist6_fine_td`` (stop 46): end to end through :func:`aslm_core.identify`'s ``input_spectrum``, the
   default given a minute of the bus's history (six noisy 10 s windows of another realisation of the same load and
-  network, :func:`history_periodograms`, held by an :class:`aslm_core.input_history.InputHistory` as the service's
-  scheduler holds them): ``hist6`` as the core takes it (stop 41's form: smoothed over 0.5 Hz, the window's own
-  refinement), ``hist6_fine_td`` with the core's history knobs set (pooled unsmoothed, the refinement whitened in the
-  time domain below 5 Hz without the residual floor; stop 47 confirmed it on seed 54 and kept it off;
-  :func:`history_measure`); ``hist6_guard1.3``, ``hist6_guard1.5`` (stop 47): that form redone with the floor where its
-  whitened residual's χ² exceeds 1.3 or 1.5 (``input_weighting.HISTORY_CHI2_MAX``; the JSON's ``guard_fired`` counts
-  the windows per row); any of these with the suffix ``_of1``: given the next case's history instead, another load
+  network, :func:`history_periodograms`, pooled by an :class:`aslm_core.input_history.InputHistory` as the service's
+  worker pools them), each in its own form (:func:`history_measure`): ``hist6`` stop 41's (smoothed over 0.5 Hz, the
+  window's own refinement); ``hist6_fine_td`` pooled unsmoothed, the refinement whitened in the time domain below 5 Hz
+  without the residual floor (stop 46's lead, which failed its confirmation on seed 54 at stop 47);
+  ``hist6_guard1.3``, ``hist6_guard1.5`` (stop 47): that form redone with the floor where its whitened residual's χ²
+  exceeds 1.3 or 1.5 (``input_weighting.HISTORY_CHI2_MAX``; the JSON's ``guard_fired`` counts the windows per row),
+  ``hist6_guard1.5`` the core's form since its confirmation on seed 55; any of these with the suffix ``_of1``: given the next case's history instead, another load
   and network (a stale history, as ``input_noise_bound --history-of 1``);
 * ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
   thirty-third of the rate instead of a tenth (5 or 3 Hz at 100 frames/s);
