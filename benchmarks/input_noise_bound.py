@@ -66,7 +66,7 @@ from aslm_core.information import (  # noqa: E402
     stationary_input_covariance,
 )
 from aslm_core.input_history import InputHistory  # noqa: E402
-from aslm_core.noise import InputSpectrum  # noqa: E402
+from aslm_core.noise import InputPeriodogram, InputSpectrum  # noqa: E402
 from aslm_core.preprocess import prepare  # noqa: E402
 from aslm_sim.cases import make_cases  # noqa: E402
 from benchmarks import common  # noqa: E402
@@ -323,20 +323,34 @@ HISTORY_SEED = 51
 TAIL_SEED = 52
 
 
-def history_spectrum(case, k: int, v_rel: float, th: float, rng: np.random.Generator) -> InputSpectrum:
-    """The inputs' spectrum a service's :class:`~aslm_core.input_history.InputHistory` of k noisy 10 s windows
-    gives: k consecutive windows of a long clean realisation of the case's load and network (:func:`long_inputs`,
-    k·10 s), white noise of the class on V and θ, each window's :func:`aslm_core.noise.input_periodogram` added
-    as the scheduler adds it (the same numbers as ``pooled_input_spectrum`` of the k windows)."""
+def history_periodograms(case, k: int, v_rel: float, th: float, rng: np.random.Generator) -> list[InputPeriodogram]:
+    """The periodograms (:func:`aslm_core.noise.input_periodogram`) of k consecutive noisy 10 s windows of a long clean
+    realisation of the case's load and network (:func:`long_inputs`, k·10 s; the bus's minute before the window), with
+    the class's white noise on V and θ."""
     n = case.clean.V.size
     fs = 1.0 / float(np.median(np.diff(case.clean.t)))
     lv, lth = long_inputs(case, k * n / fs)
     std = np.array([v_rel * float(np.mean(case.clean.V)), th])[:, None]
-    history = InputHistory(k=k)
+    out = []
     for j in range(k):
         x = np.stack([lv[j * n:(j + 1) * n], lth[j * n:(j + 1) * n]])
-        history.add(j * n / fs, ((j + 1) * n - 1) / fs, noise.input_periodogram(x + std * rng.standard_normal(x.shape), fs))
-    return history.spectrum(k * n / fs)
+        out.append(noise.input_periodogram(x + std * rng.standard_normal(x.shape), fs))
+    return out
+
+
+def pooled_history(periodograms: list[InputPeriodogram]) -> InputSpectrum | None:
+    """The spectrum an :class:`~aslm_core.input_history.InputHistory` of all these consecutive windows' periodograms
+    gives the window after them (as the service's worker pools a task's history), in the core's current form."""
+    held = InputHistory(k=len(periodograms))
+    for j, g in enumerate(periodograms):
+        held.add(j * g.n / g.fs, ((j + 1) * g.n - 1) / g.fs, g)
+    return held.spectrum(len(periodograms) * periodograms[-1].n / periodograms[-1].fs)
+
+
+def history_spectrum(case, k: int, v_rel: float, th: float, rng: np.random.Generator) -> InputSpectrum:
+    """The inputs' spectrum a service's history of k noisy 10 s windows gives (:func:`pooled_history` of
+    :func:`history_periodograms`)."""
+    return pooled_history(history_periodograms(case, k, v_rel, th, rng))
 
 
 def weighting_run(n: int, reps: int, seed: int = CONFIRM_SEED, pooled_k: int = 0, history_of: int = 0,

@@ -21,7 +21,7 @@ per level, both PMU classes), every noisy window is identified by the default (`
   output-error D (:func:`em_spectrum`);
 * ``hist6``, ``hist6_fine_td`` (stop 46): end to end through :func:`aslm_core.identify`'s ``input_spectrum``, the
   default given a minute of the bus's history (six noisy 10 s windows of another realisation of the same load and
-  network, :func:`history_periodograms`, pooled by an :class:`aslm_core.input_history.InputHistory` as the service's
+  network, :func:`benchmarks.input_noise_bound.history_periodograms`, pooled by :func:`~benchmarks.input_noise_bound.pooled_history` as the service's
   worker pools them), each in its own form (:func:`history_measure`): ``hist6`` stop 41's (smoothed over 0.5 Hz, the
   window's own refinement); ``hist6_fine_td`` pooled unsmoothed, the refinement whitened in the time domain below 5 Hz
   without the residual floor (stop 46's lead, which failed its confirmation on seed 54 at stop 47);
@@ -42,7 +42,9 @@ the history variants set the core's history knobs (:data:`HISTORY_FORMS`).  Each
 per variant: σ of D/D_real over the default's per cell (median and range over the noisy cells × parameters, Tm at
 0.1 % / 1e-3 rad per DL), the windows off by more than 20 % per class, the coverage of ±1.96 SE and the median ms per
 identification of the default and the history variants; JSON
-``docs/results/input_noise_variants_seed<seed>[_<tag>][_fs<rate>].json`` (per window D/D_real and SE).
+``docs/results/input_noise_variants_seed<seed>[_<tag>][_fs<rate>].json`` (per window D/D_real and SE).  ``--against ROW`` takes the
+ratios and far-off counts against another row; ``--report NAME...`` prints the same from stored runs without running
+(their rows merged: runs of one seed and size).
 
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 [--n 300] [--variants pq,avg,ptail,wpl,widths]
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --variants floor_outside,no_floor --tag floor
@@ -54,6 +56,7 @@ identification of the default and the history variants; JSON
     .venv/bin/python -m benchmarks.input_noise_variants --seed 55 --variants hist6,hist6_guard1.5 --tag confirm
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --n 150 --fs 120 --variants hist6,hist6_guard1.5 --tag hist
     .venv/bin/python -m benchmarks.input_noise_variants --seed 54 --variants hist6_of1,hist6_guard1.5_of1 --tag stale
+    .venv/bin/python -m benchmarks.input_noise_variants --report input_noise_variants_seed55_confirm --against hist6
 
 Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)"; the floor
 variants, ``em`` and the bands "Stop 45: the bound with the inputs' spectrum learnt from the window"; ``floor_sig*`` and
@@ -80,7 +83,14 @@ from scipy import optimize  # noqa: E402
 from aslm_core import WindowError, identify, input_history, input_weighting, noise, preprocess  # noqa: E402
 from aslm_core.problem import Problem  # noqa: E402
 from benchmarks import common  # noqa: E402
-from benchmarks.input_noise_bound import INPUT_NOISE, LEVELS, TAIL, long_inputs, with_input_noise  # noqa: E402
+from benchmarks.input_noise_bound import (  # noqa: E402
+    INPUT_NOISE,
+    LEVELS,
+    TAIL,
+    history_periodograms,
+    pooled_history,
+    with_input_noise,
+)
 
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
             "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5")
@@ -336,20 +346,6 @@ def _measure(window, truth, config=TAIL, input_spectrum=None) -> tuple[list[floa
     return (r.d / truth).tolist(), (np.array([r.stderr[p] for p in common.PARAMS]) / truth).tolist()
 
 
-def history_periodograms(case, k: int, v_rel: float, th: float, rng: np.random.Generator) -> list:
-    """The periodograms of k noisy 10 s windows of another realisation of the case's load and network (the bus's
-    previous windows, as ``input_noise_bound.history_spectrum`` draws them), with the class's white noise on V and θ."""
-    n = case.clean.V.size
-    fs = 1.0 / float(np.median(np.diff(case.clean.t)))
-    lv, lth = long_inputs(case, k * n / fs)
-    std = np.array([v_rel * float(np.mean(case.clean.V)), th])[:, None]
-    out = []
-    for j in range(k):
-        x = np.stack([lv[j * n:(j + 1) * n], lth[j * n:(j + 1) * n]])
-        out.append(noise.input_periodogram(x + std * rng.standard_normal(x.shape), fs))
-    return out
-
-
 def history_measure(variant: str, periodograms: list, window, truth,
                     label: str | None = None) -> tuple[list[float], list[float]]:
     """The default given the spectrum of an :class:`~aslm_core.input_history.InputHistory` holding the periodograms
@@ -357,10 +353,6 @@ def history_measure(variant: str, periodograms: list, window, truth,
     stop 41's (smoothed over 0.5 Hz, the window's own refinement form); ``hist6_fine_td`` unsmoothed, the refinement in
     the time domain below 5 Hz without the residual floor; ``hist6_guard*`` that, redone with the floor above the χ².
     Counts in :data:`GUARD_FIRED` (under ``label``, the variant by default) whether the fit was redone with the floor."""
-    held = input_history.InputHistory(k=len(periodograms))
-    for j, g in enumerate(periodograms):
-        held.add(j * g.n / g.fs, ((j + 1) * g.n - 1) / g.fs, g)
-    start = len(periodograms) * periodograms[-1].n / periodograms[-1].fs
     old = (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
            input_weighting.build_weighting)
     floors = []
@@ -373,7 +365,7 @@ def history_measure(variant: str, periodograms: list, window, truth,
      input_weighting.HISTORY_CHI2_MAX) = HISTORY_FORMS[variant]
     input_weighting.build_weighting = counted
     try:
-        return _measure(window, truth, input_spectrum=held.spectrum(start))
+        return _measure(window, truth, input_spectrum=pooled_history(periodograms))
     finally:
         (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
          input_weighting.build_weighting) = old
@@ -470,48 +462,62 @@ def coverage(per: dict, per_se: dict) -> dict[str, list[float]]:
     return out
 
 
-def summary(per: dict) -> dict:
-    """Per row other than the default: σ over the default's per (level, class, parameter), and the windows off by
-    more than 20 % per class for both."""
-    names = sorted({k.rsplit("|", 1)[1] for k in per} - {"default"})
+def summary(per: dict, base: str = "default") -> dict:
+    """Per row other than ``base``: σ over the base row's per (level, class, parameter) (median, range and where the
+    largest is), and the windows off by more than 20 % per class for both (base, row)."""
+    names = sorted({k.rsplit("|", 1)[1] for k in per} - {base})
     out = {}
     for name in names:
-        ratios, off, tm = [], {}, []
+        ratios, cells, off, tm = [], [], {}, []
         for key in (k for k in per if k.endswith("|" + name)):
             level, cls, _ = key.split("|")
-            d, m = np.array(per[f"{level}|{cls}|default"]), np.array(per[key])
+            d, m = np.array(per[f"{level}|{cls}|{base}"]), np.array(per[key])
             ok = np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(m), axis=1)
             r = m[ok].std(axis=0, ddof=1) / d[ok].std(axis=0, ddof=1)
             ratios.append(r)
+            cells.extend(f"{p} at DL {level} / {cls}" for p in common.PARAMS)
             if cls.startswith("0.1"):
                 tm.append((int(level), float(r[3])))
             o = off.setdefault(cls, [0, 0])
             o[0] += int(np.sum(np.any(np.abs(d[ok] - 1.0) > 0.2, axis=1)))
             o[1] += int(np.sum(np.any(np.abs(m[ok] - 1.0) > 0.2, axis=1)))
         r = np.array(ratios)
-        out[name] = {"sigma_ratio_median": float(np.median(r)), "sigma_ratio_min": float(r.min()),
-                     "sigma_ratio_max": float(r.max()), "tm_ratio_01pct": [x for _, x in sorted(tm)],
-                     "off_20pct_default_variant": off}
+        out[name] = {"base": base, "sigma_ratio_median": float(np.median(r)), "sigma_ratio_min": float(r.min()),
+                     "sigma_ratio_max": float(r.max()), "sigma_ratio_max_at": cells[int(np.argmax(r))],
+                     "tm_ratio_01pct": [x for _, x in sorted(tm)], "off_20pct_base_variant": off}
     return out
 
 
-def honest_counts(per: dict, bounds_path) -> dict[str, int] | None:
-    """Per row, issue 11's honest version on these windows: the noisy cells × parameters whose σ of D/D_real is at most
-    1.3 × the RMS structural bound, from ``input_noise_bound --n N``'s per-window bounds (seed 43's windows: the same
-    windows and draws); None when that file is absent or holds fewer windows."""
+def bound_ratios(per: dict, bounds_path) -> dict[str, np.ndarray] | None:
+    """Per key of ``per`` (level|class|row), σ of D/D_real over the RMS structural bound per parameter, from
+    ``input_noise_bound --n N``'s per-window bounds (seed 43's windows: the same windows and draws); None when that
+    file is absent or holds fewer windows."""
     if not bounds_path.exists():
         return None
     bounds = json.loads(bounds_path.read_text())["per_window_relative_variance"]
     n = len(next(iter(per.values())))
     if len(bounds) < n:
         return None
-    out: dict[str, int] = {}
+    out: dict[str, np.ndarray] = {}
     for key, r in per.items():
-        level, cls, name = key.split("|")
+        level, cls, _ = key.split("|")
         r = np.array(r)
         ok = np.all(np.isfinite(r), axis=1)
         var = np.array([w[level][f"{cls}|structural"] for w in bounds[:n]])[ok]
-        out[name] = out.get(name, 0) + int(np.sum(r[ok].std(axis=0, ddof=1) <= 1.3 * np.sqrt(var.mean(axis=0))))
+        out[key] = r[ok].std(axis=0, ddof=1) / np.sqrt(var.mean(axis=0))
+    return out
+
+
+def honest_counts(per: dict, bounds_path) -> dict[str, int] | None:
+    """Per row, issue 11's honest version on these windows: the noisy cells × parameters whose σ of D/D_real is at most
+    1.3 × the RMS structural bound (:func:`bound_ratios`); None where those are."""
+    ratios = bound_ratios(per, bounds_path)
+    if ratios is None:
+        return None
+    out: dict[str, int] = {}
+    for key, r in ratios.items():
+        name = key.rsplit("|", 1)[1]
+        out[name] = out.get(name, 0) + int(np.sum(r <= 1.3))
     return out
 
 
@@ -523,7 +529,13 @@ def main(argv=None) -> dict:
                     help=f"comma-separated, of {', '.join(VARIANTS)} (default: stop 44's five)")
     ap.add_argument("--tag", default="", help="suffix of the JSON's name (e.g. floor), so runs of other variants sit beside")
     ap.add_argument("--fs", type=float, default=100.0, help="reporting rate [frames/s] (JSON name suffix _fs<rate> if not 100)")
+    ap.add_argument("--against", default="default", help="the row σ ratios and far-off counts are taken against")
+    ap.add_argument("--report", nargs="+", metavar="NAME", default=None,
+                    help="no run: the summary of stored runs (docs/results/NAME.json, their rows merged; the same seed "
+                         "and windows), e.g. input_noise_variants_seed55_confirm --against hist6")
     args = ap.parse_args(argv)
+    if args.report:
+        return report(args.report, args.against)
     variants = [v for v in args.variants.split(",") if v]
     unknown = sorted(set(variants) - set(VARIANTS) - {h + STALE for h in HISTORY_VARIANTS})
     if unknown:
@@ -535,22 +547,8 @@ def main(argv=None) -> dict:
     if GUARD_FIRED:
         print("history form refitted with the floor by its χ² guard, windows: "
               + ", ".join(f"{k} {v}" for k, v in GUARD_FIRED.items()))
-    summ = summary(per)
-    cover = coverage(per, per_se)
-    print("coverage of ±1.96 SE over the noisy cells × parameters, min–max (inside 90–97 % of 24): "
-          + "; ".join(f"{k} {100 * min(v):.0f}–{100 * max(v):.0f} % ({sum(0.90 <= x <= 0.97 for x in v)})"
-                      for k, v in sorted(cover.items())))
-    for name, s in summ.items():
-        print(f"{name:14s} σ / default median {s['sigma_ratio_median']:.3f} ({s['sigma_ratio_min']:.2f}–"
-              f"{s['sigma_ratio_max']:.2f}); Tm at 0.1 %, DL 1/2/3: "
-              + " / ".join(f"{x:.2f}" for x in s["tm_ratio_01pct"])
-              + "; off > 20 % default → variant: "
-              + ", ".join(f"{cls}: {a} → {b}" for cls, (a, b) in s["off_20pct_default_variant"].items()))
+    summ, cover, honest = print_summary(per, per_se, args.seed, args.against)
     print("ms per identification, median: " + ", ".join(f"{k} {v:.1f}" for k, v in ms.items()))
-    honest = honest_counts(per, common.RESULTS / "input_noise_bound_n300.json") if args.seed == 43 else None
-    if honest:
-        print("issue 11's honest version (σ ≤ 1.3 × the structural bound), noisy cells × parameters met of 24: "
-              + ", ".join(f"{k} {v}" for k, v in sorted(honest.items())))
     out = {"machine": common.machine(), "n": n, "seed": args.seed, "fs": args.fs, "variants": variants, "summary": summ,
            "honest_version_met": honest, "coverage_95": cover, "per_window_se": per_se,
            "ms_median": ms, "guard_fired": dict(GUARD_FIRED), "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
@@ -559,6 +557,41 @@ def main(argv=None) -> dict:
                           + (f"_fs{args.fs:g}" if args.fs != 100.0 else "")
                           + ("_quick" if args.quick else ""), out)
     return out
+
+
+def print_summary(per: dict, per_se: dict, seed: int, against: str = "default") -> tuple[dict, dict, dict | None]:
+    """Print (and return) the rows' coverage, their :func:`summary` against ``against`` and, on seed 43's windows,
+    issue 11's honest version with each row's σ over the structural bound per cell."""
+    summ = summary(per, against)
+    cover = coverage(per, per_se)
+    print("coverage of ±1.96 SE over the noisy cells × parameters, min–max (inside 90–97 % of 24): "
+          + "; ".join(f"{k} {100 * min(v):.0f}–{100 * max(v):.0f} % ({sum(0.90 <= x <= 0.97 for x in v)})"
+                      for k, v in sorted(cover.items())))
+    for name, s in summ.items():
+        print(f"{name:14s} σ / {against} median {s['sigma_ratio_median']:.3f} ({s['sigma_ratio_min']:.2f}–"
+              f"{s['sigma_ratio_max']:.3f}, largest {s['sigma_ratio_max_at']}); Tm at 0.1 %, DL 1/2/3: "
+              + " / ".join(f"{x:.2f}" for x in s["tm_ratio_01pct"])
+              + f"; off > 20 % {against} → variant: "
+              + ", ".join(f"{cls}: {a} → {b}" for cls, (a, b) in s["off_20pct_base_variant"].items()))
+    path = common.RESULTS / "input_noise_bound_n300.json"
+    honest = honest_counts(per, path) if seed == 43 else None
+    if honest:
+        print("issue 11's honest version (σ ≤ 1.3 × the structural bound), noisy cells × parameters met of 24: "
+              + ", ".join(f"{k} {v}" for k, v in sorted(honest.items())))
+        for key, r in bound_ratios(per, path).items():
+            print(f"  σ / bound {key}: " + " / ".join(f"{x:.2f}" for x in r))
+    return summ, cover, honest
+
+
+def report(names: list[str], against: str = "default") -> dict:
+    """``--report``: :func:`print_summary` of stored runs, their rows merged (they must share seed and windows)."""
+    runs = [json.loads((common.RESULTS / f"{name}.json").read_text()) for name in names]
+    if len({r["seed"] for r in runs}) != 1 or len({r["n"] for r in runs}) != 1:
+        raise SystemExit(f"--report: runs of different seeds or sizes: {[(r['seed'], r['n']) for r in runs]}")
+    per = {k: v for r in runs for k, v in r["per_window"].items()}
+    per_se = {k: v for r in runs for k, v in r["per_window_se"].items()}
+    summ, cover, honest = print_summary(per, per_se, runs[0]["seed"], against)
+    return {"summary": summ, "coverage_95": cover, "honest_version_met": honest}
 
 
 if __name__ == "__main__":

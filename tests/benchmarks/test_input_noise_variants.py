@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from aslm_core import identify, input_history, input_weighting, noise, preprocess  # noqa: E402
@@ -64,6 +65,31 @@ def test_the_honest_count_compares_each_rows_spread_with_its_windows_bound(tmp_p
            "1|0.1 % / 1e-3 rad|wide": (1.0 + 2 * sd * rng.standard_normal((n, 4))).tolist()}
     assert iv.honest_counts(per, path) == {"default": 4, "wide": 0}
     assert iv.honest_counts(per, tmp_path / "absent.json") is None
+
+
+def test_the_summary_takes_its_ratios_against_the_chosen_row_and_says_where_the_largest_is(tmp_path, monkeypatch):
+    """σ of a row over the ``--against`` row's, per cell × parameter, with the largest named; far-off counts of both;
+    ``--report`` gives the same from the stored run."""
+    import json
+
+    rng = np.random.default_rng(3)
+    z = rng.standard_normal((200, 4))
+    base = 1.0 + 0.05 * z
+    row = 1.0 + 0.05 * z * np.array([1.0, 1.0, 1.0, 2.0])
+    row[0] = [1.5, 1.0, 1.0, 1.0]  # one window off by more than 20 %
+    cls = "0.1 % / 1e-3 rad"
+    per = {f"2|{cls}|default": (1.0 + 0.1 * z).tolist(), f"2|{cls}|hist6": base.tolist(), f"2|{cls}|new": row.tolist()}
+    s = iv.summary(per, "hist6")["new"]
+    want = row.std(axis=0, ddof=1) / base.std(axis=0, ddof=1)
+    assert s["sigma_ratio_max"] == pytest.approx(want.max()) and s["sigma_ratio_median"] == pytest.approx(np.median(want))
+    off = [int(np.sum(np.any(np.abs(x - 1.0) > 0.2, axis=1))) for x in (base, row)]
+    assert s["sigma_ratio_max_at"] == f"Tm at DL 2 / {cls}" and s["off_20pct_base_variant"] == {cls: off}
+    assert off[0] == 0 and off[1] >= 1
+    assert set(iv.summary(per, "hist6")) == {"default", "new"}
+    monkeypatch.setattr(iv.common, "RESULTS", tmp_path)
+    se = {k: [[0.05] * 4] * 200 for k in per}
+    (tmp_path / "run.json").write_text(json.dumps({"seed": 41, "n": 200, "per_window": per, "per_window_se": se}))
+    assert iv.main(["--report", "run", "--against", "hist6"])["summary"]["new"] == s
 
 
 def test_the_floor_variants_reach_the_refinements_weighting_and_restore_it():
