@@ -93,7 +93,7 @@ from benchmarks.input_noise_bound import (  # noqa: E402
 )
 
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
-            "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5")
+            "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5", "own_td", "own_td_guard1.5")
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
 #: Each history variant's form, set whatever the core's defaults: (``input_history.HISTORY_SMOOTH_HZ``,
 #: ``input_weighting.HISTORY_BAND_HZ``, ``input_weighting.HISTORY_CHI2_MAX``).
@@ -107,6 +107,10 @@ STALE = "_of1"
 #: Per history variant, the windows on which the guard refitted with the floor (counted by :func:`history_measure`).
 GUARD_FIRED: dict[str, int] = {}
 HISTORY_K = 6
+#: ``own_td``, ``own_td_guard1.5`` (stop 48): the history's form (time domain below 5 Hz, no residual floor; the guard
+#: at χ² 1.5 or none) on the window alone, its smoother's own spectrum with the tail standing in for the history's.
+#: The variant's guard (``input_weighting.HISTORY_CHI2_MAX``).
+OWN_FORMS = {"own_td": None, "own_td_guard1.5": 1.5}
 #: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none", "floor_sig2": "significant_2",
@@ -287,6 +291,33 @@ def spectrum_variant(variant: str):
 
 
 @contextlib.contextmanager
+def own_history_form(variant: str):
+    """Within the block, the refinement takes the history's form (:func:`aslm_core.input_weighting.refine`'s
+    ``history``) on every noisy window, with the window's own spectrum, the guard :data:`OWN_FORMS`'s; refits with the
+    floor counted in :data:`GUARD_FIRED`."""
+    old = (input_weighting.refine, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
+           input_weighting.build_weighting)
+    floors = []
+
+    def refine(prep, f0, config, d0, skip_s, margin, history=False):
+        return old[0](prep, f0, config, d0, skip_s, margin, history=True)
+
+    def counted(*args, **kwargs):
+        floors.append(args[6] if len(args) > 6 else kwargs.get("residual_floor", True))
+        return old[3](*args, **kwargs)
+
+    input_weighting.refine, input_weighting.build_weighting = refine, counted
+    input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX = noise.FLOOR_FROM_HZ, OWN_FORMS[variant]
+    try:
+        yield
+    finally:
+        (input_weighting.refine, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
+         input_weighting.build_weighting) = old
+        fired = False in floors and any(floors[floors.index(False) + 1:])
+        GUARD_FIRED[variant] = GUARD_FIRED.get(variant, 0) + int(fired)
+
+
+@contextlib.contextmanager
 def smoother_width(hz: float):
     """Within the block, every call of the Wiener smoother averages its cross-spectrum over ``hz`` [Hz]."""
     def smooth(*args, **kwargs):
@@ -420,6 +451,11 @@ def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict
                             rows[variant] = _measure(w, c.truth.d)
                         finally:
                             input_weighting.BAND_FRACTION = old
+                    elif variant in OWN_FORMS:
+                        t1 = time.perf_counter()
+                        with own_history_form(variant):
+                            rows[variant] = _measure(w, c.truth.d)
+                        times.setdefault(variant, []).append(time.perf_counter() - t1)
                     elif variant in FLOOR_VARIANTS:
                         with residual_floor(FLOOR_VARIANTS[variant]):
                             rows[variant] = _measure(w, c.truth.d)
