@@ -93,7 +93,8 @@ from benchmarks.input_noise_bound import (  # noqa: E402
 )
 
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
-            "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5", "own_td", "own_td_guard1.5")
+            "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5", "own_td", "own_td_guard1.5",
+            "own_td_fallback1.5")
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
 #: Each history variant's form, set whatever the core's defaults: (``input_history.HISTORY_SMOOTH_HZ``,
 #: ``input_weighting.HISTORY_BAND_HZ``, ``input_weighting.HISTORY_CHI2_MAX``).
@@ -110,7 +111,9 @@ HISTORY_K = 6
 #: ``own_td``, ``own_td_guard1.5`` (stop 48): the history's form (time domain below 5 Hz, no residual floor; the guard
 #: at χ² 1.5 or none) on the window alone, its smoother's own spectrum with the tail standing in for the history's.
 #: The variant's guard (``input_weighting.HISTORY_CHI2_MAX``).
-OWN_FORMS = {"own_td": None, "own_td_guard1.5": 1.5}
+#: ``own_td_fallback1.5``: where that form's χ² exceeds 1.5, the default's fit (spectral, to a tenth of the rate, the
+#: floor) instead of the guard's refit in the same form.
+OWN_FORMS = {"own_td": None, "own_td_guard1.5": 1.5, "own_td_fallback1.5": 1.5}
 #: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none", "floor_sig2": "significant_2",
@@ -300,14 +303,21 @@ def own_history_form(variant: str):
     floors = []
 
     def refine(prep, f0, config, d0, skip_s, margin, history=False):
-        return old[0](prep, f0, config, d0, skip_s, margin, history=True)
+        if not variant.startswith("own_td_fallback"):
+            return old[0](prep, f0, config, d0, skip_s, margin, history=True)
+        out = old[0](prep, f0, config, d0, skip_s, margin, history=True)
+        if out is not None and out["chi2"] <= OWN_FORMS[variant]:
+            return out
+        floors.append(True)  # counted as the guard's refit
+        return old[0](prep, f0, config, d0, skip_s, margin, history=False)
 
     def counted(*args, **kwargs):
         floors.append(args[6] if len(args) > 6 else kwargs.get("residual_floor", True))
         return old[3](*args, **kwargs)
 
     input_weighting.refine, input_weighting.build_weighting = refine, counted
-    input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX = noise.FLOOR_FROM_HZ, OWN_FORMS[variant]
+    input_weighting.HISTORY_BAND_HZ = noise.FLOOR_FROM_HZ
+    input_weighting.HISTORY_CHI2_MAX = None if variant.startswith("own_td_fallback") else OWN_FORMS[variant]
     try:
         yield
     finally:
