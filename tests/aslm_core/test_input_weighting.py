@@ -9,6 +9,7 @@ from scipy import linalg
 from aslm_core import IdentifyConfig, Window, identify, static
 from aslm_core import input_weighting as iw
 from aslm_core.identify import Problem
+from aslm_core.levinson import whitening_matrix
 from aslm_core.preprocess import prepare
 from aslm_sim import make_cases
 from tests.aslm_core.test_noise import THETA_RAD, V_REL, with_input_noise
@@ -141,9 +142,9 @@ def test_temporal_covariance_is_the_stationary_covariance_over_the_window():
                                    gl @ np.conj(np.swapaxes(gl, 1, 2)), white)
     c_circ = np.fft.irfft(circ, n=l, axis=0)
     assert abs(c_circ[l - 1, 0, 0] - s_t[l - 1, 0]) > 1e-3 * abs(s_t[0, 0])
-    chol = linalg.cholesky(cov, lower=True)
+    whitener = whitening_matrix(iw.temporal_lags(s_f, l)[:l])
     e = rng.standard_normal(2 * l) * 0.01
-    w = iw.Weighting((), np.zeros((2 * l, 0)), np.zeros((0, 0)), float(l), chol)
+    w = iw.Weighting((), np.zeros((2 * l, 0)), np.zeros((0, 0)), float(l), whitener)
     z = w.whiten(e[:l, None], e[l:, None])
     assert float(z[:, 0] @ z[:, 0]) == pytest.approx(float(e @ np.linalg.solve(s_t, e)), rel=1e-9)
 
