@@ -114,6 +114,18 @@ HISTORY_K = 6
 #: ``own_td_fallback1.5``: where that form's χ² exceeds 1.5, the default's fit (spectral, to a tenth of the rate, the
 #: floor) instead of the guard's refit in the same form.
 OWN_FORMS = {"own_td": None, "own_td_guard1.5": 1.5, "own_td_fallback1.5": 1.5}
+#: Seed of ``own_td_guard1.5``'s confirmation (stop 48, fixed with :data:`OWN_RULE` before any run on it).  Development:
+#: seeds 41 and 45 at 100 frames/s, seed 41 at 25 and 120 frames/s.
+OWN_CONFIRM_SEED = 57
+#: The rule ``own_td_guard1.5`` must meet on :data:`OWN_CONFIRM_SEED` against the default (σ of D/D_real per noisy cell ×
+#: parameter, both PMU classes, DL 1–3) to become the default's form for a window alone (committed before the run):
+#: at 100 frames/s, 300 windows per level (``--seed 57 --variants own_td_guard1.5 --tag confirm``):
+#: (1) median σ ratio ≤ 0.99; (2) largest ≤ 1.10; (3) at DL 3 / 0.1 % / 1e-3 rad ≤ 0.95 for at least three of the four
+#: parameters; (4) windows off by more than 20 % at 0.1 % over DL 1–3 at most the default's; (5) coverage of ±1.96 SE
+#: inside 90–97 % in at least the default's count less two of the 24, none below 87 %;
+#: at 25 and at 120 frames/s, 150 windows per level (``--n 150 --fs 25``, ``--fs 120``, the same seed and tag):
+#: (6) median σ ratio ≤ 1.00 and largest ≤ 1.15; (7) windows off by more than 20 % at 0.1 % at most the default's + 3.
+OWN_RULE = "stop 48"
 #: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none", "floor_sig2": "significant_2",
