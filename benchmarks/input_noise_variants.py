@@ -29,6 +29,9 @@ per level, both PMU classes), every noisy window is identified by the default (`
   exceeds 1.3 or 1.5 (``input_weighting.HISTORY_CHI2_MAX``; the JSON's ``guard_fired`` counts the windows per row),
   ``hist6_guard1.5`` the core's form since its confirmation on seed 55; any of these with the suffix ``_of1``: given the next case's history instead, another load
   and network (a stale history, as ``input_noise_bound --history-of 1``);
+* ``own_td``, ``own_td_guard1.5``, ``own_td_fallback1.5`` (stop 48): the history's form on the window alone, with the
+  window's own spectrum and its tail (:func:`own_history_form`): no guard, the guard's refit, or the default's fit where
+  χ² exceeds 1.5; ``own_td_guard1.5`` failed its confirmation on seed 57 (:data:`OWN_RULE`);
 * ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
   thirty-third of the rate instead of a tenth (5 or 3 Hz at 100 frames/s);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
@@ -57,11 +60,14 @@ ratios and far-off counts against another row; ``--report NAME...`` prints the s
     .venv/bin/python -m benchmarks.input_noise_variants --seed 41 --n 150 --fs 120 --variants hist6,hist6_guard1.5 --tag hist
     .venv/bin/python -m benchmarks.input_noise_variants --seed 54 --variants hist6_of1,hist6_guard1.5_of1 --tag stale
     .venv/bin/python -m benchmarks.input_noise_variants --report input_noise_variants_seed55_confirm --against hist6
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 45 --variants own_td_guard1.5,own_td_fallback1.5 --tag own
+    .venv/bin/python -m benchmarks.input_noise_variants --seed 57 --variants own_td_guard1.5 --tag confirm [--n 150 --fs 25]
 
 Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P and Q (tried, dropped)"; the floor
 variants, ``em`` and the bands "Stop 45: the bound with the inputs' spectrum learnt from the window"; ``floor_sig*`` and
 the history variants "Stop 46: the learnt bound is within reach of maximum likelihood; where the default leaves it"
-and "Stop 47: the history's spectrum unsmoothed, the refinement in the time domain".
+and "Stop 47: the history's spectrum unsmoothed, the refinement in the time domain"; the ``own_td`` variants "Stop 48:
+the history's form on a window alone (tried, not adopted); the whitener by Levinson".
 """
 
 from __future__ import annotations
