@@ -132,6 +132,12 @@ OWN_CONFIRM_SEED = 57
 #: at 25 and at 120 frames/s, 150 windows per level (``--n 150 --fs 25``, ``--fs 120``, the same seed and tag):
 #: (6) median σ ratio ≤ 1.00 and largest ≤ 1.15; (7) windows off by more than 20 % at 0.1 % at most the default's + 3.
 OWN_RULE = "stop 48"
+#: ``own_td_switch<x>`` (stop 48, development): that form only where the window's input-error share ρ (:func:`input_share`,
+#: the larger of P's and Q's) exceeds x, else the default's; x = −1 takes it everywhere and records ρ.  Per cell the
+#: windows' (ρ_P, ρ_Q), in the order of ``per_window``'s rows (JSON ``rho``).
+SWITCH = "own_td_switch"
+RHO: dict[str, list] = {}
+_CELL: list[str] = [""]
 #: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none", "floor_sig2": "significant_2",
@@ -311,6 +317,32 @@ def spectrum_variant(variant: str):
         input_weighting.weighted_fit = _WEIGHTED_FIT
 
 
+def _number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def input_share(prep, f0: float, config, d0: np.ndarray, skip_s: float) -> tuple[float, float]:
+    """(ρ_P, ρ_Q): below 5 Hz (or a tenth of the rate), the mean over the bins of the input error's part of the
+    refinement's S over the white floor, (S_ii − σ_i²)/σ_i², at the output-error D; NaN where it cannot be formed."""
+    pb = Problem(prep, f0, replace(config, skip_s=skip_s))
+    if not input_weighting._simulate(pb, np.asarray(d0, float)):
+        return math.nan, math.nan
+    resid = np.column_stack([pb.p_meas - pb._p[pb.k0:], pb.q_meas - pb._q[pb.k0:]])
+    beta = np.linalg.solve(pb.r_factor, pb.basis.T @ resid)
+    h = input_weighting.impulse_response(pb, np.asarray(d0, float), beta[:, 0], beta[:, 1])
+    if h is None:
+        return math.nan, math.nan
+    freqs = np.fft.rfftfreq(pb.l, pb.dt)
+    white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
+    s = input_weighting.disturbance_spectrum(h, freqs, *prep.input_error, white)
+    sel = (freqs > 0) & (freqs < min(noise.FLOOR_FROM_HZ, input_weighting.BAND_FRACTION / pb.dt))
+    return tuple(float(np.mean(s[sel, c, c].real - white[c]) / white[c]) for c in (0, 1))
+
+
 @contextlib.contextmanager
 def own_history_form(variant: str):
     """Within the block, the refinement takes the history's form (:func:`aslm_core.input_weighting.refine`'s
@@ -321,6 +353,10 @@ def own_history_form(variant: str):
     floors = []
 
     def refine(prep, f0, config, d0, skip_s, margin, history=False):
+        if variant.startswith(SWITCH):
+            rho = input_share(prep, f0, config, d0, skip_s)
+            RHO.setdefault(_CELL[0], []).append(rho)
+            return old[0](prep, f0, config, d0, skip_s, margin, history=max(rho) > float(variant[len(SWITCH):]))
         if not variant.startswith("own_td_fallback"):
             return old[0](prep, f0, config, d0, skip_s, margin, history=True)
         out = old[0](prep, f0, config, d0, skip_s, margin, history=True)
@@ -335,7 +371,8 @@ def own_history_form(variant: str):
 
     input_weighting.refine, input_weighting.build_weighting = refine, counted
     input_weighting.HISTORY_BAND_HZ = noise.FLOOR_FROM_HZ
-    input_weighting.HISTORY_CHI2_MAX = None if variant.startswith("own_td_fallback") else OWN_FORMS[variant]
+    input_weighting.HISTORY_CHI2_MAX = (None if variant.startswith("own_td_fallback")
+                                        else 1.5 if variant.startswith(SWITCH) else OWN_FORMS[variant])
     try:
         yield
     finally:
@@ -479,7 +516,8 @@ def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict
                             rows[variant] = _measure(w, c.truth.d)
                         finally:
                             input_weighting.BAND_FRACTION = old
-                    elif variant in OWN_FORMS:
+                    elif variant in OWN_FORMS or variant.startswith(SWITCH):
+                        _CELL[0] = f"{level}|{cls}|{variant}"
                         t1 = time.perf_counter()
                         with own_history_form(variant):
                             rows[variant] = _measure(w, c.truth.d)
@@ -601,12 +639,14 @@ def main(argv=None) -> dict:
     if args.report:
         return report(args.report, args.against)
     variants = [v for v in args.variants.split(",") if v]
-    unknown = sorted(set(variants) - set(VARIANTS) - {h + STALE for h in HISTORY_VARIANTS})
+    unknown = sorted(set(variants) - set(VARIANTS) - {h + STALE for h in HISTORY_VARIANTS}
+                     - {v for v in variants if v.startswith(SWITCH) and _number(v[len(SWITCH):])})
     if unknown:
         raise SystemExit(f"unknown variants {unknown}; known: {', '.join(VARIANTS)}")
     n = args.n or (3 if args.quick else 300)
     t0 = time.perf_counter()
     GUARD_FIRED.clear()
+    RHO.clear()
     per, per_se, ms = run(n, args.seed, variants, args.fs)
     if GUARD_FIRED:
         print("history form refitted with the floor by its χ² guard, windows: "
@@ -615,7 +655,7 @@ def main(argv=None) -> dict:
     print("ms per identification, median: " + ", ".join(f"{k} {v:.1f}" for k, v in ms.items()))
     out = {"machine": common.machine(), "n": n, "seed": args.seed, "fs": args.fs, "variants": variants, "summary": summ,
            "honest_version_met": honest, "coverage_95": cover, "per_window_se": per_se,
-           "ms_median": ms, "guard_fired": dict(GUARD_FIRED), "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
+           "ms_median": ms, "guard_fired": dict(GUARD_FIRED), "rho": dict(RHO), "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
     if not args.no_write:
         common.write_json(f"input_noise_variants_seed{args.seed}" + (f"_{args.tag}" if args.tag else "")
                           + (f"_fs{args.fs:g}" if args.fs != 100.0 else "")
