@@ -148,6 +148,8 @@ WIDTHS_HZ = (0.5, 0.25, 1.0)  # today's first
 _WEIGHTED_FIT = input_weighting.weighted_fit
 _WIENER_SMOOTH = noise.wiener_smooth
 _DISTURBANCE_SPECTRUM = input_weighting.disturbance_spectrum
+_REFINE = input_weighting.refine
+_BUILD_WEIGHTING = input_weighting.build_weighting
 _WHITENING = input_weighting.whitening
 
 

@@ -170,3 +170,20 @@ def test_the_history_variants_reach_identify_and_restore_the_refinement():
     assert not np.allclose(h, d, rtol=0, atol=1e-9)
     assert not np.allclose(f, h, rtol=0, atol=1e-9)
     assert not np.allclose(o, h, rtol=0, atol=1e-9)  # another case's history (a stale one) gives another answer
+
+
+def test_the_own_forms_take_the_historys_form_on_a_window_alone_and_restore_the_core():
+    """Stop 48's ``own_td*``: on a noisy window the refinement asks S without the residual floor first (the history's
+    form) with no history given; the guard's variant refits with the floor where χ² is large, the switch records the
+    window's input-error share and with a threshold above it keeps the default's answer; every knob is restored."""
+    per, _, _ = iv.run(1, 41, ["own_td", "own_td_guard1.5", "own_td_switch-1", "own_td_switch1e9"])
+    assert input_weighting.build_weighting is iv._BUILD_WEIGHTING
+    assert input_weighting.HISTORY_BAND_HZ == noise.FLOOR_FROM_HZ and input_weighting.HISTORY_CHI2_MAX == 1.5
+    assert input_weighting.refine is iv._REFINE
+    key = "3|0.1 % / 1e-3 rad|"
+    d = np.array(per[key + "default"])
+    assert not np.allclose(np.array(per[key + "own_td"]), d, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(per[key + "own_td_switch-1"], per[key + "own_td_guard1.5"], rtol=1e-9)
+    np.testing.assert_allclose(per[key + "own_td_switch1e9"], d, rtol=1e-12)
+    rho = iv.RHO[key + "own_td_switch-1"]
+    assert len(rho) == 1 and all(np.isfinite(rho[0])) and max(rho[0]) > 0.0
