@@ -634,10 +634,15 @@ def main(argv=None) -> dict:
     ap.add_argument("--tag", default="", help="suffix of the JSON's name (e.g. floor), so runs of other variants sit beside")
     ap.add_argument("--fs", type=float, default=100.0, help="reporting rate [frames/s] (JSON name suffix _fs<rate> if not 100)")
     ap.add_argument("--against", default="default", help="the row σ ratios and far-off counts are taken against")
+    ap.add_argument("--switch-report", nargs="+", metavar="NAME", default=None,
+                    help="no run: stored runs with own_td_switch-1 rows composed at each --thresholds (stop 48)")
+    ap.add_argument("--thresholds", default="0,1,3,10,30,100", help="--switch-report: the input-error shares tried")
     ap.add_argument("--report", nargs="+", metavar="NAME", default=None,
                     help="no run: the summary of stored runs (docs/results/NAME.json, their rows merged; the same seed "
                          "and windows), e.g. input_noise_variants_seed55_confirm --against hist6")
     args = ap.parse_args(argv)
+    if args.switch_report:
+        return switch_report(args.switch_report, [float(x) for x in args.thresholds.split(",")])
     if args.report:
         return report(args.report, args.against)
     variants = [v for v in args.variants.split(",") if v]
@@ -698,6 +703,51 @@ def report(names: list[str], against: str = "default") -> dict:
     per_se = {k: v for r in runs for k, v in r["per_window_se"].items()}
     summ, cover, honest = print_summary(per, per_se, runs[0]["seed"], against)
     return {"summary": summ, "coverage_95": cover, "honest_version_met": honest}
+
+
+def switched(run: dict, threshold: float) -> tuple[dict, dict, float]:
+    """A stored run's ``default`` and ``own_td_switch-1`` rows composed window by window as ``own_td_switch<threshold>``
+    would answer (the history's form where the window's larger input-error share ρ exceeds the threshold, the default's
+    answer elsewhere), with its standard errors; and the share of noisy windows switched."""
+    per, per_se = {}, {}
+    on = total = 0
+    for key, rho in run["rho"].items():
+        level, cls, row = key.split("|")
+        base = f"{level}|{cls}|default"
+        use = [max(r) > threshold if np.all(np.isfinite(r)) else False for r in rho]
+        name = f"{level}|{cls}|switch{threshold:g}"
+        per[base], per_se[base] = run["per_window"][base], run["per_window_se"][base]
+        per[name] = [t if u else d for u, t, d in zip(use, run["per_window"][key], per[base], strict=True)]
+        per_se[name] = [t if u else d for u, t, d in zip(use, run["per_window_se"][key], per_se[base], strict=True)]
+        on += sum(use)
+        total += len(use)
+    return per, per_se, on / max(total, 1)
+
+
+def switch_report(names: list[str], thresholds: list[float]) -> dict:
+    """``--switch-report``: per stored run with ``own_td_switch-1`` rows and each threshold, the composed row's σ ratios
+    against the default (median, largest, DL 3 / 0.1 %), far-off windows at 0.1 % and coverage inside 90–97 %."""
+    out = {}
+    for name in names:
+        run = json.loads((common.RESULTS / f"{name}.json").read_text())
+        for x in thresholds:
+            per, per_se, share = switched(run, x)
+            s = summary(per)[f"switch{x:g}"]
+            cover = coverage(per, per_se)
+            inside = {k: int(np.sum((np.array(v) >= 0.9) & (np.array(v) <= 0.97))) for k, v in cover.items()}
+            d3 = f"3|{INPUT_NOISE[2][0]}|"
+            dl3 = (np.array(per[d3 + f"switch{x:g}"]).std(axis=0, ddof=1)
+                   / np.array(per[d3 + "default"]).std(axis=0, ddof=1)) if d3 + "default" in per else None
+            off = s["off_20pct_base_variant"][INPUT_NOISE[2][0]]
+            out[f"{name}|{x:g}"] = {"switched": share, "median": s["sigma_ratio_median"], "max": s["sigma_ratio_max"],
+                                    "max_at": s["sigma_ratio_max_at"], "off_01": off, "inside": inside,
+                                    "dl3_01": None if dl3 is None else dl3.tolist()}
+            print(f"{name} x={x:g}: switched {100 * share:.0f} %, median {s['sigma_ratio_median']:.3f}, largest "
+                  f"{s['sigma_ratio_max']:.3f} ({s['sigma_ratio_max_at']}), DL 3 / 0.1 % "
+                  + ("–" if dl3 is None else " / ".join(f"{v:.2f}" for v in dl3))
+                  + f", far-off at 0.1 % {off[0]} → {off[1]}, coverage inside default {inside['default']} → "
+                  f"{inside[f'switch{x:g}']}")
+    return out
 
 
 if __name__ == "__main__":
