@@ -187,3 +187,17 @@ def test_the_own_forms_take_the_historys_form_on_a_window_alone_and_restore_the_
     np.testing.assert_allclose(per[key + "own_td_switch1e9"], d, rtol=1e-12)
     rho = iv.RHO[key + "own_td_switch-1"]
     assert len(rho) == 1 and all(np.isfinite(rho[0])) and max(rho[0]) > 0.0
+
+
+def test_the_switch_report_composes_each_window_from_the_row_its_share_picks():
+    """``switched``: a window whose larger input-error share exceeds the threshold takes the form's answer and SE, the
+    others (and a NaN share) the default's; the share switched is counted over every noisy window."""
+    cls = "0.1 % / 1e-3 rad"
+    run = {"rho": {f"3|{cls}|own_td_switch-1": [[5.0, 0.1], [0.2, 0.3], [float("nan"), 9.0]]},
+           "per_window": {f"3|{cls}|default": [[1.0] * 4, [1.1] * 4, [1.2] * 4],
+                          f"3|{cls}|own_td_switch-1": [[2.0] * 4, [2.1] * 4, [2.2] * 4]},
+           "per_window_se": {f"3|{cls}|default": [[0.1] * 4] * 3, f"3|{cls}|own_td_switch-1": [[0.2] * 4] * 3}}
+    per, per_se, share = iv.switched(run, 1.0)
+    assert per[f"3|{cls}|switch1"] == [[2.0] * 4, [1.1] * 4, [1.2] * 4]
+    assert per_se[f"3|{cls}|switch1"] == [[0.2] * 4, [0.1] * 4, [0.1] * 4]
+    assert share == pytest.approx(1 / 3)
