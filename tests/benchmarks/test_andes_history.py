@@ -31,7 +31,7 @@ def test_each_of_the_seven_windows_gets_its_own_noise_and_the_history_is_the_min
     assert 0.5e-3 < np.std(dv) / np.mean(clean.V) < 1.5e-3  # the class's 0.1 % on V
     assert np.std(target.P - clean.P) > 0.0
     noise = [h.V - ah.noisy_window(rec, *span, None, None).V for h, span in zip(hist, ah.HISTORY, strict=True)]
-    assert not np.allclose(noise[0], noise[1]) and not np.allclose(noise[-1], dv)
+    assert abs(np.corrcoef(noise[0], noise[1])[0, 1]) < 0.2 and abs(np.corrcoef(noise[-1], dv)[0, 1]) < 0.2
     again, _ = ah.draw(rec, 22.0, "pmu01", [1, 220, 1, 1])
     assert not np.allclose(again.V, target.V)
 
