@@ -75,7 +75,7 @@ class Weighting:
     regressors in the stacked real representation (:func:`_stack`) and ``gram_inv`` the inverse of their Gram
     matrix (the projection off them); ``samples``: the real degrees of freedom per channel the kept bins
     hold (the regression length when every bin is kept).  ``whitener``: the ``temporal`` form's square root of the
-    inverse of the stacked [P; Q] disturbance covariance over the regression samples (2l × 2l,
+    inverse of the time-major [P; Q] disturbance covariance over the regression samples (2l × 2l, lower-triangular,
     :func:`aslm_core.levinson.whitening_matrix`) [1/pu], which then whitens in place of ``w``; None for the spectral
     form.
     """
@@ -90,7 +90,7 @@ class Weighting:
         """The columns xp (P's rows) and xq (Q's rows), time along axis 0, whitened: a sum of squares over the
         rows of the result is the quadratic form in S⁻¹."""
         if self.whitener is not None:
-            return self.whitener @ np.vstack([xp, xq])
+            return levinson.whitened(self.whitener, levinson.interleaved(xp, xq))
         return _stack(self.w, xp, xq, bin_weights(xp.shape[0]))
 
     def project(self, z: np.ndarray) -> np.ndarray:
@@ -316,7 +316,7 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
         whitener = levinson.whitening_matrix(temporal_lags(s, pb.l)[:pb.l])
         if whitener is None:
             return None
-        nuis = whitener @ np.block([[phi, zero], [zero, phi]])
+        nuis = levinson.whitened(whitener, levinson.interleaved(np.hstack([phi, zero]), np.hstack([zero, phi])))
         return Weighting((), nuis, np.linalg.inv(nuis.T @ nuis), samples, whitener)
     w = tuple(x * keep for x in whitening(s))
     nuis = _stack(w, np.hstack([phi, zero]), np.hstack([zero, phi]), mult)

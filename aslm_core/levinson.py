@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numba as nb
 import numpy as np
+from scipy.linalg import blas
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -39,10 +40,10 @@ def _whitener(c: np.ndarray) -> tuple[np.ndarray, bool]:
         r0, r1 = 2 * p, 2 * p + 1
         for j in range(p + 1):
             col = p - j
-            w[r0, col] = i00 * a[0, j]
-            w[r0, l + col] = i00 * a[1, j]
-            w[r1, col] = i10 * a[0, j] + i11 * a[2, j]
-            w[r1, l + col] = i10 * a[1, j] + i11 * a[3, j]
+            w[r0, 2 * col] = i00 * a[0, j]
+            w[r0, 2 * col + 1] = i00 * a[1, j]
+            w[r1, 2 * col] = i10 * a[0, j] + i11 * a[2, j]
+            w[r1, 2 * col + 1] = i10 * a[1, j] + i11 * a[3, j]
         if p == l - 1:
             break
         # Δ = Σ_j A_j·R(p + 1 − j)
@@ -103,9 +104,23 @@ def whitening_matrix(c: np.ndarray) -> np.ndarray | None:
     Returns
     -------
     ndarray, shape (2l, 2l), or None
-        W with W·Σ·Wᵀ = I, Σ the covariance of the channel-major stack [x_0(0 … l − 1); x_1(0 … l − 1)]: a sum of
-        squares of W·x is xᵀ·Σ⁻¹·x.  Row pair (2t, 2t + 1) is the innovation of sample t scaled to unit covariance
-        [1/unit].  None when the covariance is not positive definite.
+        The lower-triangular W with W·Σ·Wᵀ = I, Σ the covariance of the time-major stack [x_0(0), x_1(0), x_0(1), …]
+        (:func:`interleaved`): a sum of squares of W·x is xᵀ·Σ⁻¹·x.  Row pair (2t, 2t + 1) is the innovation of sample
+        t scaled to unit covariance [1/unit].  None when the covariance is not positive definite.
     """
     w, ok = _whitener(np.ascontiguousarray(c, dtype=np.float64))
     return w if ok else None
+
+
+def interleaved(x0: np.ndarray, x1: np.ndarray) -> np.ndarray:
+    """The time-major stack of two channels' columns (time along axis 0): rows x0[0], x1[0], x0[1], …, Fortran-ordered
+    for :func:`whitened`."""
+    out = np.empty((2 * x0.shape[0], x0.shape[1]), order="F")
+    out[0::2], out[1::2] = x0, x1
+    return out
+
+
+def whitened(w: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """W·x for the lower-triangular W of :func:`whitening_matrix` and x from :func:`interleaved`: the triangular
+    product (BLAS trmm), about a third of the dense product's time at l = 900."""
+    return blas.dtrmm(1.0, w.T, np.asfortranarray(x), side=0, lower=0, trans_a=1)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from aslm_core import input_weighting as iw
-from aslm_core.levinson import whitening_matrix
+from aslm_core.levinson import interleaved, whitened, whitening_matrix
 
 
 def _spectrum(l: int, dt: float) -> np.ndarray:
@@ -25,16 +25,22 @@ def _spectrum(l: int, dt: float) -> np.ndarray:
 
 @pytest.mark.parametrize("l", [1, 2, 7, 300])
 def test_the_whitener_whitens_the_window_covariance(l):
-    """W·Σ·Wᵀ = I for Σ the channel-major covariance over l samples (:func:`temporal_covariance`), and the quadratic
-    form ‖W·x‖² equals xᵀ·Σ⁻¹·x."""
+    """W is lower-triangular and W·Σ·Wᵀ = I for Σ the time-major covariance over l samples (:func:`temporal_covariance`'s
+    channel-major one, interleaved), and the quadratic form ‖W·x‖² through :func:`whitened` equals xᵀ·Σ⁻¹·x."""
     s = _spectrum(l, 0.01)
-    sigma = iw.temporal_covariance(s, l)
+    order = [ch * l + t for t in range(l) for ch in range(2)]  # time-major row → channel-major row
+    sigma = iw.temporal_covariance(s, l)[np.ix_(order, order)]
     w = whitening_matrix(iw.temporal_lags(s, l)[:l])
     assert w is not None and w.shape == (2 * l, 2 * l)
+    assert np.all(np.triu(w, 1) == 0.0)
     np.testing.assert_allclose(w @ sigma @ w.T, np.eye(2 * l), atol=1e-8)
-    x = np.random.default_rng(3).standard_normal((2 * l, 3)) * 1e-3
-    np.testing.assert_allclose(np.sum((w @ x) ** 2, axis=0), np.einsum("ij,ij->j", x, np.linalg.solve(sigma, x)),
-                               rtol=1e-8)
+    x = np.random.default_rng(3).standard_normal((l, 6)) * 1e-3
+    stacked = interleaved(x[:, :3], x[:, 3:])
+    np.testing.assert_array_equal(stacked, np.vstack([x[:, :3], x[:, 3:]])[order])
+    z = whitened(w, stacked)
+    np.testing.assert_allclose(z, w @ stacked, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(np.sum(z**2, axis=0),
+                               np.einsum("ij,ij->j", stacked, np.linalg.solve(sigma, stacked)), rtol=1e-8)
 
 
 def test_a_covariance_that_is_not_positive_definite_is_refused():
