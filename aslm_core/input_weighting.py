@@ -311,8 +311,8 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
     zero = np.zeros_like(phi)
     if temporal:
         s[grid > band_hz] *= BAND_DOWNWEIGHT
-        # The covariance over the window is block-Toeplitz: the Levinson recursion factors it in O(l²), where the
-        # dense Cholesky factor took O(l³) (60 ms at l = 900).
+        # The covariance over the window is block-Toeplitz: the Levinson recursion factors it in O(l²), where a
+        # dense Cholesky factor takes O(l³).
         whitener = levinson.whitening_matrix(temporal_lags(s, pb.l)[:pb.l])
         if whitener is None:
             return None

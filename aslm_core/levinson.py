@@ -2,9 +2,9 @@
 
 The refinement's time-domain form (:mod:`aslm_core.input_weighting`) whitens the [P; Q] residuals of a window by the
 covariance its disturbance spectrum implies over the window's samples: a block-Toeplitz matrix of 2l × 2l.  Its dense
-Cholesky factor costs O(l³) (about 60 ms at l = 900 on one core); the Whittle–Wiggins–Robinson recursion gives the same
-factorisation of a block-Toeplitz matrix in O(l²): the innovation of sample t is the error of the best linear predictor
-of order t, and the innovations of a window are uncorrelated with each other (Whittle 1963).
+Cholesky factor costs O(l³); the Whittle–Wiggins–Robinson recursion gives the same factorisation of a block-Toeplitz
+matrix in O(l²): the innovation of sample t is the error of the best linear predictor of order t, and the innovations of
+a window are uncorrelated with each other (Whittle 1963).  Measurements: docs/numerics.md, "Stop 48".
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ def _whitener(c: np.ndarray) -> tuple[np.ndarray, bool]:
     u00, u01, u10, u11 = v00, v01, v10, v11
     for p in range(l):
         det_v = v00 * v11 - v01 * v10
-        if v00 <= 0.0 or det_v <= 0.0:
+        if not (v00 > 0.0 and det_v > 0.0):  # also NaN
             return w, False
         # L⁻¹ of V's lower Cholesky factor (V symmetrised).
         vs = 0.5 * (v01 + v10)
@@ -57,7 +57,7 @@ def _whitener(c: np.ndarray) -> tuple[np.ndarray, bool]:
             d11 += a[2, j] * c01 + a[3, j] * c11
         # K_f = Δ·U⁻¹, K_b = Δᵀ·V⁻¹
         det_u = u00 * u11 - u01 * u10
-        if det_u <= 0.0:
+        if not det_u > 0.0:
             return w, False
         ui00, ui01, ui10, ui11 = u11 / det_u, -u01 / det_u, -u10 / det_u, u00 / det_u
         vi00, vi01, vi10, vi11 = v11 / det_v, -v01 / det_v, -v10 / det_v, v00 / det_v
@@ -121,6 +121,6 @@ def interleaved(x0: np.ndarray, x1: np.ndarray) -> np.ndarray:
 
 
 def whitened(w: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """W·x for the lower-triangular W of :func:`whitening_matrix` and x from :func:`interleaved`: the triangular
-    product (BLAS trmm), about a third of the dense product's time at l = 900."""
+    """W·x for the lower-triangular W of :func:`whitening_matrix` and x from :func:`interleaved`, by the triangular
+    product (BLAS trmm), which reads half of W."""
     return blas.dtrmm(1.0, w.T, np.asfortranarray(x), side=0, lower=0, trans_a=1)

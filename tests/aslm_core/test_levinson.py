@@ -44,11 +44,15 @@ def test_the_whitener_whitens_the_window_covariance(l):
 
 
 def test_a_covariance_that_is_not_positive_definite_is_refused():
-    """Lag 1 larger than lag 0 (a correlation above one) and a singular lag 0 give None, not a whitener."""
+    """Lag 1 larger than lag 0 (a correlation above one), a singular lag 0 and a NaN lag give None, not a whitener."""
     c = np.zeros((4, 2, 2))
     c[0] = np.eye(2)
     c[1] = 1.5 * np.eye(2)
     assert whitening_matrix(c) is None
     c = np.zeros((3, 2, 2))
     c[0] = [[1.0, 1.0], [1.0, 1.0]]
+    assert whitening_matrix(c) is None
+    c = np.zeros((3, 2, 2))
+    c[0] = np.eye(2)
+    c[1, 0, 0] = np.nan
     assert whitening_matrix(c) is None
