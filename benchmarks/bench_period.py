@@ -12,6 +12,11 @@ Besides the latency it prints the compute part: the CPU time of the worker proce
 the CPU time of this process (cutting, scheduling, IPC, SQLite, Zenoh).
 
     .venv/bin/python benchmarks/bench_period.py --buses 1000 --workers 2
+    .venv/bin/python benchmarks/bench_period.py --buses 1000 --workers 2 --history 6
+
+``--history K``: the service's ``input_history_windows`` = K (the K windows before each one cut from the ring, which then
+holds K·10 s more, and carried to the workers with the task; the fleet's V and θ are noisy, so every window is refined
+with their pooled spectrum).
 """
 
 from __future__ import annotations
@@ -78,6 +83,7 @@ def main() -> None:
                     help="random starts besides a warm start (service setting n_starts_warm)")
     ap.add_argument("--depth", type=int, default=None, help="tasks in flight per worker (pool default)")
     ap.add_argument("--periods", type=int, default=2, help="periods to run (from the 2nd on warm-started)")
+    ap.add_argument("--history", type=int, default=0, help="the service's input_history_windows")
     args = ap.parse_args()
 
     import zenoh
@@ -114,22 +120,26 @@ def main() -> None:
     period_s = 60.0
     for p in range(args.periods):
         boundary = (np.floor(time.time() / period_s) - args.periods + p) * period_s
-        store = BufferStore(10.0, FS, 1.0)
+        store = BufferStore(10.0, FS, 1.0, history_s=10.0 * args.history)
         t0 = time.perf_counter()
-        fill(store, args.buses, boundary, skip_s=p * period_s)
+        fill(store, args.buses, boundary, seconds=12.0 + 10.0 * args.history, skip_s=p * period_s)
         t_fill = time.perf_counter() - t0
         sched = Scheduler(store, pool, QualityRules(10.0, FS, 0.9, 0.2, 1e-5), late_s=1.0, f0=50.0,
                           period_s=lambda: period_s, on_results=sinks.write_results, on_period=summaries.append,
-                          warm_starts=warm, options=options, n_starts_warm=starts_warm)
+                          warm_starts=warm, options=options, n_starts_warm=starts_warm,
+                          input_history=args.history or None)
         load0, pids = os.getloadavg()[0], pool.pids()
         w0, m0 = cpu_s(pids), time.process_time()
         s = sched.run_period(boundary, period_s)
         w1, m1 = cpu_s(pids), time.process_time()
         ident = [r.parameters.elapsed_s for r in latest.results.values() if r.parameters is not None]
+        with_history = sum(int(r.parameters.quality.get("input_spectrum_windows", 0)) > 0
+                           for r in latest.results.values() if r.parameters is not None)
         print(f"period {p + 1}: {args.buses} buses, {args.workers} workers, warm-started: {p > 0}: "
               f"ok {s.n_ok}, failed {s.n_failed}, skipped {s.n_skipped}; latency {s.latency_s:.2f} s "
               f"(identify per window: median {1e3 * np.median(ident):.1f} ms, mean {1e3 * np.mean(ident):.1f} ms, "
-              f"p95 {1e3 * np.percentile(ident, 95):.1f} ms; filling buffers took {t_fill:.1f} s, not counted)")
+              f"p95 {1e3 * np.percentile(ident, 95):.1f} ms; filling buffers took {t_fill:.1f} s, not counted; "
+              f"with a history {with_history})")
         busy = sum(ident) / args.workers
         print(f"  sum(identify)/workers = {busy:.2f} s; worker CPU {w1 - w0:.2f} s "
               f"({1e3 * (w1 - w0) / max(s.n_ok, 1):.2f} ms per window; /workers = {(w1 - w0) / args.workers:.2f} s); "
