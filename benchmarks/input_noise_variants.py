@@ -137,6 +137,10 @@ OWN_RULE = "stop 48"
 #: windows' (ρ_P, ρ_Q), in the order of ``per_window``'s rows (JSON ``rho``).
 SWITCH = "own_td_switch"
 RHO: dict[str, list] = {}
+#: Per cell and history row, each window's staleness statistic (:func:`staleness`; JSON ``staleness``), stop 48.
+STALENESS: dict[str, list] = {}
+#: Width of the bands of :func:`staleness` [Hz].
+STALE_BAND_HZ = 0.5
 _CELL: list[str] = [""]
 #: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
@@ -319,6 +323,30 @@ def spectrum_variant(variant: str):
         input_weighting.weighted_fit = _WEIGHTED_FIT
 
 
+def staleness(window, spectrum: noise.InputSpectrum) -> float:
+    """How far a window's inputs depart from a history's spectrum, per degree of freedom (≈ 1 when they agree).
+
+    Per channel (V, θ) and band of :data:`STALE_BAND_HZ` from the first bin to 5 Hz, r is the window's periodogram
+    averaged over the band's m bins over the history's signal spectrum plus the window's own white floor there; the
+    statistic is Σ 2m·(r − 1 − log r), the deviance of χ²(2m)/(2m) ratios, over Σ (number of terms)."""
+    x = np.stack([window.V, window.theta])
+    fs = 1.0 / float(np.median(np.diff(window.t)))
+    g = noise.input_periodogram(x, fs)
+    f = g.freqs
+    model = noise._given_spectrum(spectrum, f)
+    sel = (f > 0) & (f < noise.FLOOR_FROM_HZ)
+    band = np.floor((f[sel] - f[sel][0]) / STALE_BAND_HZ).astype(int)
+    dev = terms = 0.0
+    for c in range(2):
+        obs, exp = g.p[sel, c, c].real, model[sel, c, c].real + g.floor[c]
+        for b in np.unique(band):
+            m = int(np.sum(band == b))
+            r = obs[band == b].mean() / exp[band == b].mean()
+            dev += 2 * m * (r - 1 - math.log(r))
+            terms += 1
+    return dev / max(terms, 1.0)
+
+
 def _number(text: str) -> bool:
     try:
         float(text)
@@ -462,8 +490,10 @@ def history_measure(variant: str, periodograms: list, window, truth,
     (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ,
      input_weighting.HISTORY_CHI2_MAX) = HISTORY_FORMS[variant]
     input_weighting.build_weighting = counted
+    spectrum = pooled_history(periodograms)
+    STALENESS.setdefault(_CELL[0], []).append(staleness(window, spectrum))
     try:
-        return _measure(window, truth, input_spectrum=pooled_history(periodograms))
+        return _measure(window, truth, input_spectrum=spectrum)
     finally:
         (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
          input_weighting.build_weighting) = old
@@ -502,6 +532,7 @@ def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict
                         if (j, k) not in history:
                             history[j, k] = history_periodograms(cases[LEVELS[0]][j], HISTORY_K, v_rel, th,
                                                                  np.random.default_rng([seed, 7, j, k]))
+                        _CELL[0] = f"{level}|{cls}|{variant}"
                         t1 = time.perf_counter()
                         rows[variant] = history_measure(variant.removesuffix(STALE), history[j, k], w, c.truth.d, variant)
                         times.setdefault(variant, []).append(time.perf_counter() - t1)
@@ -654,6 +685,7 @@ def main(argv=None) -> dict:
     t0 = time.perf_counter()
     GUARD_FIRED.clear()
     RHO.clear()
+    STALENESS.clear()
     per, per_se, ms = run(n, args.seed, variants, args.fs)
     if GUARD_FIRED:
         print("history form refitted with the floor by its χ² guard, windows: "
@@ -662,7 +694,7 @@ def main(argv=None) -> dict:
     print("ms per identification, median: " + ", ".join(f"{k} {v:.1f}" for k, v in ms.items()))
     out = {"machine": common.machine(), "n": n, "seed": args.seed, "fs": args.fs, "variants": variants, "summary": summ,
            "honest_version_met": honest, "coverage_95": cover, "per_window_se": per_se,
-           "ms_median": ms, "guard_fired": dict(GUARD_FIRED), "rho": dict(RHO), "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
+           "ms_median": ms, "guard_fired": dict(GUARD_FIRED), "rho": dict(RHO), "staleness": dict(STALENESS), "per_window": per, "total_s": time.perf_counter() - t0, "load_avg_at_end": os.getloadavg()}
     if not args.no_write:
         common.write_json(f"input_noise_variants_seed{args.seed}" + (f"_{args.tag}" if args.tag else "")
                           + (f"_fs{args.fs:g}" if args.fs != 100.0 else "")
