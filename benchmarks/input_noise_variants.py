@@ -141,6 +141,15 @@ RHO: dict[str, list] = {}
 STALENESS: dict[str, list] = {}
 #: Width of the bands of :func:`staleness` [Hz].
 STALE_BAND_HZ = 0.5
+#: The staleness check's threshold, chosen on development seeds 41 and 54 (``--stale-report``: the bus's own history
+#: gave at most 2.6 at its 99th percentile and never above 3; a stale one a median of 4.8–4.9).  Its confirmation
+#: (stop 48, fixed before any run on seed 58: ``--seed 58 --variants hist6_guard1.5,hist6_guard1.5_of1 --tag
+#: stalecheck``, read with ``--stale-report … --thresholds=3``): the check goes into the core if (1) with the bus's own
+#: history it keeps at least 97 % of the windows and σ's median over the default's is within 0.005 of the unchecked
+#: row's; (2) with a stale history σ's median over the default's is at most 1.00 and the windows off by more than 20 %
+#: at 0.1 % at most the default's; (3) there that median is at least 0.02 below the unchecked stale row's.
+STALE_THRESHOLD = 3.0
+STALE_CONFIRM_SEED = 58
 _CELL: list[str] = [""]
 #: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
@@ -667,11 +676,17 @@ def main(argv=None) -> dict:
     ap.add_argument("--against", default="default", help="the row σ ratios and far-off counts are taken against")
     ap.add_argument("--switch-report", nargs="+", metavar="NAME", default=None,
                     help="no run: stored runs with own_td_switch-1 rows composed at each --thresholds (stop 48)")
-    ap.add_argument("--thresholds", default="0,1,3,10,30,100", help="--switch-report: the input-error shares tried")
+    ap.add_argument("--stale-report", nargs="+", metavar="NAME", default=None,
+                    help="no run: stored runs with hist6_guard1.5 and its _of1 row composed with the staleness check "
+                         "at each --thresholds (stop 48)")
+    ap.add_argument("--thresholds", default="0,1,3,10,30,100",
+                    help="--switch-report: the input-error shares tried; --stale-report: the staleness thresholds")
     ap.add_argument("--report", nargs="+", metavar="NAME", default=None,
                     help="no run: the summary of stored runs (docs/results/NAME.json, their rows merged; the same seed "
                          "and windows), e.g. input_noise_variants_seed55_confirm --against hist6")
     args = ap.parse_args(argv)
+    if args.stale_report:
+        return stale_report(args.stale_report, [float(x) for x in args.thresholds.split(",")])
     if args.switch_report:
         return switch_report(args.switch_report, [float(x) for x in args.thresholds.split(",")])
     if args.report:
@@ -779,6 +794,48 @@ def switch_report(names: list[str], thresholds: list[float]) -> dict:
                   + ("–" if dl3 is None else " / ".join(f"{v:.2f}" for v in dl3))
                   + f", far-off at 0.1 % {off[0]} → {off[1]}, coverage inside default {inside['default']} → "
                   f"{inside[f'switch{x:g}']}")
+    return out
+
+
+def checked(run: dict, row: str, threshold: float) -> tuple[dict, float]:
+    """A stored run's history row ``row`` composed window by window with a staleness check: the history's answer where
+    the window's statistic (:func:`staleness`) is at most ``threshold``, the default's elsewhere; and the share kept."""
+    per = {}
+    kept = total = 0
+    for key, stat in run["staleness"].items():
+        level, cls, name = key.split("|")
+        if name != row:
+            continue
+        base = f"{level}|{cls}|default"
+        use = [x <= threshold for x in stat]
+        per[base] = run["per_window"][base]
+        per[f"{level}|{cls}|checked"] = [t if u else d for u, t, d in zip(use, run["per_window"][key], per[base],
+                                                                         strict=True)]
+        kept += sum(use)
+        total += len(use)
+    return per, kept / max(total, 1)
+
+
+def stale_report(names: list[str], thresholds: list[float]) -> dict:
+    """``--stale-report``: per stored run and threshold, the bus's own history (``hist6_guard1.5``) and a stale one
+    (``…_of1``) composed with the staleness check: the share of windows that keep the history, σ over the default's
+    (median, largest), windows off by more than 20 % at 0.1 %; and the statistic's quantiles per row."""
+    out = {}
+    for name in names:
+        run = json.loads((common.RESULTS / f"{name}.json").read_text())
+        for row in ("hist6_guard1.5", "hist6_guard1.5" + STALE):
+            stats = np.concatenate([v for k, v in run["staleness"].items() if k.endswith("|" + row)])
+            q = np.percentile(stats, [50, 90, 95, 99])
+            print(f"{name} {row}: staleness median / 90 / 95 / 99 % {' / '.join(f'{v:.2f}' for v in q)}")
+            for x in thresholds:
+                per, kept = checked(run, row, x)
+                s = summary(per)["checked"]
+                off = s["off_20pct_base_variant"][INPUT_NOISE[2][0]]
+                out[f"{name}|{row}|{x:g}"] = {"kept": kept, "median": s["sigma_ratio_median"],
+                                              "max": s["sigma_ratio_max"], "off_01": off}
+                print(f"  threshold {x:g}: kept {100 * kept:.0f} %, σ / default median {s['sigma_ratio_median']:.3f} "
+                      f"(largest {s['sigma_ratio_max']:.3f}, {s['sigma_ratio_max_at']}), far-off at 0.1 % "
+                      f"{off[0]} → {off[1]}")
     return out
 
 
