@@ -19,6 +19,7 @@ import numpy as np
 
 from aslm_core import disturbance, excitation, input_weighting, instrumental, motor, optimize, static
 from aslm_core.errors import NoEquilibriumError, WindowError
+from aslm_core.input_history import HISTORY_STALE_MAX
 from aslm_core.noise import InputSpectrum, reflected_mean
 from aslm_core.params import DYNAMIC_NAMES
 from aslm_core.preprocess import Prepared, prepare
@@ -283,6 +284,8 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
             extra["weighted_chi2"] = w["chi2"]
             if w["spectrum_windows"]:
                 extra["input_spectrum_windows"] = float(w["spectrum_windows"])
+            if w["history_staleness"] is not None:
+                extra["input_history_staleness"] = float(w["history_staleness"])
     if config.disturbance == "gated":
         # Output error (or its S-weighted refinement) unless output error's own fluctuation share says it is not
         # consistent; then the IV fit from the output-error optimum, unless its instruments are rejected
@@ -493,6 +496,9 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
         flags.append("iv_error_may_exceed_20pct" if config.disturbance == "ar_iv" else "error_may_exceed_20pct")
     if prep.noise.get("input_ratio_v", math.inf) < INPUT_RATIO_MIN:
         flags.append("input_noise_too_large")
+    if "input_history_staleness" in (extra_quality or {}) and not (
+            extra_quality["input_history_staleness"] <= HISTORY_STALE_MAX):
+        flags.append("input_history_stale")
     # Ambient signal = measured variance minus what the fit leaves (the noise estimate), eq. 10.
     snr_p = 10.0 * math.log10(max(ss_p - rr_p, 1e-300) / max(rr_p, 1e-300))
     snr_q = 10.0 * math.log10(max(ss_q - rr_q, 1e-300) / max(rr_q, 1e-300))

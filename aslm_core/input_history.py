@@ -11,9 +11,19 @@ buses over one to five minutes, so the history holds only windows that do not ov
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
-from aslm_core.noise import InputPeriodogram, InputSpectrum, poolable, pooled_spectrum
+import numpy as np
+
+from aslm_core.noise import (
+    FLOOR_FROM_HZ,
+    InputPeriodogram,
+    InputSpectrum,
+    poolable,
+    pooled_spectrum,
+    spectrum_at,
+)
 
 #: Windows pooled into the inputs' spectrum (a minute of 10 s windows: the development runs' K = 6) [-].
 HISTORY_WINDOWS = 6
@@ -23,6 +33,12 @@ HISTORY_MAX_AGE_S = 300.0
 #: a history drops its residual floor (:data:`aslm_core.input_weighting.HISTORY_BAND_HZ`) and needs the spectrum's
 #: fine structure (docs/numerics.md, "Stop 47").
 HISTORY_SMOOTH_HZ = 0.0
+#: Largest :func:`staleness` of a window against its history's spectrum for the history to be used: above it the
+#: minute before describes another load or network, and a history from another one is worse than none
+#: (docs/numerics.md, "Stop 48") [-].
+HISTORY_STALE_MAX = 3.0
+#: Width of the bands :func:`staleness` compares [Hz].
+STALE_BAND_HZ = 0.5
 
 
 class InputHistory:
@@ -96,3 +112,38 @@ class InputHistory:
         if self._cached is None or self._cached[0] != key:
             self._cached = (key, pooled_spectrum([h[2] for h in usable], smooth_hz=HISTORY_SMOOTH_HZ))
         return self._cached[1]
+
+
+def staleness(periodogram: InputPeriodogram, spectrum: InputSpectrum) -> float:
+    """How far a window's inputs depart from its history's spectrum, per degree of freedom (about 1 when they agree).
+
+    Parameters
+    ----------
+    periodogram : InputPeriodogram
+        The window's own (:func:`aslm_core.noise.input_periodogram` of its V [pu] and θ [rad]).
+    spectrum : InputSpectrum
+        The history's signal spectrum (:meth:`InputHistory.spectrum`).
+
+    Returns
+    -------
+    float
+        Per channel and band of :data:`STALE_BAND_HZ` from the first bin to 5 Hz, r = the window's periodogram over
+        the history's signal spectrum plus the window's own white floor, each averaged over the band's m bins; the
+        deviance Σ 2m·(r − 1 − log r) of these χ²(2m)/(2m) ratios over the number of terms [-].
+    """
+    f = periodogram.freqs
+    model = spectrum_at(spectrum, f)
+    sel = (f > 0) & (f < FLOOR_FROM_HZ)
+    if not np.any(sel):
+        return math.nan
+    band = np.floor((f[sel] - f[sel][0]) / STALE_BAND_HZ).astype(int)
+    dev, terms = 0.0, 0
+    for c in range(min(periodogram.p.shape[1], model.shape[1])):
+        obs = periodogram.p[sel, c, c].real
+        exp = model[sel, c, c].real + periodogram.floor[c]
+        for b in np.unique(band):
+            m = int(np.sum(band == b))
+            r = float(obs[band == b].mean() / exp[band == b].mean())
+            dev += 2 * m * (r - 1.0 - math.log(r))
+            terms += 1
+    return dev / terms

@@ -33,7 +33,8 @@ import numpy as np
 from scipy import signal
 
 from aslm_core import levinson, motor, optimize, static
-from aslm_core.noise import FLOOR_FROM_HZ, InputSpectrum, reflected_mean
+from aslm_core.input_history import HISTORY_STALE_MAX, staleness
+from aslm_core.noise import FLOOR_FROM_HZ, InputSpectrum, input_periodogram, reflected_mean
 from aslm_core.preprocess import Prepared, prepare, white_floor
 from aslm_core.problem import Problem
 from aslm_core.window import Window
@@ -499,17 +500,27 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
         Equilibrium margin of the feasible set.
     input_spectrum : aslm_core.noise.InputSpectrum, optional
         The inputs' signal spectrum from the bus's previous windows (:func:`aslm_core.noise.pooled_spectrum`)
-        for the refinement's Wiener smoother instead of the window's own estimate.
+        for the refinement's Wiener smoother instead of the window's own estimate; not used where the window's
+        :func:`aslm_core.input_history.staleness` against it exceeds
+        :data:`aslm_core.input_history.HISTORY_STALE_MAX`.
 
     Returns
     -------
     dict or None
         :func:`refine`'s dict plus ``objective``, the configured objective at the refined D on the
-        refinement's data, and ``spectrum_windows``, the windows ``input_spectrum`` was pooled from where the
-        smoother used it (both inputs noisy: an exact input passes whole), else 0.
+        refinement's data, ``spectrum_windows``, the windows ``input_spectrum`` was pooled from where the
+        smoother used it (both inputs noisy: an exact input passes whole), else 0, and ``history_staleness``, the
+        window's staleness against ``input_spectrum`` (None without one).
     """
     if not noisy_inputs(floors):
         return None
+    stale = None
+    if input_spectrum is not None:
+        # A history that does not describe this window's inputs (another load or network) is worse than none.
+        fs = 1.0 / float(np.median(np.diff(window.t)))
+        stale = staleness(input_periodogram(np.stack([window.V, window.theta]), fs), input_spectrum)
+        if not stale <= HISTORY_STALE_MAX:
+            input_spectrum = None
     prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
                    floors=True, input_smoother="wiener", input_spectrum=input_spectrum,
                    input_tail=config.input_spectrum_tail)
@@ -525,4 +536,5 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
         return None
     out["objective"] = out["problem"].cost(res[0], res[1])
     out["spectrum_windows"] = input_spectrum.n_windows if used else 0
+    out["history_staleness"] = stale
     return out

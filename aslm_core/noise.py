@@ -408,8 +408,9 @@ def pooled_input_spectrum(windows: Sequence[np.ndarray], fs: float, smooth_hz: f
     return pooled_spectrum([input_periodogram(x, fs, keep_hz=top_hz + smooth_hz) for x in xs], smooth_hz, top_hz)
 
 
-def _given_spectrum(spectrum: InputSpectrum, freqs: np.ndarray) -> np.ndarray:
-    """A signal spectrum interpolated onto ``freqs``, zero beyond its last frequency."""
+def spectrum_at(spectrum: InputSpectrum, freqs: np.ndarray) -> np.ndarray:
+    """``spectrum.s`` interpolated linearly onto ``freqs`` [Hz], zero beyond its last frequency, shape (len(freqs), c, c)
+    [unit of x squared, per sample]."""
     f, s = spectrum.freqs, spectrum.s
     out = np.empty((freqs.size,) + s.shape[1:], dtype=complex)
     for i in range(s.shape[1]):
@@ -513,7 +514,7 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         below = np.flatnonzero(p[i][k_min:] <= CUTOFF_FACTOR * r[i])
         ends.append(k_min + int(below[0]) if below.size else p[i].size)
     if spectrum is not None:
-        given = _given_spectrum(spectrum, np.fft.rfftfreq(ne, 1.0 / fs)) * ne  # to |X_k|² units, as r
+        given = spectrum_at(spectrum, np.fft.rfftfreq(ne, 1.0 / fs)) * ne  # to |X_k|² units, as r
         ends = []
         for i in range(c):
             on = np.flatnonzero(given[k_min:, i, i].real <= 0.0)

@@ -193,7 +193,9 @@ class IdentificationResult:
         answered, ``weighted_shift_z`` (the largest |D − output error's D| / SE over the parameters) [-] and, where
         its smoother was given the inputs' spectrum of the bus's previous windows (and its fit took the history's
         time-domain form, :data:`aslm_core.input_weighting.HISTORY_BAND_HZ`), ``input_spectrum_windows`` (how
-        many) [-]; where the
+        many) [-]; where a history's spectrum was given to the refinement, ``input_history_staleness`` (how far the
+        window's inputs depart from it per degree of freedom, :func:`aslm_core.input_history.staleness`; ~1 for the
+        same process; above 3 the history is not used) [-]; where the
         gated estimator's IV answered, ``halves_z`` (the largest |D₁ − D₂| / √(SE₁² + SE₂²) of the two
         half-window IV fits; NaN when a half cannot be identified) [-].
     flags : list of str
@@ -212,7 +214,9 @@ class IdentificationResult:
         input-noise correction moved D far in its own standard errors, so D rests on the estimated input-noise
         spectrum), ``error_may_exceed_20pct`` (the rule of ``iv_error_may_exceed_20pct`` on every other answer,
         output error's and the S-weighted refinement's: a standard error above 6 % of its parameter), ``halves_disagree`` (the gated IV answer's ``halves_z``
-        above 3.5: the window's two halves disagree beyond their standard errors).
+        above 3.5: the window's two halves disagree beyond their standard errors), and since stop 48
+        ``input_history_stale`` (a history's spectrum was given and the window's ``input_history_staleness`` is above
+        3: its inputs depart from that spectrum, so the window was identified alone).
     static_stderr : dict
         Standard errors of the ``static`` coefficients [pu or -] (D taken as known).
     static_local : dict

@@ -318,7 +318,7 @@ def window_model(window, d: np.ndarray, skip_s: float, taper: str) -> tuple | No
     ru = np.diag([fl["noise_v"] ** 2, fl["noise_theta"] ** 2]).astype(complex)
     ry = np.diag([fl["noise_p"] ** 2, fl["noise_q"] ** 2]).astype(complex)
     own = noise.pooled_spectrum([noise.input_periodogram(x[:2], 1.0 / pb.dt)], top_hz=TOP_HZ + noise.WIENER_SMOOTH_HZ)
-    sx0 = noise._given_spectrum(own, freqs) + 0.1 * ru  # positive where the window's estimate is not
+    sx0 = noise.spectrum_at(own, freqs) + 0.1 * ru  # positive where the window's estimate is not
     return freqs, z, hf, dhf, ru, ry, sx0
 
 

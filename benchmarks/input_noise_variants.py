@@ -139,8 +139,6 @@ SWITCH = "own_td_switch"
 RHO: dict[str, list] = {}
 #: Per cell and history row, each window's staleness statistic (:func:`staleness`; JSON ``staleness``), stop 48.
 STALENESS: dict[str, list] = {}
-#: Width of the bands of :func:`staleness` [Hz].
-STALE_BAND_HZ = 0.5
 #: The staleness check's threshold, chosen on development seeds 41 and 54 (``--stale-report``: the bus's own history
 #: gave at most 2.6 at its 99th percentile and never above 3; a stale one a median of 4.8–4.9).  Its confirmation
 #: (stop 48, fixed before any run on seed 58: ``--seed 58 --variants hist6_guard1.5,hist6_guard1.5_of1 --tag
@@ -289,7 +287,7 @@ def em_spectrum(window, config, d0: np.ndarray, skip_s: float, iters: int = 30) 
     top = int(np.searchsorted(freqs, noise.FLOOR_FROM_HZ))
     k = np.arange(1, top)
     u, y, hk = z[:2, k].T, z[2:, k].T, hf[k]
-    own = noise._given_spectrum(noise.pooled_spectrum([noise.input_periodogram(x[:2], 1.0 / pb.dt)]), freqs[k])
+    own = noise.spectrum_at(noise.pooled_spectrum([noise.input_periodogram(x[:2], 1.0 / pb.dt)]), freqs[k])
     s = own + 0.1 * np.diag(ru)
     hr = hk.conj().transpose(0, 2, 1) / ry[None, None, :]  # Hᴴ·R_y⁻¹
     prec = np.diag(1.0 / ru)[None] + hr @ hk
@@ -317,7 +315,7 @@ def _spectrum(variant: str, window, config, d0, skip_s) -> noise.InputSpectrum |
     pq = pq_spectrum(window, config, d0, skip_s)
     if pq is None or variant == "pq":
         return pq
-    own = noise._given_spectrum(noise.pooled_spectrum([preprocess.input_periodogram(window, config.max_gap_samples)]),
+    own = noise.spectrum_at(noise.pooled_spectrum([preprocess.input_periodogram(window, config.max_gap_samples)]),
                                 pq.freqs)
     return noise.InputSpectrum(pq.freqs, 0.5 * (pq.s + own), 1)
 
@@ -340,27 +338,10 @@ def spectrum_variant(variant: str):
 
 
 def staleness(window, spectrum: noise.InputSpectrum) -> float:
-    """How far a window's inputs depart from a history's spectrum, per degree of freedom (≈ 1 when they agree).
-
-    Per channel (V, θ) and band of :data:`STALE_BAND_HZ` from the first bin to 5 Hz, r is the window's periodogram
-    averaged over the band's m bins over the history's signal spectrum plus the window's own white floor there; the
-    statistic is Σ 2m·(r − 1 − log r), the deviance of χ²(2m)/(2m) ratios, over Σ (number of terms)."""
-    x = np.stack([window.V, window.theta])
+    """The core's staleness of a window's inputs against a history's spectrum
+    (:func:`aslm_core.input_history.staleness`)."""
     fs = 1.0 / float(np.median(np.diff(window.t)))
-    g = noise.input_periodogram(x, fs)
-    f = g.freqs
-    model = noise._given_spectrum(spectrum, f)
-    sel = (f > 0) & (f < noise.FLOOR_FROM_HZ)
-    band = np.floor((f[sel] - f[sel][0]) / STALE_BAND_HZ).astype(int)
-    dev = terms = 0.0
-    for c in range(2):
-        obs, exp = g.p[sel, c, c].real, model[sel, c, c].real + g.floor[c]
-        for b in np.unique(band):
-            m = int(np.sum(band == b))
-            r = obs[band == b].mean() / exp[band == b].mean()
-            dev += 2 * m * (r - 1 - math.log(r))
-            terms += 1
-    return dev / max(terms, 1.0)
+    return input_history.staleness(noise.input_periodogram(np.stack([window.V, window.theta]), fs), spectrum)
 
 
 def _number(text: str) -> bool:

@@ -36,7 +36,9 @@ class Identified(BaseModel):
                     "own_median_hz_p|q (half of the own fluctuation's variance lies below it; absent: none left) [Hz]; "
                     "where the AR/IV fit ran, own_q_per_p (ΔQ/ΔP of the own fluctuation, k of its second "
                     "channel Q − k·P) [-]; input_spectrum_windows (noisy V and θ smoothed with their spectrum "
-                    "pooled from this many of the bus's previous windows; absent: from this window alone) [-]")
+                    "pooled from this many of the bus's previous windows; absent: from this window alone) [-]; "
+                    "input_history_staleness (how far the window's V and θ depart from that history's spectrum, ~1 for "
+                    "the same process; above 3 the window is identified alone and flagged input_history_stale) [-]")
     flags: list[str] = Field(default_factory=list,
                              description="Quality flags, e.g. at_bound:H2, static_split_unidentifiable")
     static_stderr: dict[str, float | None] = Field(

@@ -9,7 +9,7 @@ from scipy import signal
 
 from aslm_core import identify, noise
 from aslm_core import input_weighting as iw
-from aslm_core.input_history import InputHistory
+from aslm_core.input_history import HISTORY_STALE_MAX, InputHistory, staleness
 from aslm_core.preprocess import input_periodogram
 from aslm_core.window import Window
 
@@ -155,3 +155,43 @@ def test_given_a_history_the_refinement_whitens_in_time_below_5_hz_without_the_r
     del calls[:]
     identify(windows[6], input_spectrum=spectrum)
     assert calls == [(pytest.approx(10.0), "spectral", True)]
+
+
+def test_a_windows_staleness_is_near_one_against_its_own_process_and_large_against_another():
+    """The deviance per term of the window's band periodograms against the history's spectrum plus the window's
+    floor: about 1 for a window of the same process, far above :data:`HISTORY_STALE_MAX` when the signal is three
+    times larger (another network's stiffness) or a third."""
+    wins = _noisy_inputs(7)
+    spectrum = noise.pooled_spectrum([noise.input_periodogram(x, FS) for x in wins[:6]], smooth_hz=0.0)
+    own = staleness(noise.input_periodogram(wins[6], FS), spectrum)
+    assert 0.3 < own < HISTORY_STALE_MAX
+    for scale in (3.0, 1.0 / 3.0):
+        other = staleness(noise.input_periodogram(wins[6] * scale, FS), spectrum)
+        assert other > 3 * HISTORY_STALE_MAX, (scale, other)
+
+
+def test_identify_refuses_a_stale_history_and_says_so():
+    """A history whose inputs swing three times as far: the window is identified alone (the same D as without it),
+    flagged ``input_history_stale`` with its staleness in ``quality``; its own history is used, unflagged."""
+    rec = equation_window(seed=4, fs=FS, fine=4, duration=70.0)
+    pieces = [slice(j * N, (j + 1) * N) for j in range(7)]
+    windows = [Window(rec.t[s], rec.V[s], rec.theta[s], rec.P[s], rec.Q[s], f0=rec.f0, bus="b") for s in pieces]
+    noisy = [_with_noise(w, seed=j) for j, w in enumerate(windows)]
+
+    def history_of(ws):
+        hist = InputHistory()
+        for w in ws:
+            assert hist.add(float(w.t[0]), float(w.t[-1]), input_periodogram(w))
+        return hist.spectrum(float(noisy[6].t[0]))
+
+    swung = [Window(w.t, w.V.mean() + 3 * (w.V - w.V.mean()), w.theta.mean() + 3 * (w.theta - w.theta.mean()), w.P,
+                    w.Q, f0=w.f0, bus=w.bus) for w in noisy[:6]]
+    alone = identify(noisy[6])
+    own = identify(noisy[6], input_spectrum=history_of(noisy[:6]))
+    stale = identify(noisy[6], input_spectrum=history_of(swung))
+    assert own.quality["input_spectrum_windows"] == 6.0 and "input_history_stale" not in own.flags
+    assert own.quality["input_history_staleness"] <= HISTORY_STALE_MAX
+    assert "input_history_stale" in stale.flags and "input_spectrum_windows" not in stale.quality
+    assert stale.quality["input_history_staleness"] > HISTORY_STALE_MAX
+    np.testing.assert_array_equal(stale.d, alone.d)
+    assert "input_history_staleness" not in alone.quality

@@ -148,7 +148,7 @@ def test_the_em_spectrum_is_a_spectrum_near_the_windows_own_where_the_signal_is_
     np.testing.assert_allclose(s, s.conj().transpose(0, 2, 1), atol=1e-15)
     assert np.linalg.eigvalsh(s).min() > -1e-12 * np.abs(s).max()
     assert np.all(s[f >= noise.FLOOR_FROM_HZ] == 0)
-    own = noise._given_spectrum(noise.pooled_spectrum([preprocess.input_periodogram(w)]), f)
+    own = noise.spectrum_at(noise.pooled_spectrum([preprocess.input_periodogram(w)]), f)
     band = (f > 0.3) & (f < 1.5)
     for c in range(2):
         ratio = s[band, c, c].real.sum() / own[band, c, c].real.sum()
