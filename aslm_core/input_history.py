@@ -143,7 +143,7 @@ def staleness(periodogram: InputPeriodogram, spectrum: InputSpectrum) -> float:
         exp = model[sel, c, c].real + periodogram.floor[c]
         for b in np.unique(band):
             m = int(np.sum(band == b))
-            r = float(obs[band == b].mean() / exp[band == b].mean())
+            r = max(float(obs[band == b].mean() / exp[band == b].mean()), 1e-12)  # a dead channel: far off
             dev += 2 * m * (r - 1.0 - math.log(r))
             terms += 1
     return dev / terms

@@ -517,8 +517,9 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
     stale = None
     if input_spectrum is not None:
         # A history that does not describe this window's inputs (another load or network) is worse than none.
+        # θ unwrapped, as the history's windows were (:func:`aslm_core.preprocess.input_periodogram`).
         fs = 1.0 / float(np.median(np.diff(window.t)))
-        stale = staleness(input_periodogram(np.stack([window.V, window.theta]), fs), input_spectrum)
+        stale = staleness(input_periodogram(np.stack([window.V, np.unwrap(window.theta)]), fs), input_spectrum)
         if not stale <= HISTORY_STALE_MAX:
             input_spectrum = None
     prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,

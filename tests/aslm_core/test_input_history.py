@@ -195,3 +195,10 @@ def test_identify_refuses_a_stale_history_and_says_so():
     assert stale.quality["input_history_staleness"] > HISTORY_STALE_MAX
     np.testing.assert_array_equal(stale.d, alone.d)
     assert "input_history_staleness" not in alone.quality
+    # θ as a PMU sends it, wrapped at ±π: the window's check unwraps it as the history's periodograms do.
+    shift = np.pi - float(noisy[6].theta.mean())
+    wrapped = [Window(w.t, w.V, np.angle(np.exp(1j * (w.theta + shift))), w.P, w.Q, f0=w.f0, bus=w.bus) for w in noisy]
+    assert np.ptp(wrapped[6].theta) > np.pi  # it does wrap
+    both = identify(wrapped[6], input_spectrum=history_of(wrapped[:6]))
+    assert both.quality["input_history_staleness"] == pytest.approx(own.quality["input_history_staleness"], rel=1e-6)
+    assert both.quality["input_spectrum_windows"] == 6.0
