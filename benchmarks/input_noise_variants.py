@@ -67,7 +67,8 @@ Measurements: docs/numerics.md, "Stop 44: the inputs' spectrum read through P an
 variants, ``em`` and the bands "Stop 45: the bound with the inputs' spectrum learnt from the window"; ``floor_sig*`` and
 the history variants "Stop 46: the learnt bound is within reach of maximum likelihood; where the default leaves it"
 and "Stop 47: the history's spectrum unsmoothed, the refinement in the time domain"; the ``own_td`` variants "Stop 48:
-the history's form on a window alone (tried, not adopted); the whitener by Levinson".
+the history's form on a window alone (tried, not adopted); the history on ANDES, its staleness check; the whitener by
+Levinson" (the ``own_td_switch`` variants and the staleness statistic there too).
 """
 
 from __future__ import annotations
