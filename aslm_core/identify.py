@@ -17,9 +17,17 @@ from dataclasses import replace
 
 import numpy as np
 
-from aslm_core import disturbance, excitation, input_weighting, instrumental, motor, optimize, static
+from aslm_core import (
+    disturbance,
+    excitation,
+    input_history,
+    input_weighting,
+    instrumental,
+    motor,
+    optimize,
+    static,
+)
 from aslm_core.errors import NoEquilibriumError, WindowError
-from aslm_core.input_history import HISTORY_STALE_MAX
 from aslm_core.noise import InputSpectrum, reflected_mean
 from aslm_core.params import DYNAMIC_NAMES
 from aslm_core.preprocess import Prepared, prepare
@@ -497,7 +505,7 @@ def _result(problem: Problem, window: Window, best: dict, runs: list, prep: Prep
     if prep.noise.get("input_ratio_v", math.inf) < INPUT_RATIO_MIN:
         flags.append("input_noise_too_large")
     if "input_history_staleness" in (extra_quality or {}) and not (
-            extra_quality["input_history_staleness"] <= HISTORY_STALE_MAX):
+            extra_quality["input_history_staleness"] <= input_history.HISTORY_STALE_MAX):
         flags.append("input_history_stale")
     # Ambient signal = measured variance minus what the fit leaves (the noise estimate), eq. 10.
     snr_p = 10.0 * math.log10(max(ss_p - rr_p, 1e-300) / max(rr_p, 1e-300))

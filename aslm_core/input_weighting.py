@@ -32,8 +32,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import signal
 
-from aslm_core import levinson, motor, optimize, static
-from aslm_core.input_history import HISTORY_STALE_MAX, staleness
+from aslm_core import input_history, levinson, motor, optimize, static
 from aslm_core.noise import FLOOR_FROM_HZ, InputSpectrum, input_periodogram, reflected_mean
 from aslm_core.preprocess import Prepared, prepare, white_floor
 from aslm_core.problem import Problem
@@ -519,8 +518,9 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
         # A history that does not describe this window's inputs (another load or network) is worse than none.
         # θ unwrapped, as the history's windows were (:func:`aslm_core.preprocess.input_periodogram`).
         fs = 1.0 / float(np.median(np.diff(window.t)))
-        stale = staleness(input_periodogram(np.stack([window.V, np.unwrap(window.theta)]), fs), input_spectrum)
-        if not stale <= HISTORY_STALE_MAX:
+        stale = input_history.staleness(input_periodogram(np.stack([window.V, np.unwrap(window.theta)]), fs),
+                                        input_spectrum)
+        if not stale <= input_history.HISTORY_STALE_MAX:
             input_spectrum = None
     prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
                    floors=True, input_smoother="wiener", input_spectrum=input_spectrum,

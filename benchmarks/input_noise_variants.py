@@ -27,8 +27,10 @@ per level, both PMU classes), every noisy window is identified by the default (`
   without the residual floor (stop 46's lead, which failed its confirmation on seed 54 at stop 47);
   ``hist6_guard1.3``, ``hist6_guard1.5`` (stop 47): that form redone with the floor where its whitened residual's χ²
   exceeds 1.3 or 1.5 (``input_weighting.HISTORY_CHI2_MAX``; the JSON's ``guard_fired`` counts the windows per row),
-  ``hist6_guard1.5`` the core's form since its confirmation on seed 55; any of these with the suffix ``_of1``: given the next case's history instead, another load
-  and network (a stale history, as ``input_noise_bound --history-of 1``);
+  ``hist6_guard1.5`` the core's form from its confirmation on seed 55 until stop 48; ``hist6_checked`` (stop 48) that
+  with the staleness check, the core's form since (the others run without the check, as they first ran); any of these
+  with the suffix ``_of1``: given the next case's history instead, another load and network (a stale history, as
+  ``input_noise_bound --history-of 1``);
 * ``own_td``, ``own_td_guard1.5``, ``own_td_fallback1.5`` (stop 48): the history's form on the window alone, with the
   window's own spectrum and its tail (:func:`own_history_form`): no guard, the guard's refit, or the default's fit where
   χ² exceeds 1.5; ``own_td_guard1.5`` failed its confirmation on seed 57 (:data:`OWN_RULE`);
@@ -101,14 +103,17 @@ from benchmarks.input_noise_bound import (  # noqa: E402
 
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
             "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5", "own_td", "own_td_guard1.5",
-            "own_td_fallback1.5")
+            "own_td_fallback1.5", "hist6_checked")
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
 #: Each history variant's form, set whatever the core's defaults: (``input_history.HISTORY_SMOOTH_HZ``,
-#: ``input_weighting.HISTORY_BAND_HZ``, ``input_weighting.HISTORY_CHI2_MAX``).
-HISTORY_FORMS = {"hist6": (noise.WIENER_SMOOTH_HZ, None, None),  # stop 41's form
-                 "hist6_fine_td": (0.0, noise.FLOOR_FROM_HZ, None),
-                 "hist6_guard1.3": (0.0, noise.FLOOR_FROM_HZ, 1.3),
-                 "hist6_guard1.5": (0.0, noise.FLOOR_FROM_HZ, 1.5)}
+#: ``input_weighting.HISTORY_BAND_HZ``, ``input_weighting.HISTORY_CHI2_MAX``, ``input_history.HISTORY_STALE_MAX``).
+#: The forms of stops 46–47 ran before the staleness check (stop 48) and keep running without it, so that their stored
+#: runs reproduce and ``--stale-report`` composes unchecked rows; ``hist6_checked`` is the core's form since stop 48.
+HISTORY_FORMS = {"hist6": (noise.WIENER_SMOOTH_HZ, None, None, math.inf),  # stop 41's form
+                 "hist6_fine_td": (0.0, noise.FLOOR_FROM_HZ, None, math.inf),
+                 "hist6_guard1.3": (0.0, noise.FLOOR_FROM_HZ, 1.3, math.inf),
+                 "hist6_guard1.5": (0.0, noise.FLOOR_FROM_HZ, 1.5, math.inf),
+                 "hist6_checked": (0.0, noise.FLOOR_FROM_HZ, 1.5, 3.0)}
 HISTORY_VARIANTS = tuple(HISTORY_FORMS)
 #: Suffix of a history variant given the next case's history (another load and network: a stale history).
 STALE = "_of1"
@@ -179,13 +184,20 @@ def response_at(window, config, d0: np.ndarray, skip_s: float):
     model cannot be simulated or H formed."""
     prep = preprocess.prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
                               floors=True, input_smoother="wiener", input_tail=config.input_spectrum_tail)
-    pb = Problem(prep, window.f0, replace(config, skip_s=skip_s))
+    at = _response(prep, window.f0, config, d0, skip_s)
+    return None if at is None else (prep, *at)
+
+
+def _response(prep, f0: float, config, d0: np.ndarray, skip_s: float):
+    """(the :class:`Problem` of ``prep`` simulated at d0, the model's impulse response there with the plain fit's static
+    coefficients), or None (:func:`response_at`)."""
+    pb = Problem(prep, f0, replace(config, skip_s=skip_s))
     if not input_weighting._simulate(pb, d0):
         return None
     resid = np.column_stack([pb.p_meas - pb._p[pb.k0:], pb.q_meas - pb._q[pb.k0:]])
     beta = np.linalg.solve(pb.r_factor, pb.basis.T @ resid)
     h = input_weighting.impulse_response(pb, d0, beta[:, 0], beta[:, 1])
-    return None if h is None else (prep, pb, h)
+    return None if h is None else (pb, h)
 
 
 def pq_spectrum(window, config, d0: np.ndarray, skip_s: float) -> noise.InputSpectrum | None:
@@ -346,6 +358,28 @@ def staleness(window, spectrum: noise.InputSpectrum) -> float:
     return input_history.staleness(noise.input_periodogram(np.stack([window.V, window.theta]), fs), spectrum)
 
 
+@contextlib.contextmanager
+def _refits_counted(label: str, count: bool = True):
+    """Within the block, :func:`aslm_core.input_weighting.build_weighting`'s calls are watched: the history's form asks
+    for S without the floor first, and a later call with it is the guard's refit (or a fallback, which appends True to
+    the yielded list itself); with ``count``, whether one happened is added to :data:`GUARD_FIRED` under ``label``."""
+    old = input_weighting.build_weighting
+    floors: list[bool] = []
+
+    def counted(*args, **kwargs):
+        floors.append(args[6] if len(args) > 6 else kwargs.get("residual_floor", True))
+        return old(*args, **kwargs)
+
+    input_weighting.build_weighting = counted
+    try:
+        yield floors
+    finally:
+        input_weighting.build_weighting = old
+        if count:
+            fired = False in floors and any(floors[floors.index(False) + 1:])
+            GUARD_FIRED[label] = GUARD_FIRED.get(label, 0) + int(fired)
+
+
 def _number(text: str) -> bool:
     try:
         float(text)
@@ -357,14 +391,10 @@ def _number(text: str) -> bool:
 def input_share(prep, f0: float, config, d0: np.ndarray, skip_s: float) -> tuple[float, float]:
     """(ρ_P, ρ_Q): below 5 Hz (or a tenth of the rate), the mean over the bins of the input error's part of the
     refinement's S over the white floor, (S_ii − σ_i²)/σ_i², at the output-error D; NaN where it cannot be formed."""
-    pb = Problem(prep, f0, replace(config, skip_s=skip_s))
-    if not input_weighting._simulate(pb, np.asarray(d0, float)):
+    at = _response(prep, f0, config, np.asarray(d0, float), skip_s)
+    if at is None:
         return math.nan, math.nan
-    resid = np.column_stack([pb.p_meas - pb._p[pb.k0:], pb.q_meas - pb._q[pb.k0:]])
-    beta = np.linalg.solve(pb.r_factor, pb.basis.T @ resid)
-    h = input_weighting.impulse_response(pb, np.asarray(d0, float), beta[:, 0], beta[:, 1])
-    if h is None:
-        return math.nan, math.nan
+    pb, h = at
     freqs = np.fft.rfftfreq(pb.l, pb.dt)
     white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
     s = input_weighting.disturbance_spectrum(h, freqs, *prep.input_error, white)
@@ -377,38 +407,30 @@ def own_history_form(variant: str):
     """Within the block, the refinement takes the history's form (:func:`aslm_core.input_weighting.refine`'s
     ``history``) on every noisy window, with the window's own spectrum, the guard :data:`OWN_FORMS`'s; refits with the
     floor counted in :data:`GUARD_FIRED`."""
-    old = (input_weighting.refine, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
-           input_weighting.build_weighting)
-    floors = []
-
-    def refine(prep, f0, config, d0, skip_s, margin, history=False):
-        if variant.startswith(SWITCH):
-            rho = input_share(prep, f0, config, d0, skip_s)
-            RHO.setdefault(_CELL[0], []).append(rho)
-            return old[0](prep, f0, config, d0, skip_s, margin, history=max(rho) > float(variant[len(SWITCH):]))
-        if not variant.startswith("own_td_fallback"):
-            return old[0](prep, f0, config, d0, skip_s, margin, history=True)
-        out = old[0](prep, f0, config, d0, skip_s, margin, history=True)
-        if out is not None and out["chi2"] <= OWN_FORMS[variant]:
-            return out
-        floors.append(True)  # counted as the guard's refit
-        return old[0](prep, f0, config, d0, skip_s, margin, history=False)
-
-    def counted(*args, **kwargs):
-        floors.append(args[6] if len(args) > 6 else kwargs.get("residual_floor", True))
-        return old[3](*args, **kwargs)
-
-    input_weighting.refine, input_weighting.build_weighting = refine, counted
+    old = (input_weighting.refine, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX)
     input_weighting.HISTORY_BAND_HZ = noise.FLOOR_FROM_HZ
     input_weighting.HISTORY_CHI2_MAX = (None if variant.startswith("own_td_fallback")
                                         else 1.5 if variant.startswith(SWITCH) else OWN_FORMS[variant])
     try:
-        yield
+        with _refits_counted(variant) as floors:
+
+            def refine(prep, f0, config, d0, skip_s, margin, history=False):
+                if variant.startswith(SWITCH):
+                    rho = input_share(prep, f0, config, d0, skip_s)
+                    RHO.setdefault(_CELL[0], []).append(rho)
+                    return old[0](prep, f0, config, d0, skip_s, margin,
+                                  history=max(rho) > float(variant[len(SWITCH):]))
+                out = old[0](prep, f0, config, d0, skip_s, margin, history=True)
+                if not variant.startswith("own_td_fallback") or (out is not None
+                                                                 and out["chi2"] <= OWN_FORMS[variant]):
+                    return out
+                floors.append(True)  # the fallback, counted as the guard's refit
+                return old[0](prep, f0, config, d0, skip_s, margin, history=False)
+
+            input_weighting.refine = refine
+            yield
     finally:
-        (input_weighting.refine, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
-         input_weighting.build_weighting) = old
-        fired = False in floors and any(floors[floors.index(False) + 1:])
-        GUARD_FIRED[variant] = GUARD_FIRED.get(variant, 0) + int(fired)
+        input_weighting.refine, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX = old
 
 
 @contextlib.contextmanager
@@ -479,27 +501,17 @@ def history_measure(variant: str, periodograms: list, window, truth,
     the time domain below 5 Hz without the residual floor; ``hist6_guard*`` that, redone with the floor above the χ².
     Counts in :data:`GUARD_FIRED` (under ``label``, the variant by default) whether the fit was redone with the floor."""
     old = (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
-           input_weighting.build_weighting)
-    floors = []
-
-    def counted(*args, **kwargs):
-        floors.append(args[6] if len(args) > 6 else kwargs.get("residual_floor", True))
-        return old[3](*args, **kwargs)
-
-    (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ,
-     input_weighting.HISTORY_CHI2_MAX) = HISTORY_FORMS[variant]
-    input_weighting.build_weighting = counted
-    spectrum = pooled_history(periodograms)
-    STALENESS.setdefault(_CELL[0], []).append(staleness(window, spectrum))
+           input_history.HISTORY_STALE_MAX)
+    (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
+     input_history.HISTORY_STALE_MAX) = HISTORY_FORMS[variant]
     try:
-        return _measure(window, truth, input_spectrum=spectrum)
+        spectrum = pooled_history(periodograms)
+        STALENESS.setdefault(_CELL[0], []).append(staleness(window, spectrum))
+        with _refits_counted(label or variant, count=HISTORY_FORMS[variant][2] is not None):
+            return _measure(window, truth, input_spectrum=spectrum)
     finally:
         (input_history.HISTORY_SMOOTH_HZ, input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX,
-         input_weighting.build_weighting) = old
-        # The history's form asks for S without the floor first; a later call with it is the guard's refit.
-        fired = False in floors and any(floors[floors.index(False) + 1:])
-        if HISTORY_FORMS[variant][2] is not None:
-            GUARD_FIRED[label or variant] = GUARD_FIRED.get(label or variant, 0) + int(fired)
+         input_history.HISTORY_STALE_MAX) = old
 
 
 def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict, dict, dict]:

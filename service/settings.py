@@ -86,9 +86,10 @@ class ServiceSettings(BaseSettings):
     input_history_windows: int = Field(
         0, description="Noisy V and θ: k > 0 has the identifier's refinement smooth them with their spectrum pooled "
                        "from the k windows just before the one identified, cut from the bus's buffer (which then holds "
-                       "k·window_s more), and whiten its fit in the time domain (~0.1 s per window instead of ~0.01 s); "
-                       "6 is the measured choice; 0 (default): each window alone, as the CLI and the Python API "
-                       "(docs/numerics.md, \"Stop 47\")",
+                       "k·window_s more), and whiten its fit in the time domain (~0.02 s per window instead of "
+                       "~0.008 s); a window whose V and θ depart from that spectrum is identified alone (flag "
+                       "input_history_stale); 6 is the measured choice; 0 (default): each window alone, as the CLI and the Python API "
+                       "(docs/numerics.md, \"Stop 47\", \"Stop 48\")",
     )
     diagnose_every: int = Field(
         4, description="Discrepancy diagnosis of every identified bus each k-th period (0: off); ~0.7 s of one "

@@ -161,15 +161,29 @@ def test_the_em_spectrum_is_a_spectrum_near_the_windows_own_where_the_signal_is_
 def test_the_history_variants_reach_identify_and_restore_the_refinement():
     """Stop 46's ``hist6`` and ``hist6_fine_td`` move the answer on a noisy window, differ from each other, and leave the
     refinement's band and residual floor, and the history's form, as they were."""
-    per, _, _ = iv.run(2, 41, ["hist6", "hist6_fine_td", "hist6_of1"])
+    iv.STALENESS.clear()
+    per, _, _ = iv.run(2, 41, ["hist6", "hist6_fine_td", "hist6_of1", "hist6_checked_of1"])
     assert input_weighting.BAND_FRACTION == 0.1 and input_weighting.RESIDUAL_SMOOTH_HZ == 1.0
-    assert (input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX, input_history.HISTORY_SMOOTH_HZ) == (
-        5.0, 1.5, 0.0)
+    assert (input_weighting.HISTORY_BAND_HZ, input_weighting.HISTORY_CHI2_MAX, input_history.HISTORY_SMOOTH_HZ,
+            input_history.HISTORY_STALE_MAX) == (5.0, 1.5, 0.0, 3.0)
     key = "3|0.1 % / 1e-3 rad|"
     d, h, f, o = (np.array(per[key + name]) for name in ("default", "hist6", "hist6_fine_td", "hist6_of1"))
     assert not np.allclose(h, d, rtol=0, atol=1e-9)
     assert not np.allclose(f, h, rtol=0, atol=1e-9)
     assert not np.allclose(o, h, rtol=0, atol=1e-9)  # another case's history (a stale one) gives another answer
+    # The stop 46–47 forms run without the staleness check (their stored runs reproduce); the core's form since stop
+    # 48 answers a window whose staleness exceeds 3 as alone.
+    refused = checked = 0
+    for level in (1, 2, 3):
+        for cls in ("0.03 % / 3e-4 rad", "0.1 % / 1e-3 rad"):
+            k = f"{level}|{cls}|"
+            for stat, c, alone, unchecked in zip(iv.STALENESS[k + "hist6_checked_of1"], per[k + "hist6_checked_of1"],
+                                                 per[k + "default"], per[k + "hist6_of1"], strict=True):
+                checked += 1
+                if stat > 3.0:
+                    refused += 1
+                    assert c == alone and unchecked != alone
+    assert refused >= 3, (refused, checked)
 
 
 def test_the_own_forms_take_the_historys_form_on_a_window_alone_and_restore_the_core():
