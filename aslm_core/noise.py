@@ -30,6 +30,11 @@ EDGE_FIT_S = 0.1
 #: Windows pooled into one input spectrum may differ in length (bin spacing) by this fraction: a window missing frames
 #: at its ends is shorter (the service accepts 10 % missing), and its smoothed periodogram interpolates well [-].
 POOL_SPACING_TOL = 0.25
+#: The smoother's gain at a frequency is formed from the spectrum averaged over the neighbouring bins without that
+#: bin's own: with it, a bin whose noise happened to be large reads as signal, the gain opens on that noise, and the
+#: smoothed inputs keep noise correlated with themselves (a low by 1–2 % at 50–60 frames/s / 0.1 %;
+#: docs/numerics.md, "Stop 49").  False: the average with it, as before stop 49 (for benchmarks comparing the two).
+GAIN_WITHOUT_OWN_BIN = True
 
 
 @lru_cache(maxsize=32)
@@ -214,11 +219,13 @@ def _end_value(x: np.ndarray, m: int, at_start: bool) -> float:
     return float(seg.mean()) + slope * float(k[0] if at_start else k[-1])
 
 
-def _moving_average(x: np.ndarray, width: int) -> np.ndarray:
-    """Centred moving average (shorter at the ends)."""
+def _moving_average(x: np.ndarray, width: int, without_centre: bool = False) -> np.ndarray:
+    """Centred moving average (shorter at the ends); ``without_centre``: each bin's average over its neighbours only."""
     if width <= 1:
         return x
-    k = np.ones(width)
+    k = np.ones(width + (1 - width % 2 if without_centre else 0))  # odd, so that the centre is one bin
+    if without_centre:
+        k[k.size // 2] = 0.0
     return np.convolve(x, k, mode="same") / np.convolve(np.ones_like(x), k, mode="same")
 
 
@@ -471,7 +478,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     -----
     Each signal is extended at both ends by a point reflection (``_extend``), its line removed, and taken
     to the Fourier domain.  Per frequency the measured cross-spectral matrix S_m (the periodogram matrix
-    averaged over ``smooth_hz``) is the signal's S plus R = diag(σ²); S = S_m − R with its negative
+    averaged over ``smooth_hz`` without the frequency's own bin, :data:`GAIN_WITHOUT_OWN_BIN`, so that the gain
+    does not depend on the noise it multiplies) is the signal's S plus R = diag(σ²); S = S_m − R with its negative
     eigenvalues clipped, and a channel's signal is zero above the first frequency (from 0.5 Hz) where its
     power sinks to its floor (ambient content falls with frequency; without that rule the floor's own
     scatter opened the gain above 5 Hz and left half the error variance there).  The gain is S·(S + R)⁻¹.
@@ -508,6 +516,9 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     width = max(1, int(round(smooth_hz * ne / fs)))
     r = ne * var
     p = [_moving_average((spec[i] * spec[i].conj()).real, width) for i in range(c)]
+    # The cut-off reads the plain average (where the power sinks to the floor); the gain its neighbours' only.
+    own_out = GAIN_WITHOUT_OWN_BIN
+    p_gain = [_moving_average((spec[i] * spec[i].conj()).real, width, True) for i in range(c)] if own_out else p
     k_min = int(np.ceil(MIN_CUTOFF_HZ * ne / fs))
     ends = []
     for i in range(c):
@@ -524,7 +535,7 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         if spectrum is not None:
             s = np.maximum(given[:, 0, 0].real, 0.0)
         else:
-            s = np.maximum(p[0] - r[0], 0.0)
+            s = np.maximum(p_gain[0] - r[0], 0.0)
             s[ends[0]:] = 0.0
             if tail:
                 freqs = np.fft.rfftfreq(ne, 1.0 / fs)
@@ -536,8 +547,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         px = (s / (s + r[0]) * var[0]).astype(complex)[:, None, None]
         return _returned(out, cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px, return_cutoffs, return_error)
     # Two channels: S = S_m − R with its negative eigenvalue clipped, in closed form per frequency.
-    b = _moving_average(spec[0] * spec[1].conj(), width)
-    a, d = p[0] - r[0], p[1] - r[1]
+    b = _moving_average(spec[0] * spec[1].conj(), width, own_out)
+    a, d = p_gain[0] - r[0], p_gain[1] - r[1]
     mid, rad = 0.5 * (a + d), np.sqrt(0.25 * (a - d) ** 2 + np.abs(b) ** 2)
     lo, hi = mid - rad, mid + rad
     # Where only the larger eigenvalue is positive, S = λ₊·(A − λ₋·I)/(λ₊ − λ₋); where none is, S = 0.

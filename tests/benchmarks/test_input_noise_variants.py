@@ -215,3 +215,19 @@ def test_the_switch_report_composes_each_window_from_the_row_its_share_picks():
     assert per[f"3|{cls}|switch1"] == [[2.0] * 4, [1.1] * 4, [1.2] * 4]
     assert per_se[f"3|{cls}|switch1"] == [[0.2] * 4, [0.1] * 4, [0.1] * 4]
     assert share == pytest.approx(1 / 3)
+
+
+def test_the_before49_variants_undo_stop_49s_changes_and_restore_the_core():
+    """At 25 frames/s each of the two changes moves the answer (the band is 4 Hz against 2.5, the gain's average leaves
+    the own bin out); ``before49`` undoes both; the core's settings are back afterwards."""
+    per, _, _ = iv.run(1, 41, ["before49", "own_bin_in", "band_tenth"], fs=25.0)
+    assert noise.GAIN_WITHOUT_OWN_BIN and input_weighting.MIN_BAND_HZ == 4.0
+    key = "2|0.1 % / 1e-3 rad|"
+    d = np.array(per[key + "default"])
+    rows = {name: np.array(per[key + name]) for name in ("before49", "own_bin_in", "band_tenth")}
+    for v in rows.values():
+        assert np.all(np.isfinite(v)) and not np.allclose(v, d, rtol=0, atol=1e-9)
+    assert not np.allclose(rows["own_bin_in"], rows["band_tenth"], rtol=0, atol=1e-9)
+    with iv.before49(False, 0.0):
+        assert not noise.GAIN_WITHOUT_OWN_BIN and input_weighting.fitted_band_hz(25.0) == 2.5
+    assert noise.GAIN_WITHOUT_OWN_BIN and input_weighting.fitted_band_hz(25.0) == 4.0

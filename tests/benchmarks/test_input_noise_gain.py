@@ -1,0 +1,64 @@
+"""The verdict of stop 49's rule from per-window records (benchmarks.input_noise_gain)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from benchmarks import input_noise_gain as ig  # noqa: E402
+
+CLASSES = ("0.03 % / 3e-4 rad", "0.1 % / 1e-3 rad")
+
+
+def _rows(shift: dict, spread: float = 0.05, n: int = 400, far: int = 0, seed: int = 0) -> tuple[dict, dict]:
+    """Per-window D/D_real of rows ``default`` and ``before49`` at DL 1–3 and both classes: each row's windows centred
+    on 1 + shift[row] (exactly: the draws are centred), ``far`` windows of ``default`` at 0.1 % moved 30 % off."""
+    rng = np.random.default_rng(seed)
+    per, per_se = {}, {}
+    for level in (1, 2, 3):
+        for cls in CLASSES:
+            base = rng.standard_normal((n, 4))
+            base = (base - base.mean(axis=0)) / base.std(axis=0, ddof=1)
+            for row in ("default", "before49"):
+                r = 1.0 + shift[row] + spread * base
+                if row == "default" and cls.startswith("0.1") and far:
+                    r[:far, 0] = 1.3 + shift[row]
+                per[f"{level}|{cls}|{row}"] = r.tolist()
+                per_se[f"{level}|{cls}|{row}"] = np.full((n, 4), spread).tolist()
+    return per, per_se
+
+
+def _verdict(shift: dict, **kw) -> dict:
+    per, per_se = _rows(shift, **kw)
+    cells = {row: ig.cells(per, per_se, row) for row in (ig.ROW, ig.BEFORE)}
+    return ig.verdict({25.0: cells, 100.0: cells})
+
+
+def test_cells_give_the_mean_spread_coverage_and_far_off_windows_of_each_row():
+    per, per_se = _rows({"default": 0.0, "before49": 0.015}, far=3)
+    c = ig.cells(per, per_se, "before49")["2|0.1 % / 1e-3 rad"]
+    assert np.allclose(c["mu"], 1.015) and np.allclose(c["sigma"], 0.05) and c["n"] == 400 and c["off_20pct"] == 0
+    d = ig.cells(per, per_se, "default")["2|0.1 % / 1e-3 rad"]
+    assert d["off_20pct"] == 3
+    assert all(0.92 < x < 0.98 for x in d["coverage"])  # ±1.96 SE with the SE the spread
+
+
+def test_the_rule_is_met_when_the_default_is_inside_the_target_and_before_was_not():
+    v = _verdict({"default": 0.0, "before49": 0.015})  # 0.015 is outside 0.01 at 0.03 %, inside 0.02 at 0.1 %
+    assert all(x["met"] for x in v.values())
+    assert v["2 cells outside the target over DL 1-3, at most before's"]["before49"] == 2 * 3 * 4
+    assert v["1 bias inside the target at DL 2-3, every rate"]["outside"] == 0
+
+
+def test_each_criterion_fails_on_its_own_failure():
+    v = _verdict({"default": 0.012, "before49": 0.0})  # outside at 0.03 %: DL 2-3 on both rates
+    assert not v["1 bias inside the target at DL 2-3, every rate"]["met"]
+    assert v["1 bias inside the target at DL 2-3, every rate"]["outside"] == 2 * 2 * 4
+    assert not v["2 cells outside the target over DL 1-3, at most before's"]["met"]
+    far = _verdict({"default": 0.0, "before49": 0.0}, far=20)  # 20 of 400 windows 30 % off in every 0.1 % cell
+    assert not far["5 off by more than 20 % at 0.1 %, at most 1.12 x before's"]["met"]
+    assert far["5 off by more than 20 % at 0.1 %, at most 1.12 x before's"]["before49"] == 0
+    assert not far["3 sigma over before: median <= 1.03, largest <= 1.40"]["met"]  # a's spread grows with them
