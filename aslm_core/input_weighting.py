@@ -51,11 +51,11 @@ RESIDUAL_SMOOTH_HZ = 1.0
 #: Highest frequency the fit uses, as a fraction of the reporting rate [-]: where the simulator's cubic
 #: interpolation of the inputs between samples is within ~0.5 % of a sinusoid's amplitude (5 % at 0.2).
 BAND_FRACTION = 0.1
-#: ... but at least this frequency [Hz]: the smoothed inputs carry the ambient signal up to their cut-off, 3.4–4 Hz
-#: at every rate (docs/numerics.md, "Stop 42"), and a band of a tenth of 25 or 30 frames/s (2.5, 3 Hz) leaves part of
-#: it out, its few bins biasing a high ("Stop 30", "Stop 49").  0: a tenth of the rate, as before stop 49.
-MIN_BAND_HZ = 4.0
-#: ... and at most this fraction of the rate, where the interpolation still holds (4 Hz at 25 frames/s) [-].
+#: Above 0: the band reaches at least this frequency [Hz] where :data:`MAX_BAND_FRACTION` of the rate allows it (4 Hz
+#: at 25 and 30 frames/s, where the smoothed inputs' signal reaches 3.4–4 Hz: docs/numerics.md, "Stop 42").  Tried at
+#: 4 Hz at stop 49 with ``noise.GAIN_WITHOUT_OWN_BIN`` and not adopted ("Stop 49"); 0: a tenth of the rate everywhere.
+MIN_BAND_HZ = 0.0
+#: The band's top at most this fraction of the rate when :data:`MIN_BAND_HZ` raises it (the interpolation's limit) [-].
 MAX_BAND_FRACTION = 0.16
 #: With the inputs' spectrum of the bus's history (``identify(..., input_spectrum=)``, pooled unsmoothed by
 #: :class:`aslm_core.input_history.InputHistory`), the refinement whitens in the time domain on the bins below this
@@ -104,21 +104,22 @@ class Weighting:
         return z - self.nuisance @ (self.gram_inv @ (self.nuisance.T @ z))
 
 
-def fitted_band_hz(fs: float) -> float:
-    """Highest frequency the S-weighted refinement fits at reporting rate ``fs`` [Hz]: a tenth of the rate, at least
-    :data:`MIN_BAND_HZ` where :data:`MAX_BAND_FRACTION` of the rate allows it.
+def fitted_band_hz(dt: float) -> float:
+    """Highest frequency the S-weighted refinement fits at the sample step ``dt`` [Hz]: :data:`BAND_FRACTION` of the
+    rate (2.5 Hz at 25 frames/s, 10 Hz at 100), raised to :data:`MIN_BAND_HZ` where :data:`MAX_BAND_FRACTION` of the
+    rate allows it.
 
     Parameters
     ----------
-    fs : float
-        Reporting rate [frames/s].
+    dt : float
+        Sample step of the window [s] (the reciprocal of the reporting rate).
 
     Returns
     -------
     float
-        The band's top [Hz] (2.5 Hz at 25 frames/s before stop 49; 4 Hz now; 10 Hz at 100 frames/s).
+        The band's top [Hz].
     """
-    return max(BAND_FRACTION * fs, min(MIN_BAND_HZ, MAX_BAND_FRACTION * fs))
+    return max(BAND_FRACTION / dt, min(MIN_BAND_HZ, MAX_BAND_FRACTION / dt))
 
 
 def bin_weights(l: int) -> np.ndarray:
@@ -456,7 +457,7 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     """
 
     pb = Problem(prep, f0, replace(config, skip_s=skip_s))
-    band, form, floor = fitted_band_hz(1.0 / pb.dt), config.input_weighting, True
+    band, form, floor = fitted_band_hz(pb.dt), config.input_weighting, True
     if history and HISTORY_BAND_HZ:
         band, form, floor = min(band, math.nextafter(HISTORY_BAND_HZ, 0.0)), "temporal", False
     out = _weighted_descent(pb, prep, d0, margin, band, form, floor)

@@ -30,11 +30,12 @@ EDGE_FIT_S = 0.1
 #: Windows pooled into one input spectrum may differ in length (bin spacing) by this fraction: a window missing frames
 #: at its ends is shorter (the service accepts 10 % missing), and its smoothed periodogram interpolates well [-].
 POOL_SPACING_TOL = 0.25
-#: The smoother's gain at a frequency is formed from the spectrum averaged over the neighbouring bins without that
-#: bin's own: with it, a bin whose noise happened to be large reads as signal, the gain opens on that noise, and the
-#: smoothed inputs keep noise correlated with themselves (a low by 1–2 % at 50–60 frames/s / 0.1 %;
-#: docs/numerics.md, "Stop 49").  False: the average with it, as before stop 49 (for benchmarks comparing the two).
-GAIN_WITHOUT_OWN_BIN = True
+#: True: the smoother's gain at a frequency formed from its neighbours' periodogram without that bin's own (so that a bin
+#: whose noise happened to be large does not open the gain on that noise).  Tried at stop 49 with the refinement's band
+#: at least 4 Hz (``input_weighting.MIN_BAND_HZ``): a's bias at 50–120 frames/s / 0.1 % went from −0.5 … −2.6 % to
+#: within ±1 %, but σ rose at 25–30 frames/s and the rule fixed before its confirmation failed; not adopted
+#: (docs/numerics.md, "Stop 49").  Kept so that ``benchmarks.input_noise_gain``'s figures rerun.
+GAIN_WITHOUT_OWN_BIN = False
 
 
 @lru_cache(maxsize=32)
@@ -478,8 +479,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     -----
     Each signal is extended at both ends by a point reflection (``_extend``), its line removed, and taken
     to the Fourier domain.  Per frequency the measured cross-spectral matrix S_m (the periodogram matrix
-    averaged over ``smooth_hz`` without the frequency's own bin, :data:`GAIN_WITHOUT_OWN_BIN`, so that the gain
-    does not depend on the noise it multiplies) is the signal's S plus R = diag(σ²); S = S_m − R with its negative
+    averaged over ``smooth_hz``; without the frequency's own bin with :data:`GAIN_WITHOUT_OWN_BIN`) is the signal's
+    S plus R = diag(σ²); S = S_m − R with its negative
     eigenvalues clipped, and a channel's signal is zero above the first frequency (from 0.5 Hz) where its
     power sinks to its floor (ambient content falls with frequency; without that rule the floor's own
     scatter opened the gain above 5 Hz and left half the error variance there).  The gain is S·(S + R)⁻¹.

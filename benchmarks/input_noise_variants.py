@@ -36,9 +36,11 @@ per level, both PMU classes), every noisy window is identified by the default (`
   χ² exceeds 1.5; ``own_td_guard1.5`` failed its confirmation on seed 57 (:data:`OWN_RULE`);
 * ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
   thirty-third of the rate instead of a tenth (5 or 3 Hz at 100 frames/s);
-* ``before49``, ``own_bin_in``, ``band_tenth`` (stop 49): the default as it was before stop 49 (the smoother's gain with
-  each bin's own periodogram in its average, the refinement's band a tenth of the rate at every rate), or either of the
-  two changes undone alone (:data:`BEFORE49_VARIANTS`; the rule they were put to: ``benchmarks.input_noise_gain``);
+* ``gain49``, ``own_bin_out``, ``band4`` (stop 49): the smoother's gain from each bin's neighbours' periodogram without
+  its own and the refinement's band at least 4 Hz (4 Hz at 25 and 30 frames/s), or either alone (:data:`GAIN49_VARIANTS`).
+  ``gain49`` was the default from 2a38811 until its confirmation failed (``benchmarks.input_noise_gain``): the runs of
+  record made then (tags ``dev49``, ``confirm49``) hold it as ``default`` and today's default as ``before49``, the
+  decomposition as ``band_tenth`` (``own_bin_out`` today) and ``own_bin_in`` (``band4``);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
   the smoother, the output-error stage's prefilter too — and each parameter's median of the three (``widths_median``) or
   the run nearest that median (``widths_medoid``, distance in units of each parameter's spread over the cell's windows).
@@ -106,7 +108,7 @@ from benchmarks.input_noise_bound import (  # noqa: E402
 
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
             "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5", "own_td", "own_td_guard1.5",
-            "own_td_fallback1.5", "hist6_checked", "before49", "own_bin_in", "band_tenth")
+            "own_td_fallback1.5", "hist6_checked", "gain49", "own_bin_out", "band4")
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
 #: Each history variant's form, set whatever the core's defaults: (``input_history.HISTORY_SMOOTH_HZ``,
 #: ``input_weighting.HISTORY_BAND_HZ``, ``input_weighting.HISTORY_CHI2_MAX``, ``input_history.HISTORY_STALE_MAX``).
@@ -166,13 +168,12 @@ STALE_CONFIRM_SEED = 58
 #: 20 % at 0.1 % are at most the unchecked stale row's.
 STALE_SECOND_SEED = 59
 _CELL: list[str] = [""]
-#: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate;
-#: without stop 49's lowest band, so that the fraction holds).
+#: ``band5``, ``band3``: the refinement's band at 5 or 3 Hz at 100 frames/s (a twentieth, a thirty-third of the rate).
 BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
-#: ``before49``, ``own_bin_in``, ``band_tenth`` (stop 49): the smoother's gain with each bin's own periodogram in its
-#: average (``noise.GAIN_WITHOUT_OWN_BIN`` False), the refinement's band a tenth of the rate at every rate
-#: (``input_weighting.MIN_BAND_HZ`` 0), or both (the default before stop 49): (GAIN_WITHOUT_OWN_BIN, MIN_BAND_HZ).
-BEFORE49_VARIANTS = {"before49": (False, 0.0), "own_bin_in": (False, None), "band_tenth": (None, 0.0)}
+#: ``gain49``, ``own_bin_out``, ``band4`` (stop 49): the smoother's gain without each bin's own periodogram in its
+#: average (``noise.GAIN_WITHOUT_OWN_BIN``), the refinement's band at least 4 Hz (``input_weighting.MIN_BAND_HZ``), or
+#: both (the candidate, not adopted): (GAIN_WITHOUT_OWN_BIN, MIN_BAND_HZ), None where the core's is kept.
+GAIN49_VARIANTS = {"gain49": (True, 4.0), "own_bin_out": (True, None), "band4": (None, 4.0)}
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none", "floor_sig2": "significant_2",
                   "floor_sig1.5": "significant_1.5"}
 #: ``floor_outside``: the model's S counts as having input-error content above this fraction of the white floor [-].
@@ -456,7 +457,7 @@ def smoother_width(hz: float):
 
 
 @contextlib.contextmanager
-def before49(own_bin_out: bool | None, min_band_hz: float | None):
+def smoother_gain(own_bin_out: bool | None, min_band_hz: float | None):
     """Within the block, the smoother's gain with or without each bin's own periodogram and the refinement's lowest band
     as given (None: as the core has it)."""
     old = noise.GAIN_WITHOUT_OWN_BIN, input_weighting.MIN_BAND_HZ
@@ -575,14 +576,14 @@ def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict
                                 runs.append(_measure(w, c.truth.d))
                         rows["widths_runs"] = ([r for r, _ in runs], [e for _, e in runs])
                     elif variant in BAND_VARIANTS:
-                        old = input_weighting.BAND_FRACTION, input_weighting.MIN_BAND_HZ
-                        input_weighting.BAND_FRACTION, input_weighting.MIN_BAND_HZ = BAND_VARIANTS[variant], 0.0
+                        old = input_weighting.BAND_FRACTION
+                        input_weighting.BAND_FRACTION = BAND_VARIANTS[variant]
                         try:
                             rows[variant] = _measure(w, c.truth.d)
                         finally:
-                            input_weighting.BAND_FRACTION, input_weighting.MIN_BAND_HZ = old
-                    elif variant in BEFORE49_VARIANTS:
-                        with before49(*BEFORE49_VARIANTS[variant]):
+                            input_weighting.BAND_FRACTION = old
+                    elif variant in GAIN49_VARIANTS:
+                        with smoother_gain(*GAIN49_VARIANTS[variant]):
                             rows[variant] = _measure(w, c.truth.d)
                     elif variant in OWN_FORMS or variant.startswith(SWITCH):
                         _CELL[0] = f"{level}|{cls}|{variant}"

@@ -259,11 +259,13 @@ def test_the_weighting_is_the_default():
     assert IdentifyConfig().input_weighting == "spectral"
 
 
-def test_the_fitted_band_is_a_tenth_of_the_rate_and_at_least_4_hz_where_the_interpolation_allows(monkeypatch):
-    """A tenth of the rate from 40 frames/s up; 4 Hz at 25 and 30 frames/s (stop 49: the smoothed inputs' signal reaches
-    3.4–4 Hz); 0.16 of the rate below 25, where the inputs' interpolation would not hold at 4 Hz."""
-    band = {fs: iw.fitted_band_hz(fs) for fs in (10.0, 20.0, 25.0, 30.0, 50.0, 60.0, 100.0, 120.0)}
+def test_the_fitted_band_is_a_tenth_of_the_rate_or_stop_49s_lowest_band_where_the_interpolation_allows(monkeypatch):
+    """The default: a tenth of the rate, exactly as BAND_FRACTION / dt.  With stop 49's ``MIN_BAND_HZ`` = 4 (tried, not
+    the default): a tenth of the rate from 40 frames/s up, 4 Hz at 25 and 30 frames/s, 0.16 of the rate below 25, where
+    the inputs' interpolation would not hold at 4 Hz."""
+    rates = (10.0, 20.0, 25.0, 30.0, 50.0, 60.0, 100.0, 120.0)
+    assert all(iw.fitted_band_hz(1.0 / fs) == iw.BAND_FRACTION / (1.0 / fs) for fs in rates)
+    monkeypatch.setattr(iw, "MIN_BAND_HZ", 4.0)
+    band = {fs: iw.fitted_band_hz(1.0 / fs) for fs in rates}
     assert band == pytest.approx({10.0: 1.6, 20.0: 3.2, 25.0: 4.0, 30.0: 4.0, 50.0: 5.0, 60.0: 6.0, 100.0: 10.0,
                                   120.0: 12.0})
-    monkeypatch.setattr(iw, "MIN_BAND_HZ", 0.0)  # as before stop 49
-    assert iw.fitted_band_hz(25.0) == pytest.approx(2.5) and iw.fitted_band_hz(30.0) == pytest.approx(3.0)

@@ -166,8 +166,7 @@ def test_spectral_standard_errors_agree_with_the_white_rule_on_white_residuals_a
 
 def test_wiener_error_spectrum_has_the_smoothed_signals_error_variance():
     """The smoother's error spectrum P_x = gain·R (per-sample units), averaged over frequency, is the variance
-    of x̂ − x: measured 0.83–0.85 of it (0.84–0.86 with each bin's own periodogram in the gain, before stop 49) on
-    average over 20 draws of two coherent 1 Hz low-passed channels in
+    of x̂ − x: measured 0.84–0.86 of it on average over 20 draws of two coherent 1 Hz low-passed channels in
     0.1 % / 1e-3 rad white noise (slightly optimistic: the gain is estimated, and the cut-off drops the signal
     below the floor); (I − gain)·R, the complement, would be 6–12×."""
     rng = np.random.default_rng(11)
@@ -184,10 +183,10 @@ def test_wiener_error_spectrum_has_the_smoothed_signals_error_variance():
     assert np.all((np.mean(ratios, axis=0) > 0.7) & (np.mean(ratios, axis=0) < 1.2))
 
 
-def test_the_gains_average_leaves_each_bins_own_periodogram_out(cases, noisy, monkeypatch):
-    """The gain at a frequency is formed from its neighbours' periodogram: a bin's own value is not in its average (so a
-    bin whose noise happened to be large does not open the gain on that noise), but in each neighbour's; an even
-    width is made odd, so that the centre is one bin.  The smoothed inputs then differ from the average with it."""
+def test_stop_49s_gain_leaves_each_bins_own_periodogram_out(cases, noisy, monkeypatch):
+    """With ``GAIN_WITHOUT_OWN_BIN`` (tried at stop 49, not the default) the gain at a frequency is formed from its
+    neighbours' periodogram: a bin's own value is not in its average, but in each neighbour's; an even width is made
+    odd, so that the centre is one bin.  The smoothed inputs then differ from the default's."""
     x = np.zeros(21)
     x[10] = 7.0
     for width in (7, 6):
@@ -198,11 +197,10 @@ def test_the_gains_average_leaves_each_bins_own_periodogram_out(cases, noisy, mo
     w = noisy[0]
     sig = np.array([1e-3 * float(np.mean(cases[0].clean.V)), 1e-3])
     xs = np.stack([w.V, w.theta])
-    assert noise.GAIN_WITHOUT_OWN_BIN
-    out = noise.wiener_smooth(xs, 100.0, sig)
-    monkeypatch.setattr(noise, "GAIN_WITHOUT_OWN_BIN", False)
-    before = noise.wiener_smooth(xs, 100.0, sig)
-    assert not np.allclose(out, before, rtol=0.0, atol=1e-7)
+    assert not noise.GAIN_WITHOUT_OWN_BIN
+    default = noise.wiener_smooth(xs, 100.0, sig)
+    monkeypatch.setattr(noise, "GAIN_WITHOUT_OWN_BIN", True)
+    assert not np.allclose(noise.wiener_smooth(xs, 100.0, sig), default, rtol=0.0, atol=1e-7)
     # Exact channels pass whole either way.
     assert np.array_equal(noise.wiener_smooth(xs, 100.0, np.zeros(2)), xs)
 

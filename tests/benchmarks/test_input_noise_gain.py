@@ -14,17 +14,18 @@ CLASSES = ("0.03 % / 3e-4 rad", "0.1 % / 1e-3 rad")
 
 
 def _rows(shift: dict, spread: float = 0.05, n: int = 400, far: int = 0, seed: int = 0) -> tuple[dict, dict]:
-    """Per-window D/D_real of rows ``default`` and ``before49`` at DL 1–3 and both classes: each row's windows centred
-    on 1 + shift[row] (exactly: the draws are centred), ``far`` windows of ``default`` at 0.1 % moved 30 % off."""
+    """Per-window D/D_real of rows ``gain49`` (the candidate) and ``default`` at DL 1–3 and both classes: each row's
+    windows centred on 1 + shift[row] (exactly: the draws are centred), ``far`` windows of the candidate at 0.1 % moved
+    30 % off."""
     rng = np.random.default_rng(seed)
     per, per_se = {}, {}
     for level in (1, 2, 3):
         for cls in CLASSES:
             base = rng.standard_normal((n, 4))
             base = (base - base.mean(axis=0)) / base.std(axis=0, ddof=1)
-            for row in ("default", "before49"):
+            for row in ("gain49", "default"):
                 r = 1.0 + shift[row] + spread * base
-                if row == "default" and cls.startswith("0.1") and far:
+                if row == "gain49" and cls.startswith("0.1") and far:
                     r[:far, 0] = 1.3 + shift[row]
                 per[f"{level}|{cls}|{row}"] = r.tolist()
                 per_se[f"{level}|{cls}|{row}"] = np.full((n, 4), spread).tolist()
@@ -33,32 +34,40 @@ def _rows(shift: dict, spread: float = 0.05, n: int = 400, far: int = 0, seed: i
 
 def _verdict(shift: dict, **kw) -> dict:
     per, per_se = _rows(shift, **kw)
-    cells = {row: ig.cells(per, per_se, row) for row in (ig.ROW, ig.BEFORE)}
+    candidate, default = ig.rows_of(per)
+    cells = {"candidate": ig.cells(per, per_se, candidate), "default": ig.cells(per, per_se, default)}
     return ig.verdict({25.0: cells, 100.0: cells})
 
 
+def test_the_rows_of_a_run_and_of_the_runs_of_record():
+    per, _ = _rows({"gain49": 0.0, "default": 0.0}, n=5)
+    assert ig.rows_of(per) == ("gain49", "default")
+    record = {k.replace("|default", "|before49").replace("|gain49", "|default"): v for k, v in per.items()}
+    assert ig.rows_of(record) == ("default", "before49")
+
+
 def test_cells_give_the_mean_spread_coverage_and_far_off_windows_of_each_row():
-    per, per_se = _rows({"default": 0.0, "before49": 0.015}, far=3)
-    c = ig.cells(per, per_se, "before49")["2|0.1 % / 1e-3 rad"]
+    per, per_se = _rows({"gain49": 0.0, "default": 0.015}, far=3)
+    c = ig.cells(per, per_se, "default")["2|0.1 % / 1e-3 rad"]
     assert np.allclose(c["mu"], 1.015) and np.allclose(c["sigma"], 0.05) and c["n"] == 400 and c["off_20pct"] == 0
-    d = ig.cells(per, per_se, "default")["2|0.1 % / 1e-3 rad"]
+    d = ig.cells(per, per_se, "gain49")["2|0.1 % / 1e-3 rad"]
     assert d["off_20pct"] == 3
     assert all(0.92 < x < 0.98 for x in d["coverage"])  # ±1.96 SE with the SE the spread
 
 
-def test_the_rule_is_met_when_the_default_is_inside_the_target_and_before_was_not():
-    v = _verdict({"default": 0.0, "before49": 0.015})  # 0.015 is outside 0.01 at 0.03 %, inside 0.02 at 0.1 %
+def test_the_rule_is_met_when_the_candidate_is_inside_the_target_and_the_default_was_not():
+    v = _verdict({"gain49": 0.0, "default": 0.015})  # 0.015 is outside 0.01 at 0.03 %, inside 0.02 at 0.1 %
     assert all(x["met"] for x in v.values())
-    assert v["2 cells outside the target over DL 1-3, at most before's"]["before49"] == 2 * 3 * 4
+    assert v["2 cells outside the target over DL 1-3, at most the default's"]["default"] == 2 * 3 * 4
     assert v["1 bias inside the target at DL 2-3, every rate"]["outside"] == 0
 
 
 def test_each_criterion_fails_on_its_own_failure():
-    v = _verdict({"default": 0.012, "before49": 0.0})  # outside at 0.03 %: DL 2-3 on both rates
+    v = _verdict({"gain49": 0.012, "default": 0.0})  # outside at 0.03 %: DL 2-3 on both rates
     assert not v["1 bias inside the target at DL 2-3, every rate"]["met"]
     assert v["1 bias inside the target at DL 2-3, every rate"]["outside"] == 2 * 2 * 4
-    assert not v["2 cells outside the target over DL 1-3, at most before's"]["met"]
-    far = _verdict({"default": 0.0, "before49": 0.0}, far=20)  # 20 of 400 windows 30 % off in every 0.1 % cell
-    assert not far["5 off by more than 20 % at 0.1 %, at most 1.12 x before's"]["met"]
-    assert far["5 off by more than 20 % at 0.1 %, at most 1.12 x before's"]["before49"] == 0
-    assert not far["3 sigma over before: median <= 1.03, largest <= 1.40"]["met"]  # a's spread grows with them
+    assert not v["2 cells outside the target over DL 1-3, at most the default's"]["met"]
+    far = _verdict({"gain49": 0.0, "default": 0.0}, far=20)  # 20 of 400 windows 30 % off in every 0.1 % cell
+    assert not far["5 off by more than 20 % at 0.1 %, at most 1.12 x the default's"]["met"]
+    assert far["5 off by more than 20 % at 0.1 %, at most 1.12 x the default's"]["default"] == 0
+    assert not far["3 sigma over the default's: median <= 1.03, largest <= 1.40"]["met"]  # a's spread grows with them

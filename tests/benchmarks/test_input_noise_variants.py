@@ -217,17 +217,17 @@ def test_the_switch_report_composes_each_window_from_the_row_its_share_picks():
     assert share == pytest.approx(1 / 3)
 
 
-def test_the_before49_variants_undo_stop_49s_changes_and_restore_the_core():
-    """At 25 frames/s each of the two changes moves the answer (the band is 4 Hz against 2.5, the gain's average leaves
-    the own bin out); ``before49`` undoes both; the core's settings are back afterwards."""
-    per, _, _ = iv.run(1, 41, ["before49", "own_bin_in", "band_tenth"], fs=25.0)
-    assert noise.GAIN_WITHOUT_OWN_BIN and input_weighting.MIN_BAND_HZ == 4.0
+def test_the_gain49_variants_reach_the_smoother_and_the_band_and_restore_the_core():
+    """At 25 frames/s each of stop 49's two changes moves the answer (the band 4 Hz against 2.5, the gain's average
+    without the own bin); ``gain49`` makes both; the core's settings are back afterwards."""
+    per, _, _ = iv.run(1, 41, ["gain49", "own_bin_out", "band4"], fs=25.0)
+    assert not noise.GAIN_WITHOUT_OWN_BIN and input_weighting.MIN_BAND_HZ == 0.0
     key = "2|0.1 % / 1e-3 rad|"
     d = np.array(per[key + "default"])
-    rows = {name: np.array(per[key + name]) for name in ("before49", "own_bin_in", "band_tenth")}
+    rows = {name: np.array(per[key + name]) for name in ("gain49", "own_bin_out", "band4")}
     for v in rows.values():
         assert np.all(np.isfinite(v)) and not np.allclose(v, d, rtol=0, atol=1e-9)
-    assert not np.allclose(rows["own_bin_in"], rows["band_tenth"], rtol=0, atol=1e-9)
-    with iv.before49(False, 0.0):
-        assert not noise.GAIN_WITHOUT_OWN_BIN and input_weighting.fitted_band_hz(25.0) == 2.5
-    assert noise.GAIN_WITHOUT_OWN_BIN and input_weighting.fitted_band_hz(25.0) == 4.0
+    assert not np.allclose(rows["own_bin_out"], rows["band4"], rtol=0, atol=1e-9)
+    with iv.smoother_gain(True, 4.0):
+        assert noise.GAIN_WITHOUT_OWN_BIN and input_weighting.fitted_band_hz(1 / 25) == 4.0
+    assert not noise.GAIN_WITHOUT_OWN_BIN and input_weighting.fitted_band_hz(1 / 25) == 2.5
