@@ -11,6 +11,7 @@ windows and draws; this module reads them:
         .venv/bin/python -m benchmarks.input_noise_variants --seed 60 --n 300 --fs $fs --variants gain49 --tag NAME
     done
     .venv/bin/python -m benchmarks.input_noise_gain --seed 60 --tag NAME
+    .venv/bin/python -m benchmarks.input_noise_gain --tag dev49 --pooled 41 45      # per rate and class, DL 1-3 pooled
 
 The runs of record (tags ``dev49`` on seeds 41 and 45, ``confirm49`` on seed 60) were made while the candidate was the
 core's default (commit 2a38811, with ``--variants before49``): in them the candidate is the row ``default`` and today's
@@ -115,12 +116,46 @@ def verdict(per_rate: dict[float, dict[str, dict]]) -> dict:
     }
 
 
+def pooled(runs: list[dict], fs: float, cls: str) -> dict:
+    """Over DL 1–3 and the runs (seeds) at one rate and class: μ of D/D_real of the default and the candidate, the
+    candidate's σ over the default's per level × parameter (median, min, max), the windows off by more than 20 %."""
+    mu: dict[str, list] = {"default": [], "candidate": []}
+    ratios, off = [], {"default": 0, "candidate": 0}
+    for run in runs:
+        per = run["per_window"]
+        names = dict(zip(("candidate", "default"), rows_of(per), strict=True))
+        for level in "123":
+            r = {k: np.array(per[f"{level}|{cls}|{row}"]) for k, row in names.items()}
+            ok = np.all(np.isfinite(r["default"]), axis=1) & np.all(np.isfinite(r["candidate"]), axis=1)
+            for k in r:
+                mu[k].append(r[k][ok])
+                off[k] += int(np.sum(np.any(np.abs(r[k][ok] - 1.0) > 0.2, axis=1)))
+            ratios.extend(r["candidate"][ok].std(axis=0, ddof=1) / r["default"][ok].std(axis=0, ddof=1))
+    q = np.array(ratios)
+    return {"mu": {k: np.concatenate(v).mean(axis=0).tolist() for k, v in mu.items()},
+            "sigma_ratio": [float(np.median(q)), float(q.min()), float(q.max())], "off_20pct": off}
+
+
 def main(argv=None) -> dict:
     ap = common.parser(__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=CONFIRM_SEED)
     ap.add_argument("--tag", default="confirm49", help="the tag of the input_noise_variants runs")
     ap.add_argument("--rates", type=float, nargs="+", default=list(RATES))
+    ap.add_argument("--pooled", type=int, nargs="+", metavar="SEED", default=None,
+                    help="no verdict: per rate and class over DL 1-3 and these seeds' runs of --tag, μ of a, b, H2, Tm "
+                         "(default → candidate), σ ratios and far-off windows")
     args = ap.parse_args(argv)
+    if args.pooled:
+        out = {}
+        for fs in args.rates:
+            runs = [json.loads((common.RESULTS / f"{run_name(s, args.tag, fs)}.json").read_text()) for s in args.pooled]
+            for cls in BIAS_TARGET:
+                p = out[f"{fs:g}|{cls}"] = pooled(runs, fs, cls)
+                print(f"{fs:5g} {cls[:6]:6s} μ a / b / H2 / Tm " + " / ".join(
+                    f"{d:.3f} → {c:.3f}" for d, c in zip(p["mu"]["default"], p["mu"]["candidate"], strict=True))
+                      + f"; σ ratio median {p['sigma_ratio'][0]:.3f} ({p['sigma_ratio'][1]:.2f}–{p['sigma_ratio'][2]:.2f})"
+                      + f"; off > 20 % {p['off_20pct']['default']} → {p['off_20pct']['candidate']}")
+        return out
     per_rate = {}
     for fs in args.rates:
         run = json.loads((common.RESULTS / f"{run_name(args.seed, args.tag, fs)}.json").read_text())
