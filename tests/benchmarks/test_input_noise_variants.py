@@ -65,6 +65,14 @@ def test_the_honest_count_compares_each_rows_spread_with_its_windows_bound(tmp_p
            "1|0.1 % / 1e-3 rad|wide": (1.0 + 2 * sd * rng.standard_normal((n, 4))).tolist()}
     assert iv.honest_counts(per, path) == {"default": 4, "wide": 0}
     assert iv.honest_counts(per, tmp_path / "absent.json") is None
+    # One window 60 bounds off in a and Tm: over the bound with it, within without the window farthest from the median.
+    tail = np.array(per["1|0.1 % / 1e-3 rad|default"])
+    tail[7, [0, 3]] = 1.0 + 60 * sd
+    per["1|0.1 % / 1e-3 rad|default"] = tail.tolist()
+    assert iv.honest_counts(per, path) == {"default": 2, "wide": 0}
+    assert iv.honest_counts(per, path, drop=1) == {"default": 4, "wide": 0}
+    r = iv.bound_ratios(per, path, drop=1)["1|0.1 % / 1e-3 rad|default"]
+    assert r[0] == pytest.approx(np.delete(tail[:, 0], 7).std(ddof=1) / sd)
 
 
 def test_the_summary_takes_its_ratios_against_the_chosen_row_and_says_where_the_largest_is(tmp_path, monkeypatch):
