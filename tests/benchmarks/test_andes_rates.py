@@ -1,0 +1,51 @@
+"""benchmarks/andes_rates.py: the decimated windows, the same noise values at every rate, the paired shift (no ANDES run)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from aslm_sim import make_cases  # noqa: E402
+from benchmarks import andes_rates as ar  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def window():
+    """A 10 s clean window of the project's generator at 100 frames/s."""
+    return make_cases(1, seed=5, level=None, input_noise=False, f0=60.0)[0].clean
+
+
+def test_a_decimated_window_reports_at_the_lower_rate_with_the_same_values_at_its_instants(window):
+    for fs, step in ar.STEPS.items():
+        w = ar.decimated(window, step)
+        assert np.median(np.diff(w.t)) == pytest.approx(1.0 / fs)
+        for name in ("t", "V", "theta", "P", "Q"):
+            assert np.array_equal(getattr(w, name), getattr(window, name)[::step])
+        assert w.f0 == window.f0 and w.bus == window.bus
+
+
+def test_the_cells_pair_each_answer_with_the_same_draw_at_100_frames_s():
+    """Rows built so that 50 frames/s is 100's answer plus 0.01 in a (and noise): the paired shift finds +0.01 with a
+    small SE; bias and far-off counts are the rows'; a refused answer is counted, not used."""
+    rng = np.random.default_rng(0)
+    truth = [60.0, 5.0, 1.0, 2.0]
+    rows = []
+    for k in range(200):
+        base = np.array(truth) * (1.0 + 0.05 * rng.standard_normal(4))
+        for cls in ar.CLASSES:
+            for fs in ar.STEPS:
+                d = base * (1.0 + np.array([0.01, 0.0, 0.0, 0.0]) * (fs == 50.0) + 1e-4 * rng.standard_normal(4))
+                rows.append({"seed": 1, "window": 0, "draw": k, "class": cls, "fs": fs, "d": d.tolist(),
+                             "stderr": (0.05 * np.array(truth)).tolist(), "flags": []})
+    rows.append({"seed": 1, "window": 0, "draw": 999, "class": "pmu01", "fs": 25.0, "error": "refused"})
+    res = {(c["class"], c["fs"]): c for c in ar.cells(rows, {1: truth})}
+    c50 = res["pmu01", 50.0]
+    assert c50["shift_vs_100"][0] == pytest.approx(0.01, abs=1e-3) and c50["shift_se"][0] < 1e-3
+    assert abs(c50["shift_vs_100"][1]) < 1e-3
+    assert res["pmu01", 25.0]["refused"] == 1 and res["pmu01", 25.0]["n"] == 200
+    assert res["exact", 100.0]["shift_vs_100"] == [0.0] * 4
+    assert 0.85 < res["exact", 100.0]["cover"][0] < 1.0
