@@ -57,6 +57,8 @@ BAND_FRACTION = 0.1
 MIN_BAND_HZ = 0.0
 #: The band's top at most this fraction of the rate when :data:`MIN_BAND_HZ` raises it (the interpolation's limit) [-].
 MAX_BAND_FRACTION = 0.16
+#: EXPERIMENT: the band's top at most this frequency [Hz] (inf: none).
+MAX_BAND_HZ = math.inf
 #: With the inputs' spectrum of the bus's history (``identify(..., input_spectrum=)``, pooled unsmoothed by
 #: :class:`aslm_core.input_history.InputHistory`), the refinement whitens in the time domain on the bins below this
 #: frequency (where that spectrum is known: it is zero from the floor band up) or a tenth of the rate, the lower,
@@ -119,7 +121,7 @@ def fitted_band_hz(dt: float) -> float:
     float
         The band's top [Hz].
     """
-    return max(BAND_FRACTION / dt, min(MIN_BAND_HZ, MAX_BAND_FRACTION / dt))
+    return min(max(BAND_FRACTION / dt, min(MIN_BAND_HZ, MAX_BAND_FRACTION / dt)), MAX_BAND_HZ)
 
 
 def bin_weights(l: int) -> np.ndarray:

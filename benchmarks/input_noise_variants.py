@@ -108,7 +108,7 @@ from benchmarks.input_noise_bound import (  # noqa: E402
 
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
             "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5", "own_td", "own_td_guard1.5",
-            "own_td_fallback1.5", "hist6_checked", "gain49", "own_bin_out", "band4")
+            "own_td_fallback1.5", "hist6_checked", "gain49", "own_bin_out", "band4", "cap3.5", "cap4")
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
 #: Each history variant's form, set whatever the core's defaults: (``input_history.HISTORY_SMOOTH_HZ``,
 #: ``input_weighting.HISTORY_BAND_HZ``, ``input_weighting.HISTORY_CHI2_MAX``, ``input_history.HISTORY_STALE_MAX``).
@@ -582,6 +582,13 @@ def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict
                             rows[variant] = _measure(w, c.truth.d)
                         finally:
                             input_weighting.BAND_FRACTION = old
+                    elif variant.startswith("cap"):
+                        old = input_weighting.MAX_BAND_HZ
+                        input_weighting.MAX_BAND_HZ = float(variant[3:])
+                        try:
+                            rows[variant] = _measure(w, c.truth.d)
+                        finally:
+                            input_weighting.MAX_BAND_HZ = old
                     elif variant in GAIN49_VARIANTS:
                         with smoother_gain(*GAIN49_VARIANTS[variant]):
                             rows[variant] = _measure(w, c.truth.d)

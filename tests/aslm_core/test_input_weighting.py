@@ -269,3 +269,12 @@ def test_the_fitted_band_is_a_tenth_of_the_rate_or_stop_49s_lowest_band_where_th
     band = {fs: iw.fitted_band_hz(1.0 / fs) for fs in rates}
     assert band == pytest.approx({10.0: 1.6, 20.0: 3.2, 25.0: 4.0, 30.0: 4.0, 50.0: 5.0, 60.0: 6.0, 100.0: 10.0,
                                   120.0: 12.0})
+
+
+def test_stop_49s_band_cap_lowers_the_band_from_50_frames_s_up(monkeypatch):
+    """With ``MAX_BAND_HZ`` = 4 (stop 49's second candidate) the band is 4 Hz from 50 frames/s up and a tenth of the rate
+    below 40; by default there is no cap."""
+    assert iw.MAX_BAND_HZ == float("inf")
+    monkeypatch.setattr(iw, "MAX_BAND_HZ", 4.0)
+    band = {fs: iw.fitted_band_hz(1.0 / fs) for fs in (25.0, 30.0, 50.0, 100.0)}
+    assert band == pytest.approx({25.0: 2.5, 30.0: 3.0, 50.0: 4.0, 100.0: 4.0})

@@ -239,3 +239,12 @@ def test_the_gain49_variants_reach_the_smoother_and_the_band_and_restore_the_cor
     with iv.smoother_gain(True, 4.0):
         assert noise.GAIN_WITHOUT_OWN_BIN and input_weighting.fitted_band_hz(1 / 25) == 4.0
     assert not noise.GAIN_WITHOUT_OWN_BIN and input_weighting.fitted_band_hz(1 / 25) == 2.5
+
+
+def test_the_cap_variant_lowers_the_band_and_restores_it():
+    """``cap4`` moves the answer at 100 frames/s (the band 4 Hz against 10) and leaves the core's cap as it was."""
+    per, _, _ = iv.run(1, 41, ["cap4"])
+    assert input_weighting.MAX_BAND_HZ == float("inf")
+    key = "2|0.1 % / 1e-3 rad|"
+    cap, d = np.array(per[key + "cap4"]), np.array(per[key + "default"])
+    assert np.all(np.isfinite(cap)) and not np.allclose(cap, d, rtol=0, atol=1e-9)
