@@ -57,8 +57,12 @@ BAND_FRACTION = 0.1
 MIN_BAND_HZ = 0.0
 #: The band's top at most this fraction of the rate when :data:`MIN_BAND_HZ` raises it (the interpolation's limit) [-].
 MAX_BAND_FRACTION = 0.16
-#: EXPERIMENT: the band's top at most this frequency [Hz] (inf: none).
-MAX_BAND_HZ = math.inf
+#: The window's own S-weighted fit (the ``spectral`` form without a history) uses the bins up to this frequency at most
+#: [Hz]: above the smoother's cut-off (3.4–4 Hz at every rate, "Stop 42") the smoothed V is no longer the conditional
+#: mean (at 50 frames/s / 0.1 %: 0.87 of it at 3–3.5 Hz, 0.62 at 3.5–4, 0.48 at 4–5), and those bins pulled a and Tm
+#: 1–2 % low at 50–60 frames/s.  Adopted at stop 49 on its confirmation (docs/numerics.md, "Stop 49: the band at most
+#: 4 Hz"); 25 and 30 frames/s fit 2.5 and 3 Hz, as before.  inf: a tenth of the rate, as before stop 49.
+MAX_BAND_HZ = 4.0
 #: With the inputs' spectrum of the bus's history (``identify(..., input_spectrum=)``, pooled unsmoothed by
 #: :class:`aslm_core.input_history.InputHistory`), the refinement whitens in the time domain on the bins below this
 #: frequency (where that spectrum is known: it is zero from the floor band up) or a tenth of the rate, the lower,
@@ -106,22 +110,26 @@ class Weighting:
         return z - self.nuisance @ (self.gram_inv @ (self.nuisance.T @ z))
 
 
-def fitted_band_hz(dt: float) -> float:
+def fitted_band_hz(dt: float, capped: bool = True) -> float:
     """Highest frequency the S-weighted refinement fits at the sample step ``dt`` [Hz]: :data:`BAND_FRACTION` of the
     rate (2.5 Hz at 25 frames/s, 10 Hz at 100), raised to :data:`MIN_BAND_HZ` where :data:`MAX_BAND_FRACTION` of the
-    rate allows it.
+    rate allows it, and with ``capped`` at most :data:`MAX_BAND_HZ` (4 Hz from 40 frames/s up).
 
     Parameters
     ----------
     dt : float
         Sample step of the window [s] (the reciprocal of the reporting rate).
+    capped : bool
+        The window's own ``spectral`` form (the default); False for the ``temporal`` form and a history's, whose bands
+        were set without the cap.
 
     Returns
     -------
     float
         The band's top [Hz].
     """
-    return min(max(BAND_FRACTION / dt, min(MIN_BAND_HZ, MAX_BAND_FRACTION / dt)), MAX_BAND_HZ)
+    band = max(BAND_FRACTION / dt, min(MIN_BAND_HZ, MAX_BAND_FRACTION / dt))
+    return min(band, MAX_BAND_HZ) if capped else band
 
 
 def bin_weights(l: int) -> np.ndarray:
@@ -459,8 +467,10 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     """
 
     pb = Problem(prep, f0, replace(config, skip_s=skip_s))
-    band, form, floor = fitted_band_hz(pb.dt), config.input_weighting, True
-    if history and HISTORY_BAND_HZ:
+    own = not (history and HISTORY_BAND_HZ)
+    band = fitted_band_hz(pb.dt, capped=own and config.input_weighting == "spectral")
+    form, floor = config.input_weighting, True
+    if not own:
         band, form, floor = min(band, math.nextafter(HISTORY_BAND_HZ, 0.0)), "temporal", False
     out = _weighted_descent(pb, prep, d0, margin, band, form, floor)
     if out is not None and not floor and HISTORY_CHI2_MAX and out["chi2"] > HISTORY_CHI2_MAX:

@@ -19,7 +19,8 @@ default the row ``before49``; :func:`rows_of` tells the two layouts apart.
 
 A second candidate of stop 49, ``cap4`` (``--candidate cap4``): the refinement's band at most 4 Hz
 (``input_weighting.MAX_BAND_HZ``), which changes the fit from 50 frames/s up; runs ``--variants cap4 --tag cap``
-(development) and ``--tag confirm49cap`` (seed 61).
+(development) and ``--tag confirm49cap`` (seed 61), made before it became the default (adopted on that confirmation):
+there ``default`` is the uncapped default.  Rerun today with ``--variants capinf`` (the uncapped default as a row).
 
 Printed per rate, level and class: μ of D/D_real for both rows with the cells outside issue 11's bias target marked, σ,
 the windows off by more than 20 %; then the candidate's rule (:data:`RULES`), each criterion met or not.  Written to
@@ -84,9 +85,14 @@ def run_name(seed: int, tag: str, fs: float) -> str:
 
 
 def rows_of(per: dict, candidate: str = "gain49") -> tuple[str, str]:
-    """The (candidate, default) row names of a run: :data:`ROWS_OF_RECORD` where it holds ``before49``, else
-    (``candidate``, ``default``)."""
-    return ROWS_OF_RECORD if any(k.endswith("|before49") for k in per) else (candidate, DEFAULT_ROW)
+    """The (candidate, default) row names of a run: :data:`ROWS_OF_RECORD` where it holds ``before49``; (``default``,
+    ``capinf``) where it holds ``capinf`` (``cap4`` is the default since its adoption, ``capinf`` the default before);
+    else (``candidate``, ``default``)."""
+    if any(k.endswith("|before49") for k in per):
+        return ROWS_OF_RECORD
+    if any(k.endswith("|capinf") for k in per):
+        return DEFAULT_ROW, "capinf"
+    return candidate, DEFAULT_ROW
 
 
 def cells(per: dict, per_se: dict, row: str) -> dict[str, dict]:

@@ -36,6 +36,9 @@ per level, both PMU classes), every noisy window is identified by the default (`
   χ² exceeds 1.5; ``own_td_guard1.5`` failed its confirmation on seed 57 (:data:`OWN_RULE`);
 * ``band5``, ``band3`` (stop 45): the refinement's band (``input_weighting.BAND_FRACTION``) at a twentieth or a
   thirty-third of the rate instead of a tenth (5 or 3 Hz at 100 frames/s);
+* ``cap3.5``, ``cap4``, ``capinf`` (stop 49): the window's own refinement's band at most 3.5 or 4 Hz, or uncapped
+  (``input_weighting.MAX_BAND_HZ``; 4 Hz the default since stop 49, so ``capinf`` is the default before it; the runs of
+  record tagged ``cap`` and ``confirm49cap`` were made before, their ``default`` uncapped);
 * ``gain49``, ``own_bin_out``, ``band4`` (stop 49): the smoother's gain from each bin's neighbours' periodogram without
   its own and the refinement's band at least 4 Hz (4 Hz at 25 and 30 frames/s), or either alone (:data:`GAIN49_VARIANTS`).
   ``gain49`` was the default from 2a38811 until its confirmation failed (``benchmarks.input_noise_gain``): the runs of
@@ -108,7 +111,7 @@ from benchmarks.input_noise_bound import (  # noqa: E402
 
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
             "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5", "own_td", "own_td_guard1.5",
-            "own_td_fallback1.5", "hist6_checked", "gain49", "own_bin_out", "band4", "cap3.5", "cap4")
+            "own_td_fallback1.5", "hist6_checked", "gain49", "own_bin_out", "band4", "cap3.5", "cap4", "capinf")
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
 #: Each history variant's form, set whatever the core's defaults: (``input_history.HISTORY_SMOOTH_HZ``,
 #: ``input_weighting.HISTORY_BAND_HZ``, ``input_weighting.HISTORY_CHI2_MAX``, ``input_history.HISTORY_STALE_MAX``).

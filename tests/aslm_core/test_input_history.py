@@ -108,8 +108,8 @@ def test_identify_says_when_its_refinement_used_the_history():
 
 
 def test_given_a_history_the_refinement_whitens_in_time_below_5_hz_without_the_residual_floor(monkeypatch):
-    """At 100 frames/s the window's own refinement fits per frequency up to a tenth of the rate (10 Hz) with S's
-    diagonal floored by the residual; given a history's spectrum it whitens in the time domain on the bins below
+    """At 100 frames/s the window's own refinement fits per frequency up to 4 Hz (a tenth of the rate capped at 4 Hz since
+    stop 49) with S's diagonal floored by the residual; given a history's spectrum it whitens in the time domain on the bins below
     5 Hz (where that spectrum is known) without the floor (docs/numerics.md, "Stop 47"), redone with the floor where
     its χ² exceeds ``HISTORY_CHI2_MAX``; with ``HISTORY_BAND_HZ`` None it takes the window's own form."""
     fs, n = 100.0, 1000
@@ -134,7 +134,7 @@ def test_given_a_history_the_refinement_whitens_in_time_below_5_hz_without_the_r
     assert pooled.quality["input_spectrum_windows"] == 6.0 and "input_spectrum_windows" not in alone.quality
     assert np.all(np.abs(pooled.d / D_TRUE - 1) < 0.25), pooled.d
     (band_alone, form_alone, floor_alone), (band_pooled, form_pooled, floor_pooled) = calls[:2]
-    assert (band_alone, form_alone, floor_alone) == (pytest.approx(10.0), "spectral", True)
+    assert (band_alone, form_alone, floor_alone) == (pytest.approx(4.0), "spectral", True)
     assert form_pooled == "temporal" and floor_pooled is False
     assert 5.0 - 1e-9 < band_pooled < 5.0  # the bin at 5 Hz itself is out: the history's spectrum is zero from there
     # Its χ² guard: above the threshold the fit is redone with the floor, in the same band and form.
@@ -154,7 +154,7 @@ def test_given_a_history_the_refinement_whitens_in_time_below_5_hz_without_the_r
     monkeypatch.setattr(iw, "HISTORY_BAND_HZ", None)
     del calls[:]
     identify(windows[6], input_spectrum=spectrum)
-    assert calls == [(pytest.approx(10.0), "spectral", True)]
+    assert calls == [(pytest.approx(4.0), "spectral", True)]
 
 
 def test_a_windows_staleness_is_near_one_against_its_own_process_and_large_against_another():

@@ -260,21 +260,32 @@ def test_the_weighting_is_the_default():
 
 
 def test_the_fitted_band_is_a_tenth_of_the_rate_or_stop_49s_lowest_band_where_the_interpolation_allows(monkeypatch):
-    """The default: a tenth of the rate, exactly as BAND_FRACTION / dt.  With stop 49's ``MIN_BAND_HZ`` = 4 (tried, not
+    """Uncapped: a tenth of the rate, exactly as BAND_FRACTION / dt.  With stop 49's ``MIN_BAND_HZ`` = 4 (tried, not
     the default): a tenth of the rate from 40 frames/s up, 4 Hz at 25 and 30 frames/s, 0.16 of the rate below 25, where
     the inputs' interpolation would not hold at 4 Hz."""
     rates = (10.0, 20.0, 25.0, 30.0, 50.0, 60.0, 100.0, 120.0)
-    assert all(iw.fitted_band_hz(1.0 / fs) == iw.BAND_FRACTION / (1.0 / fs) for fs in rates)
+    assert all(iw.fitted_band_hz(1.0 / fs, capped=False) == iw.BAND_FRACTION / (1.0 / fs) for fs in rates)
     monkeypatch.setattr(iw, "MIN_BAND_HZ", 4.0)
-    band = {fs: iw.fitted_band_hz(1.0 / fs) for fs in rates}
+    band = {fs: iw.fitted_band_hz(1.0 / fs, capped=False) for fs in rates}
     assert band == pytest.approx({10.0: 1.6, 20.0: 3.2, 25.0: 4.0, 30.0: 4.0, 50.0: 5.0, 60.0: 6.0, 100.0: 10.0,
                                   120.0: 12.0})
 
 
-def test_stop_49s_band_cap_lowers_the_band_from_50_frames_s_up(monkeypatch):
-    """With ``MAX_BAND_HZ`` = 4 (stop 49's second candidate) the band is 4 Hz from 50 frames/s up and a tenth of the rate
-    below 40; by default there is no cap."""
-    assert iw.MAX_BAND_HZ == float("inf")
-    monkeypatch.setattr(iw, "MAX_BAND_HZ", 4.0)
+def test_the_window_own_band_is_at_most_4_hz_and_the_history_and_temporal_forms_keep_theirs(monkeypatch):
+    """Since stop 49 the window's own ``spectral`` fit stops at 4 Hz from 40 frames/s up (a tenth of the rate below);
+    the ``temporal`` form and a history's are not capped (their bands were set without it): the refinement is handed
+    4 Hz, 10 Hz and 5 Hz (just under) at 100 frames/s."""
+    assert iw.MAX_BAND_HZ == 4.0
     band = {fs: iw.fitted_band_hz(1.0 / fs) for fs in (25.0, 30.0, 50.0, 100.0)}
     assert band == pytest.approx({25.0: 2.5, 30.0: 3.0, 50.0: 4.0, 100.0: 4.0})
+    seen = []
+    monkeypatch.setattr(iw, "_weighted_descent", lambda pb, prep, d0, margin, band, form, floor: seen.append(
+        (band, form)))
+    c = make_cases(1, level=2, seed=41, input_noise=False)[0]
+    prep = prepare(c.window, floors=True, input_smoother="wiener")
+    d0 = np.asarray(c.truth.d, dtype=np.float64)
+    for config, history in ((IdentifyConfig(), False), (IdentifyConfig(input_weighting="temporal"), False),
+                            (IdentifyConfig(), True)):
+        iw.refine(prep, c.window.f0, config, d0, 1.0, 0.05, history=history)
+    assert [f for _, f in seen] == ["spectral", "temporal", "temporal"]
+    assert [b for b, _ in seen] == pytest.approx([4.0, 10.0, 5.0])

@@ -241,10 +241,13 @@ def test_the_gain49_variants_reach_the_smoother_and_the_band_and_restore_the_cor
     assert not noise.GAIN_WITHOUT_OWN_BIN and input_weighting.fitted_band_hz(1 / 25) == 2.5
 
 
-def test_the_cap_variant_lowers_the_band_and_restores_it():
-    """``cap4`` moves the answer at 100 frames/s (the band 4 Hz against 10) and leaves the core's cap as it was."""
-    per, _, _ = iv.run(1, 41, ["cap4"])
-    assert input_weighting.MAX_BAND_HZ == float("inf")
+def test_the_cap_variants_set_the_band_and_restore_it():
+    """``capinf`` (the default before stop 49, 10 Hz at 100 frames/s) moves the answer, ``cap4`` (today's) does not;
+    the core's cap is 4 Hz afterwards."""
+    per, _, _ = iv.run(1, 41, ["capinf", "cap4"])
+    assert input_weighting.MAX_BAND_HZ == 4.0
     key = "2|0.1 % / 1e-3 rad|"
-    cap, d = np.array(per[key + "cap4"]), np.array(per[key + "default"])
-    assert np.all(np.isfinite(cap)) and not np.allclose(cap, d, rtol=0, atol=1e-9)
+    d = np.array(per[key + "default"])
+    uncapped, cap = np.array(per[key + "capinf"]), np.array(per[key + "cap4"])
+    assert np.all(np.isfinite(uncapped)) and not np.allclose(uncapped, d, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(cap, d)
