@@ -114,8 +114,12 @@ def test_identify_says_in_words_when_the_loads_own_fluctuation_chose_the_estimat
 
 
 def test_identify_says_in_words_when_the_input_noise_correction_moved_d_far(tmp_path, capsys):
-    """The own bench's seed-245 window 28 (0.1 % / 1e-3 rad): the S-weighted answer is 2.7 SE from output error's
-    without the spectrum's tail (with it, the default, 2.3 SE and within 7 % of the truth: no such warning)."""
+    """The own bench's seed-245 window 28 (0.1 % / 1e-3 rad): the S-weighted answer is 2.6 SE from output error's
+    without the spectrum's tail (2.7 before stop 49's 4 Hz band; with the tail, the default, no such warning); the
+    words give that distance, above the flag's threshold."""
+    import re
+
+    from aslm_core.identify import WEIGHTED_SHIFT_Z_MAX
     from benchmarks.own_fluctuation import bench_window
     from service.cli import main
 
@@ -123,4 +127,5 @@ def test_identify_says_in_words_when_the_input_noise_correction_moved_d_far(tmp_
     write_window(tmp_path / "w.npz", w)
     assert main(["identify", "--no-input-spectrum-tail", str(tmp_path / "w.npz")]) == 0
     out = capsys.readouterr().out
-    assert "input_noise_correction_large" in out and "the input-noise correction moved D by 2.7 of its standard" in out
+    said = re.search(r"the input-noise correction moved D by ([0-9.]+) of its standard", out)
+    assert "input_noise_correction_large" in out and said and float(said.group(1)) > WEIGHTED_SHIFT_Z_MAX
