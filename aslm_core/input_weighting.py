@@ -60,8 +60,9 @@ MAX_BAND_FRACTION = 0.16
 #: The window's own S-weighted fit (the ``spectral`` form without a history) uses the bins up to this frequency at most
 #: [Hz]: above the smoother's cut-off (3.4–4 Hz at every rate, "Stop 42") the smoothed V is no longer the conditional
 #: mean (at 50 frames/s / 0.1 %: 0.87 of it at 3–3.5 Hz, 0.62 at 3.5–4, 0.48 at 4–5), and those bins pulled a and Tm
-#: low (without them 0.3–0.8 % higher at 50–120 frames/s / 0.1 %).  Adopted at stop 49 on its confirmation (docs/numerics.md, "Stop 49: the band at most
-#: 4 Hz"); 25 and 30 frames/s fit 2.5 and 3 Hz, as before.  inf: a tenth of the rate, as before stop 49.
+#: low (without them 0.3–0.8 % higher at 50–120 frames/s / 0.1 %).  Adopted at stop 49 on its confirmation
+#: (docs/numerics.md, "Stop 49: the band at most 4 Hz"); 25 and 30 frames/s fit 2.5 and 3 Hz, as before.  inf: a
+#: tenth of the rate, as before stop 49.
 MAX_BAND_HZ = 4.0
 #: With the inputs' spectrum of the bus's history (``identify(..., input_spectrum=)``, pooled unsmoothed by
 #: :class:`aslm_core.input_history.InputHistory`), the refinement whitens in the time domain on the bins below this

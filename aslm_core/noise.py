@@ -32,9 +32,10 @@ EDGE_FIT_S = 0.1
 POOL_SPACING_TOL = 0.25
 #: True: the smoother's gain at a frequency formed from its neighbours' periodogram without that bin's own (so that a bin
 #: whose noise happened to be large does not open the gain on that noise).  Tried at stop 49 with the refinement's band
-#: at least 4 Hz (``input_weighting.MIN_BAND_HZ``): a's bias at 50–120 frames/s / 0.1 % went from −0.5 … −2.6 % to
-#: within ±1 %, but σ rose at 25–30 frames/s and the rule fixed before its confirmation failed; not adopted
-#: (docs/numerics.md, "Stop 49").  Kept so that ``benchmarks.input_noise_gain``'s figures rerun.
+#: at least 4 Hz (``input_weighting.MIN_BAND_HZ``): it lifted a by 0.6–1.1 % at 50–120 frames/s / 0.1 %, but by
+#: over-shrinking in the band (an offsetting error), σ rose at 25–30 frames/s, and the rule fixed before its
+#: confirmation failed; not adopted (docs/numerics.md, "Stop 49").  Kept so that ``benchmarks.input_noise_gain``'s
+#: figures rerun.
 GAIN_WITHOUT_OWN_BIN = False
 
 

@@ -29,6 +29,7 @@ import os
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
+import math  # noqa: E402
 import time  # noqa: E402
 from contextlib import contextmanager  # noqa: E402
 
@@ -45,10 +46,10 @@ DECIMATIONS = (1, 2, 4)
 #: The knobs' variants: (module, attribute, value).
 VARIANTS = {
     "default": (),
-    "band 0.08": ((input_weighting, "BAND_FRACTION", 0.08),),
-    "band 0.12": ((input_weighting, "BAND_FRACTION", 0.12),),
-    "band 0.05": ((input_weighting, "BAND_FRACTION", 0.05),),
-    "band 0.025": ((input_weighting, "BAND_FRACTION", 0.025),),
+    "band 0.08": ((input_weighting, "BAND_FRACTION", 0.08), (input_weighting, "MAX_BAND_HZ", math.inf)),
+    "band 0.12": ((input_weighting, "BAND_FRACTION", 0.12), (input_weighting, "MAX_BAND_HZ", math.inf)),
+    "band 0.05": ((input_weighting, "BAND_FRACTION", 0.05), (input_weighting, "MAX_BAND_HZ", math.inf)),
+    "band 0.025": ((input_weighting, "BAND_FRACTION", 0.025), (input_weighting, "MAX_BAND_HZ", math.inf)),
     "RK4 4 sub-steps": ((motor, "MAX_STEP_S", 0.0045),),
     "RK4 1 sub-step": ((motor, "MAX_STEP_S", 0.0170),),
     "no taper": ((input_weighting, "TAPER", 0.0),),
