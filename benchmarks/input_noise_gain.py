@@ -1,7 +1,8 @@
-"""Stop 49's candidate for the default (issue 11) against the default, at every reporting rate: the rule it was put to
-before its confirmation run, and the verdict from stored runs.  It failed (seed 60: criteria 1 and 3) and was not adopted.
+"""Stop 49's two candidates for the default (issue 11) against the default, at every reporting rate: the rule each was put
+to before its confirmation run, and the verdict from stored runs.  ``gain49`` failed (seed 60: criteria 1 and 3) and was
+not adopted; ``cap4`` met all five (seed 61) and is the default since.
 
-The candidate: the Wiener smoother's gain at each frequency formed from its neighbours' periodogram without that bin's
+The first candidate, ``gain49``: the Wiener smoother's gain at each frequency formed from its neighbours' periodogram without that bin's
 own (``aslm_core.noise.GAIN_WITHOUT_OWN_BIN``), and the S-weighted refinement's band at least 4 Hz where 0.16 of the rate
 allows it (``aslm_core.input_weighting.MIN_BAND_HZ``: 4 Hz at 25 and 30 frames/s instead of 2.5 and 3).  The runs are
 ``benchmarks.input_noise_variants`` runs, one per rate, with the candidate's row ``gain49`` beside the default on the same
