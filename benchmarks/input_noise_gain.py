@@ -51,7 +51,8 @@ class Rule:
     """A candidate's rule, fixed before its confirmation run: over the rates' noisy cells (DL 1–3 × two classes × four
     parameters), the candidate against the default:
 
-    1. its |μ − 1| within :data:`BIAS_TARGET` at DL 2–3 in every cell, the issue's target;
+    1. its |μ − 1| within :data:`BIAS_TARGET` at DL 2–3 in every cell, the issue's target (with ``bias_gate`` off: its
+       cells outside at DL 2–3 at most the default's, for a candidate not made to move the bias);
     2. its cells outside the target over DL 1–3 at most the default's;
     3. its σ over the default's: median at most ``sigma_median``, largest at most ``sigma_max``;
     4. its coverage cells (±1.96 SE inside 90–97 %) at least the default's less ``cover_less``;
@@ -65,6 +66,7 @@ class Rule:
     sigma_max: float
     cover_less: int
     off_factor: float
+    bias_gate: bool = True
 
 
 #: ``gain49`` (rule at 2a38811; development seeds 41 and 45 at every rate, 300 windows per level; their figures
@@ -76,8 +78,18 @@ class Rule:
 #: level (`--variants cap3.5,cap4 --tag cap`): 1 met on both; 2 — 0 against 0, 0 against 2; 3 — median 1.001 and
 #: largest 1.184, 0.997 and 1.091; 4 — 94 against 89, 93 against 86; 5 — 236 against 244, 282 against 286.  Its
 #: confirmation: seed 61 at those rates (``--variants cap4 --tag confirm49cap``).
+#: ``spline50``: the inputs inside a sample step from the not-a-knot cubic spline (``motor.SPLINE_INPUTS``) instead of
+#: 4-point Lagrange cubics; a numerical fix for exact inputs (noise-free a / H2 / Tm at 25 frames/s +0.6 / +0.7 / −0.7 %
+#: → within 0.1 %, ``benchmarks.input_interpolation``), so criterion 1 is not a gate (``bias_gate``).  Runs
+#: ``--variants lagrange --tag spline`` with the candidate as the core's default; development seeds 41 and 45 at every
+#: rate, 300 windows per level: 1 — 1 against 1, 0 against 1; 2 — 1 against 1, 4 against 4; 3 — median 1.000 and
+#: largest 1.036, 1.000 and 1.041; 4 — 138 against 138, 141 against 140; 5 — 639 against 632, 685 against 688.  Its
+#: confirmation: seed 62 at every rate (``--tag confirm50``), with ``benchmarks.input_interpolation --seed 62`` beside
+#: it (exact inputs: |bias| at 25 and 30 frames/s not above the Lagrange cubics', and from 50 frames/s up within 2 SE of
+#: theirs).
 RULES = {"gain49": Rule("gain49", 60, RATES, 1.03, 1.40, 4, 1.12),
-         "cap4": Rule("cap4", 61, (50.0, 60.0, 100.0, 120.0), 1.01, 1.25, 2, 1.05)}
+         "cap4": Rule("cap4", 61, (50.0, 60.0, 100.0, 120.0), 1.01, 1.25, 2, 1.05),
+         "spline50": Rule("spline50", 62, RATES, 1.01, 1.10, 2, 1.05, bias_gate=False)}
 
 
 def run_name(seed: int, tag: str, fs: float) -> str:
@@ -88,11 +100,14 @@ def run_name(seed: int, tag: str, fs: float) -> str:
 def rows_of(per: dict, candidate: str = "gain49") -> tuple[str, str]:
     """The (candidate, default) row names of a run: :data:`ROWS_OF_RECORD` where it holds ``before49``; (``default``,
     ``capinf``) where it holds ``capinf`` (``cap4`` is the default since its adoption, ``capinf`` the default before);
-    else (``candidate``, ``default``)."""
+    (``default``, ``lagrange``) where it holds ``lagrange`` (the spline inside the sample step is the candidate, run
+    as the core's default); else (``candidate``, ``default``)."""
     if any(k.endswith("|before49") for k in per):
         return ROWS_OF_RECORD
     if any(k.endswith("|capinf") for k in per):
         return DEFAULT_ROW, "capinf"
+    if any(k.endswith("|lagrange") for k in per):
+        return DEFAULT_ROW, "lagrange"
     return candidate, DEFAULT_ROW
 
 
@@ -120,7 +135,7 @@ def outside(cell: str, mu: list[float]) -> list[bool]:
 def verdict(per_rate: dict[float, dict[str, dict]], rule: Rule) -> dict:
     """``rule``'s criteria from the rows' cells per rate ({fs: {"candidate": cells, "default": cells}}): each figure and
     whether it is met."""
-    out_dl23 = out_new = out_old = 0
+    out_dl23 = out_dl23_old = out_new = out_old = 0
     ratios, cover_new, cover_old, off_new, off_old = [], 0, 0, 0, 0
     for rows in per_rate.values():
         for cell, new in rows["candidate"].items():
@@ -130,6 +145,7 @@ def verdict(per_rate: dict[float, dict[str, dict]], rule: Rule) -> dict:
             out_old += sum(o_old)
             if not cell.startswith("1|"):
                 out_dl23 += sum(o_new)
+                out_dl23_old += sum(o_old)
             ratios.extend(np.array(new["sigma"]) / np.array(old["sigma"]))
             cover_new += sum(0.90 <= c <= 0.97 for c in new["coverage"])
             cover_old += sum(0.90 <= c <= 0.97 for c in old["coverage"])
@@ -138,7 +154,8 @@ def verdict(per_rate: dict[float, dict[str, dict]], rule: Rule) -> dict:
                 off_old += old["off_20pct"]
     r = np.array(ratios)
     return {
-        "1 bias inside the target at DL 2-3": {"outside": out_dl23, "met": out_dl23 == 0},
+        "1 bias inside the target at DL 2-3": {"outside": out_dl23, "default": out_dl23_old,
+                                               "met": out_dl23 == 0 if rule.bias_gate else out_dl23 <= out_dl23_old},
         "2 cells outside the target over DL 1-3, at most the default's": {"candidate": out_new, "default": out_old,
                                                                           "met": out_new <= out_old},
         "3 sigma over the default's": {"median": float(np.median(r)), "largest": float(r.max()),
