@@ -8,7 +8,8 @@ States x = [Fd, Fq, s] with Fd = Ed/X', Fq = Eq/X'; parameters D = [a, b, H2, Tm
     P_im = Fd·Vq - Fq·Vd,   Q_im = -Vd·Fd - Vq·Fq
 
 The kernels integrate either by RK4 at the sample step, split into sub-steps of at most
-``MAX_STEP_S`` at low reporting rates, with V and θ interpolated (cubic) inside the step (default), or by
+``MAX_STEP_S`` at low reporting rates, with V and θ inside the step from the cubic spline through the samples
+(default), or by
 the paper's explicit Euler at the sample step, and propagate dx/dD through the *discrete* map so the
 gradient is exact for the objective actually minimised.
 
@@ -29,7 +30,7 @@ from aslm_core.errors import NoEquilibriumError
 
 # The initial steady state turns with the bus frequency, estimated over this first stretch [s].
 START_SLOPE_S = 0.05
-#: Longest RK4 step [s]: a sample step above it is split into sub-steps (inputs interpolated by cubics).
+#: Longest RK4 step [s]: a sample step above it is split into sub-steps (inputs from the spline, :func:`dq_inputs`).
 #: The fastest stator mode in the box decays at b ≤ 100 /s and turns at ~s·ω0, so |λ|·h reaches ~1–4 at the
 #: 33–40 ms of 25–30 frames/s: there RK4 at the sample step was off by up to 0.6–0.95 of P_im's ambient
 #: std and noise-free D by up to 5–9 % (H2); at 10 ms by ≤ 0.5 % of the std and ≤ 0.07 % (docs/numerics.md).
@@ -490,7 +491,8 @@ def simulate(
     omega0 : float
         Synchronous speed [rad/s].
     integrator : {"rk4", "euler"}
-        RK4 with cubic-interpolated half-step inputs, or the paper's explicit Euler (§IV.A).
+        RK4 with the inputs inside the step from the cubic spline (:func:`dq_inputs`), or the paper's explicit Euler
+        (§IV.A).
 
     Returns
     -------

@@ -217,7 +217,16 @@ def main(argv=None) -> dict:
     ap.add_argument("--pooled", type=int, nargs="+", metavar="SEED", default=None,
                     help="no verdict: per rate and class over DL 1-3 and these seeds' runs of --tag, μ of a, b, H2, Tm "
                          "(default → candidate), σ ratios and far-off windows")
+    ap.add_argument("--exact", type=int, metavar="SEED", default=None,
+                    help="only spline50's exact-input check (exact_check) on input_interpolation_seed<SEED>.json")
     args = ap.parse_args(argv)
+    if args.exact is not None:
+        check = exact_check(common.read_json(f"input_interpolation_seed{args.exact}"))
+        for key, c in check["cells"].items():
+            print(f"{key:18s} largest growth of |bias| {100 * c['largest_growth']:+.3f} points; sum of |bias| "
+                  f"{100 * c['sum_lagrange']:.2f} → {100 * c['sum_spline']:.2f} %" + ("" if c["met"] else "  NOT met"))
+        print("exact-input check " + ("met" if check["met"] else "NOT met"))
+        return check
     rule = RULES[args.candidate]
     seed, rates = args.seed or rule.seed, args.rates or list(rule.rates)
     if args.pooled:
