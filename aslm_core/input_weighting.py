@@ -158,12 +158,13 @@ def impulse_response(problem, d: np.ndarray, beta_p: np.ndarray, beta_q: np.ndar
     Returns
     -------
     ndarray, shape (l, 2, 2), or None
-        h[k, i, j]: output i (P, Q) k − 2 samples after an impulse of input j (V [pu], θ [rad]) in the middle
-        of the regression samples (the cubic interpolation reaches one step back) [pu/pu, pu/rad]; zero-padded
-        to the regression length.  None when the model cannot be simulated.
+        h[k, i, j]: output i (P, Q) k − r − 1 samples after an impulse of input j (V [pu], θ [rad]) in the middle
+        of the regression samples, r the inputs' interpolation's reach back (:func:`aslm_core.motor.input_reach`)
+        [pu/pu, pu/rad]; zero-padded to the regression length.  None when the model cannot be simulated.
     """
     pb = problem
     n, k0, l = pb.prep.V.size, pb.k0, pb.l
+    lead = motor.input_reach(pb.substeps) + 1
     j = k0 + l // 2  # mid-window: the operating point the response is taken at is the typical one
     p, q = np.empty(n), np.empty(n)
     dp, dq, xs = np.empty((n, 4)), np.empty((n, 4)), np.empty((n, 3))
@@ -173,7 +174,7 @@ def impulse_response(problem, d: np.ndarray, beta_p: np.ndarray, beta_q: np.ndar
         if not motor.simulate_kernel(vd, vq, vdm, vqm, d, pb.dt, pb.omega0, pb.rk4, False, p, q, dp, dq, xs, True,
                                      k0, pb.p_meas, pb.q_meas, dp):
             return None
-        return np.stack([p[j - 2:], q[j - 2:]], axis=1)
+        return np.stack([p[j - lead:], q[j - lead:]], axis=1)
 
     h = np.zeros((l, 2, 2))
     base = (pb.prep.V, pb.prep.theta)
@@ -185,15 +186,15 @@ def impulse_response(problem, d: np.ndarray, beta_p: np.ndarray, beta_q: np.ndar
         lo = output(down, base[1]) if c == 0 else output(base[0], down)
         if hi is None or lo is None:
             return None
-        h[: n - j + 2, :, c] = (hi - lo) / (2.0 * IMPULSE_STEP)
+        h[: n - j + lead, :, c] = (hi - lo) / (2.0 * IMPULSE_STEP)
     # The static part responds to V in the same sample only, with its slope at the window's mean V (it moves
     # with V; the motor's response is taken at sample j).
     vj = np.array([float(np.mean(pb.prep.V[k0:]))])
     model = pb.config.static
     dphi = (static.regressors(vj + IMPULSE_STEP, model) - static.regressors(vj - IMPULSE_STEP, model))[0]
     dphi /= 2.0 * IMPULSE_STEP
-    h[2, 0, 0] += float(dphi @ beta_p)
-    h[2, 1, 0] += float(dphi @ beta_q)
+    h[lead, 0, 0] += float(dphi @ beta_p)
+    h[lead, 1, 0] += float(dphi @ beta_q)
     return h
 
 

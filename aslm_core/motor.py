@@ -8,9 +8,8 @@ States x = [Fd, Fq, s] with Fd = Ed/X', Fq = Eq/X'; parameters D = [a, b, H2, Tm
     P_im = Fd·Vq - Fq·Vd,   Q_im = -Vd·Fd - Vq·Fq
 
 The kernels integrate either by RK4 at the sample step, split into sub-steps of at most
-``MAX_STEP_S`` at low reporting rates, with V and θ inside the step from the cubic spline through the samples
-(default), or by
-the paper's explicit Euler at the sample step, and propagate dx/dD through the *discrete* map so the
+``MAX_STEP_S`` at low reporting rates, with V and θ inside the step from cubics through the samples (the spline where
+the step is split), or by the paper's explicit Euler at the sample step, and propagate dx/dD through the *discrete* map so the
 gradient is exact for the objective actually minimised.
 
 Initial state: the low-slip steady state at the first sample.  Ambient windows start off nominal
@@ -71,13 +70,14 @@ def dq_inputs(V: np.ndarray, theta: np.ndarray, m: int = 1) -> tuple[np.ndarray,
         Vd + jVq = V·e^{jθ} at the samples [pu].
     vdm, vqm : ndarray, shape ((n-1)·(2m-1),)
         The same at the fractions 1/(2m) … (2m-1)/(2m) of each step, step-major (m = 1: the half steps),
-        from V and θ interpolated by cubic splines (:data:`SPLINE_INPUTS`) [pu].  :func:`simulate_kernel` infers m
+        from V and θ interpolated by the cubic spline where m > 1 (:data:`SPLINE_INPUTS`), else by 4-point cubics
+        [pu].  :func:`simulate_kernel` infers m
         from the length.
     """
     vd = V * np.cos(theta)
     vq = V * np.sin(theta)
     fr = np.arange(1, 2 * m) / (2.0 * m)
-    if SPLINE_INPUTS and V.size >= 6:
+    if _spline(m, V.size):
         vm, thm = _spline_interior(V, fr), _spline_interior(theta, fr)
     elif m == 1:
         vm, thm = _midpoints(V), _midpoints(theta)
@@ -87,11 +87,29 @@ def dq_inputs(V: np.ndarray, theta: np.ndarray, m: int = 1) -> tuple[np.ndarray,
     return vd, vq, vm * np.cos(thm), vm * np.sin(thm)
 
 
-#: Inputs inside a sample step from the not-a-knot cubic spline through V and θ (True), or from 4-point Lagrange
-#: cubics with linear end steps (False, before stop 50).  The spline's response stays near 1 up to a far larger share
-#: of the Nyquist band: at 25 frames/s the Lagrange cubics biased noise-free a, H2 and Tm by +0.6 %, +0.7 %, −0.7 %
-#: (docs/numerics.md, "Stop 50").
+#: Inputs inside a split sample step (m > 1, below ~99 frames/s) from the not-a-knot cubic spline through V and θ
+#: (True), or from 4-point Lagrange cubics with linear end steps (False, before stop 50; always at m = 1, where the
+#: step is RK4's own and the cubic midpoint is O(dt⁴)).  The spline follows the inputs' content to a far larger share
+#: of the Nyquist band: at 25 frames/s the Lagrange cubics biased noise-free a, H2 and Tm by +0.6 %, +0.7 %, −0.7 %.
+#: Not at m = 1 too: the spline reads every later sample, which the IV's lag-2 instruments must not see (its criterion at
+#: the true D rose from 1.63 to 1.70 median at 100 frames/s), and there it changed D by under 1e-4 (docs/numerics.md,
+#: "Stop 50").
 SPLINE_INPUTS = True
+#: The spline's reach back: an input sample moves the interpolated inputs of steps that end more than this many samples
+#: before it by under 0.05 % of its weight in its own step (the cardinal spline decays by 2 − √3 ≈ 0.27 a sample)
+#: [samples].
+SPLINE_REACH = 6
+
+
+def _spline(m: int, n: int) -> bool:
+    """Whether :func:`dq_inputs` interpolates n samples with m sub-steps by the spline."""
+    return SPLINE_INPUTS and m > 1 and n >= 6
+
+
+def input_reach(m: int) -> int:
+    """Samples back from an input sample over which it moves the interpolated inputs (:func:`dq_inputs` with m
+    sub-steps): 1 for the 4-point cubics, :data:`SPLINE_REACH` for the spline."""
+    return SPLINE_REACH if _spline(m, 6) else 1
 
 
 @nb.njit(cache=True, nogil=True)

@@ -34,7 +34,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import linalg  # noqa: E402
 
-from aslm_core import IdentifyConfig, WindowError, identify, input_weighting  # noqa: E402
+from aslm_core import IdentifyConfig, WindowError, identify, input_weighting, motor  # noqa: E402
 from aslm_core.information import (  # noqa: E402
     input_jacobian,
     input_noise_covariance,
@@ -60,7 +60,8 @@ def lti_jacobian(case, shape: tuple[int, int]) -> np.ndarray:
     h = input_weighting.impulse_response(pb, d, *static_coefficients(case.truth))
     if h is None or shape != (2 * l, 2 * n):
         raise ValueError("the impulse response cannot be formed on this window")
-    lag = np.arange(l)[:, None] + k0 + 2 - np.arange(n)[None, :]  # h[k]: k − 2 samples after the impulse
+    lead = motor.input_reach(pb.substeps) + 1
+    lag = np.arange(l)[:, None] + k0 + lead - np.arange(n)[None, :]  # h[k]: k − lead samples after the impulse
     inside = (lag >= 0) & (lag < l)
     a = np.zeros(shape)
     for i in range(2):
