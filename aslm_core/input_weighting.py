@@ -64,6 +64,11 @@ MAX_BAND_FRACTION = 0.16
 #: (docs/numerics.md, "Stop 49: the band at most 4 Hz"); 25 and 30 frames/s fit 2.5 and 3 Hz, as before.  inf: a
 #: tenth of the rate, as before stop 49.
 MAX_BAND_HZ = 4.0
+#: Candidate of stop 50 (off): the window's own ``spectral`` fit reaches past :data:`MAX_BAND_HZ` up to V's signal
+#: cut-off in the window's own spectrum (before the tail; ``Prepared.signal_cutoffs``), still at most a tenth of the
+#: rate: the band follows where each recording's V carries signal (medians 4.0 and 5.6 Hz on the project's generator
+#: at 0.1 % and 0.03 %, 5.2 and 7.4 Hz on ANDES's records).
+BAND_AT_CUTOFF = False
 #: With the inputs' spectrum of the bus's history (``identify(..., input_spectrum=)``, pooled unsmoothed by
 #: :class:`aslm_core.input_history.InputHistory`), the refinement whitens in the time domain on the bins below this
 #: frequency (where that spectrum is known: it is zero from the floor band up) or a tenth of the rate, the lower,
@@ -471,6 +476,8 @@ def refine(prep: Prepared, f0: float, config, d0: np.ndarray, skip_s: float, mar
     pb = Problem(prep, f0, replace(config, skip_s=skip_s))
     own = not (history and HISTORY_BAND_HZ)
     band = fitted_band_hz(pb.dt, capped=own and config.input_weighting == "spectral")
+    if own and config.input_weighting == "spectral" and prep.signal_cutoffs is not None:
+        band = min(fitted_band_hz(pb.dt, capped=False), max(band, float(prep.signal_cutoffs[0])))
     form, floor = config.input_weighting, True
     if not own:
         band, form, floor = min(band, math.nextafter(HISTORY_BAND_HZ, 0.0)), "temporal", False
@@ -562,7 +569,7 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
             input_spectrum = None
     prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
                    floors=True, input_smoother="wiener", input_spectrum=input_spectrum,
-                   input_tail=config.input_spectrum_tail)
+                   input_tail=config.input_spectrum_tail, signal_cutoffs=BAND_AT_CUTOFF)
     if prep.input_error is None:
         return None
     used = input_spectrum is not None and all(white_floor(prep.noise, c) and prep.noise.get(f"noise_{c}", 0.0) > 0.0

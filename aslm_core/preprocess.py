@@ -41,6 +41,8 @@ class Prepared:
     before any filtering), when asked for.  ``lowpass_hz``: the cut-off of the causal low-pass applied
     (given, or chosen by ``wiener_lowpass``), 0 for none [Hz].  ``input_error``: after a Wiener smoother, the
     frequencies [Hz] and error spectrum of the smoothed V and θ (:func:`aslm_core.noise.wiener_smooth`).
+    ``signal_cutoffs``: when asked for, V's and θ's signal cut-offs of the window's own spectrum, before any tail (where
+    each channel's power sinks to its floor) [Hz].
     """
 
     t: np.ndarray
@@ -53,6 +55,7 @@ class Prepared:
     noise: dict[str, float] = field(default_factory=dict)
     lowpass_hz: float = 0.0
     input_error: tuple[np.ndarray, np.ndarray] | None = None
+    signal_cutoffs: np.ndarray | None = None
 
 
 def _fill_short_gaps(x: np.ndarray, max_run: int, name: str) -> int:
@@ -118,7 +121,7 @@ def _step_shaped(floors: dict[str, float], channel: str) -> bool:
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,
             lowpass_hz: float | None = None, floors: bool = False, input_smoother: str = "none",
             input_cutoff_hz: float = 3.0, input_spectrum: noise.InputSpectrum | None = None,
-            input_tail: bool = False) -> Prepared:
+            input_tail: bool = False, signal_cutoffs: bool = False) -> Prepared:
     """Check a window and bring it onto a clean uniform grid.
 
     Parameters
@@ -152,6 +155,9 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     input_tail : bool
         For the Wiener smoothers: continue the window's own estimate of the inputs' spectrum above its cut-off
         (:func:`aslm_core.noise.wiener_smooth`'s ``tail``).
+    signal_cutoffs : bool
+        For the Wiener smoothers: also record the window's own signal cut-offs of V and θ, before any tail
+        (``Prepared.signal_cutoffs``; one more smoother pass).
 
     Returns
     -------
@@ -225,7 +231,10 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     white = {k: (est[k] if white_floor(est, k[6:]) else 0.0) for k in ("noise_v", "noise_theta") if k in est}
     if est:
         est.update(noise.input_ratios(V, theta, white))
-    input_error = None
+    input_error = own_cut = None
+    if wiener and signal_cutoffs:
+        own_cut = noise.wiener_smooth(np.stack([V, theta]), 1.0 / dt, [white["noise_v"], white["noise_theta"]],
+                                      return_cutoffs=True)[1]
     if wiener:
         (V, theta), cut, *input_error = noise.wiener_smooth(
             np.stack([V, theta]), 1.0 / dt, [white["noise_v"], white["noise_theta"]], return_cutoffs=True,
@@ -247,7 +256,7 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         V, theta, P, Q = signal.lfilter(b, a, x, axis=1, zi=zi[None, :] * x[:, :1])[0]
     tg = t[0] + dt * np.arange(n_grid)
     return Prepared(tg, V, theta, P, Q, dt, flags, est, float(lowpass_hz or 0.0),
-                    tuple(input_error) if input_error else None)
+                    tuple(input_error) if input_error else None, own_cut)
 
 
 def input_periodogram(window: Window, max_gap_samples: int = 5) -> noise.InputPeriodogram:

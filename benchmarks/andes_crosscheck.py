@@ -48,7 +48,7 @@ from functools import partial
 
 import numpy as np
 
-from aslm_core import IdentifyConfig, Window, WindowError, identify, motor
+from aslm_core import IdentifyConfig, Window, WindowError, identify, input_weighting, motor
 from aslm_core.identify import Problem
 from aslm_core.preprocess import prepare
 from aslm_sim.andes.effects import cache_dir
@@ -431,7 +431,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=1, help="study: identification threads")
     p.add_argument("--weighting", action="store_true",
                    help="study: the default against input_weighting='none' (instead of input_smoother='none')")
+    p.add_argument("--band-at-cutoff", action="store_true",
+                   help="stop 50's candidate: input_weighting.BAND_AT_CUTOFF on")
     args = p.parse_args(argv)
+    input_weighting.BAND_AT_CUTOFF = args.band_at_cutoff
     scen = list(MAIN_SCENARIOS) if args.scenario == "all" else [args.scenario]
     if args.input_noise is not None:
         return study_main(args, scen)

@@ -28,7 +28,7 @@ from concurrent.futures import ProcessPoolExecutor  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from aslm_core import Window, WindowError, identify  # noqa: E402
+from aslm_core import Window, WindowError, identify, input_weighting  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.andes_crosscheck import PMU_CLASSES, noisy_window, scenario_record  # noqa: E402
 from benchmarks.andes_history import TF  # noqa: E402
@@ -120,7 +120,10 @@ def main(argv=None) -> dict:
     ap.add_argument("--workers", type=int, default=2, help="processes (one ambient seed each)")
     ap.add_argument("--tag", default=None)
     ap.add_argument("--no-write", action="store_true")
+    ap.add_argument("--band-at-cutoff", action="store_true",
+                    help="stop 50's candidate: input_weighting.BAND_AT_CUTOFF on (the worker processes inherit it)")
     args = ap.parse_args(argv)
+    input_weighting.BAND_AT_CUTOFF = args.band_at_cutoff
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         done = list(pool.map(run_seed, args.seeds, [args.snr] * len(args.seeds), [args.draws] * len(args.seeds),
@@ -129,7 +132,7 @@ def main(argv=None) -> dict:
     truths = {seed: truth for seed, (_, truth) in zip(args.seeds, done, strict=True)}
     res = cells(rows, truths)
     print(table(res))
-    doc = {"machine": common.machine(), "seeds": args.seeds, "snr_db": args.snr, "draws": args.draws, "tf": TF,
+    doc = {"machine": common.machine(), "band_at_cutoff": args.band_at_cutoff, "seeds": args.seeds, "snr_db": args.snr, "draws": args.draws, "tf": TF,
            "tstep": args.tstep, "amp": args.amp, "windows": WINDOWS, "cells": res,
            "truths": {str(k): v for k, v in truths.items()}, "rows": rows,
            "total_s": time.perf_counter() - t0, "load_avg_at_end": list(os.getloadavg())}

@@ -44,6 +44,8 @@ per level, both PMU classes), every noisy window is identified by the default (`
   ``gain49`` was the default from 2a38811 until its confirmation failed (``benchmarks.input_noise_gain``): the runs of
   record made then (tags ``dev49``, ``confirm49``) hold it as ``default`` and today's default as ``before49``, the
   decomposition as ``band_tenth`` (``own_bin_out`` today) and ``own_bin_in`` (``band4``);
+* ``band_cut`` (stop 50): the window's own refinement's band past 4 Hz up to V's own signal cut-off, at most a tenth
+  of the rate (``input_weighting.BAND_AT_CUTOFF``);
 * ``lagrange`` (stop 50): the inputs inside a sample step from 4-point Lagrange cubics (``motor.SPLINE_INPUTS`` off),
   as before stop 50, instead of the not-a-knot spline;
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
@@ -114,7 +116,7 @@ from benchmarks.input_noise_bound import (  # noqa: E402
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
             "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5", "own_td", "own_td_guard1.5",
             "own_td_fallback1.5", "hist6_checked", "gain49", "own_bin_out", "band4", "cap3.5", "cap4", "capinf",
-            "lagrange")
+            "lagrange", "band_cut")
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
 #: Each history variant's form, set whatever the core's defaults: (``input_history.HISTORY_SMOOTH_HZ``,
 #: ``input_weighting.HISTORY_BAND_HZ``, ``input_weighting.HISTORY_CHI2_MAX``, ``input_history.HISTORY_STALE_MAX``).
@@ -595,6 +597,12 @@ def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict
                             rows[variant] = _measure(w, c.truth.d)
                         finally:
                             input_weighting.MAX_BAND_HZ = old
+                    elif variant == "band_cut":
+                        input_weighting.BAND_AT_CUTOFF = True
+                        try:
+                            rows[variant] = _measure(w, c.truth.d)
+                        finally:
+                            input_weighting.BAND_AT_CUTOFF = False
                     elif variant == "lagrange":
                         motor.SPLINE_INPUTS = False
                         try:

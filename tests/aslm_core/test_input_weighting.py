@@ -289,3 +289,26 @@ def test_the_window_own_band_is_at_most_4_hz_and_the_history_and_temporal_forms_
         iw.refine(prep, c.window.f0, config, d0, 1.0, 0.05, history=history)
     assert [f for _, f in seen] == ["spectral", "temporal", "temporal"]
     assert [b for b, _ in seen] == pytest.approx([4.0, 10.0, 5.0])
+
+
+def test_the_band_at_the_cutoff_candidate_reaches_vs_own_cutoff_past_4_hz(monkeypatch):
+    """Stop 50's candidate (off): with ``BAND_AT_CUTOFF`` the window's own fit reaches V's own signal cut-off (before
+    the tail) where it lies above 4 Hz, at most a tenth of the rate; off, the refinement gets 4 Hz as before."""
+    from aslm_core import noise
+
+    assert iw.BAND_AT_CUTOFF is False
+    c = make_cases(1, level=2, seed=41, input_noise=False)[0]
+    w = with_input_noise(c.window, 0.3 * V_REL, 0.3 * THETA_RAD, 5)
+    raw = prepare(w, floors=True)
+    own = noise.wiener_smooth(np.stack([raw.V, raw.theta]), 1.0 / raw.dt, [raw.noise["noise_v"],
+                                                                          raw.noise["noise_theta"]],
+                              return_cutoffs=True)[1]
+    prep = prepare(w, floors=True, input_smoother="wiener", input_tail=True, signal_cutoffs=True)
+    np.testing.assert_allclose(prep.signal_cutoffs, own)
+    assert 4.0 < own[0] < 10.0  # a good PMU's V carries signal past the cap here
+    seen = []
+    monkeypatch.setattr(iw, "_weighted_descent", lambda pb, prep, d0, margin, band, form, floor: seen.append(band))
+    d0 = np.asarray(c.truth.d, dtype=np.float64)
+    iw.refine(prep, w.f0, IdentifyConfig(), d0, 1.0, 0.05)
+    iw.refine(prepare(w, floors=True, input_smoother="wiener", input_tail=True), w.f0, IdentifyConfig(), d0, 1.0, 0.05)
+    assert seen == pytest.approx([own[0], 4.0])

@@ -81,3 +81,27 @@ def test_the_rules_thresholds_decide():
     assert ig.verdict({100.0: cells}, ig.RULES["gain49"])["3 sigma over the default's"]["met"]  # 1.02 <= 1.03
     assert not ig.verdict({100.0: cells}, ig.RULES["cap4"])["3 sigma over the default's"]["met"]  # 1.02 > 1.01
     assert ig.rows_of(per, "cap4") == ("cap4", "default")
+
+
+def test_without_the_bias_gate_criterion_1_compares_the_dl_2_3_cells_with_the_defaults():
+    """``spline50``'s rule: a candidate outside the target where the default is too meets criterion 1; one outside
+    where the default is not does not."""
+    per, per_se = _rows({"gain49": 0.012, "default": 0.012})
+    cells = {"candidate": ig.cells(per, per_se, "gain49"), "default": ig.cells(per, per_se, "default")}
+    v = ig.verdict({25.0: cells}, ig.RULES["spline50"])
+    assert v["1 bias inside the target at DL 2-3"]["outside"] == 2 * 4 and v["1 bias inside the target at DL 2-3"]["met"]
+    assert not ig.verdict({25.0: cells}, ig.RULES["gain49"])["1 bias inside the target at DL 2-3"]["met"]
+    per, per_se = _rows({"gain49": 0.012, "default": 0.0})
+    cells = {"candidate": ig.cells(per, per_se, "gain49"), "default": ig.cells(per, per_se, "default")}
+    assert not ig.verdict({25.0: cells}, ig.RULES["spline50"])["1 bias inside the target at DL 2-3"]["met"]
+
+
+def test_the_exact_input_check_fails_on_a_growth_over_a_tenth_of_a_point_or_a_25_frames_sum_that_does_not_fall():
+    def run(lag: list, spl: list, fs: str = "25") -> dict:
+        return {"cells": {f"{fs}|DL 2": {"bias_lagrange": lag, "bias_spline": spl}}}
+
+    assert ig.exact_check(run([0.006, 0.0, 0.007, -0.007], [0.001, 0.0009, 0.0, -0.001]))["met"]
+    assert not ig.exact_check(run([0.006, 0.0, 0.007, -0.007], [0.001, 0.0011, 0.0, -0.001]))["met"]  # b grew 0.11
+    rose = ([0.001, 0.0, 0.0, 0.0], [0.0005, 0.0, 0.0, 0.0009])  # no growth over 0.1 point, the sum 0.10 -> 0.14 %
+    assert not ig.exact_check(run(*rose))["met"]
+    assert ig.exact_check(run(*rose, fs="100"))["met"]  # the sum is not checked from 50 frames/s up

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from aslm_core import identify, input_history, input_weighting, noise, preprocess  # noqa: E402
+from aslm_core import identify, input_history, input_weighting, motor, noise, preprocess  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks import input_noise_variants as iv  # noqa: E402
 from benchmarks.input_noise_bound import INPUT_NOISE, TAIL, with_input_noise  # noqa: E402
@@ -251,3 +251,16 @@ def test_the_cap_variants_set_the_band_and_restore_it():
     uncapped, cap = np.array(per[key + "capinf"]), np.array(per[key + "cap4"])
     assert np.all(np.isfinite(uncapped)) and not np.allclose(uncapped, d, rtol=0, atol=1e-9)
     np.testing.assert_array_equal(cap, d)
+
+
+def test_the_stop_50_variants_reach_the_core_and_restore_it():
+    """``lagrange`` (the 4-point cubics inside a split step) moves the answer at 25 frames/s and not at 100, where the
+    step is not split; ``band_cut`` moves it at 100; the core's switches are back afterwards."""
+    key = "2|0.03 % / 3e-4 rad|"
+    per, _, _ = iv.run(1, 41, ["lagrange", "band_cut"])
+    assert motor.SPLINE_INPUTS is True and input_weighting.BAND_AT_CUTOFF is False
+    d = np.array(per[key + "default"])
+    np.testing.assert_array_equal(np.array(per[key + "lagrange"]), d)
+    assert not np.allclose(np.array(per[key + "band_cut"]), d, rtol=0, atol=1e-9)
+    per, _, _ = iv.run(1, 41, ["lagrange"], fs=25.0)
+    assert not np.allclose(np.array(per[key + "lagrange"]), np.array(per[key + "default"]), rtol=0, atol=1e-9)
