@@ -9,8 +9,8 @@ States x = [Fd, Fq, s] with Fd = Ed/X', Fq = Eq/X'; parameters D = [a, b, H2, Tm
 
 The kernels integrate either by RK4 at the sample step, split into sub-steps of at most
 ``MAX_STEP_S`` at low reporting rates, with V and θ inside the step from cubics through the samples (the spline where
-the step is split), or by the paper's explicit Euler at the sample step, and propagate dx/dD through the *discrete* map so the
-gradient is exact for the objective actually minimised.
+the step is split), or by the paper's explicit Euler at the sample step, and propagate dx/dD through the
+*discrete* map so the gradient is exact for the objective actually minimised.
 
 Initial state: the low-slip steady state at the first sample.  Ambient windows start off nominal
 frequency; a steady state at ω0 then carries a slip error of Δω/ω0 whose transient outlasts the skipped
@@ -71,8 +71,7 @@ def dq_inputs(V: np.ndarray, theta: np.ndarray, m: int = 1) -> tuple[np.ndarray,
     vdm, vqm : ndarray, shape ((n-1)·(2m-1),)
         The same at the fractions 1/(2m) … (2m-1)/(2m) of each step, step-major (m = 1: the half steps),
         from V and θ interpolated by the cubic spline where m > 1 (:data:`SPLINE_INPUTS`), else by 4-point cubics
-        [pu].  :func:`simulate_kernel` infers m
-        from the length.
+        [pu].  :func:`simulate_kernel` infers m from the length.
     """
     vd = V * np.cos(theta)
     vq = V * np.sin(theta)
@@ -509,8 +508,8 @@ def simulate(
     omega0 : float
         Synchronous speed [rad/s].
     integrator : {"rk4", "euler"}
-        RK4 with the inputs inside the step from the cubic spline (:func:`dq_inputs`), or the paper's explicit Euler
-        (§IV.A).
+        RK4 with the inputs inside the step from cubics through the samples (:func:`dq_inputs`), or the paper's
+        explicit Euler (§IV.A).
 
     Returns
     -------
