@@ -181,6 +181,8 @@ BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
 #: ``gain49``, ``own_bin_out``, ``band4`` (stop 49): the smoother's gain without each bin's own periodogram in its
 #: average (``noise.GAIN_WITHOUT_OWN_BIN``), the refinement's band at least 4 Hz (``input_weighting.MIN_BAND_HZ``), or
 #: both (the candidate, not adopted): (GAIN_WITHOUT_OWN_BIN, MIN_BAND_HZ), None where the core's is kept.
+#: Stop 50's rows: a core module's switch set to a value within the row (:func:`core_switch`).
+CORE_SWITCHES = {"band_cut": (input_weighting, "BAND_AT_CUTOFF", True), "lagrange": (motor, "SPLINE_INPUTS", False)}
 GAIN49_VARIANTS = {"gain49": (True, 4.0), "own_bin_out": (True, None), "band4": (None, 4.0)}
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none", "floor_sig2": "significant_2",
                   "floor_sig1.5": "significant_1.5"}
@@ -465,6 +467,17 @@ def smoother_width(hz: float):
 
 
 @contextlib.contextmanager
+def core_switch(module, name: str, value):
+    """Within the block, ``module.name`` is ``value``; restored afterwards."""
+    old = getattr(module, name)
+    setattr(module, name, value)
+    try:
+        yield
+    finally:
+        setattr(module, name, old)
+
+
+@contextlib.contextmanager
 def smoother_gain(own_bin_out: bool | None, min_band_hz: float | None):
     """Within the block, the smoother's gain with or without each bin's own periodogram and the refinement's lowest band
     as given (None: as the core has it)."""
@@ -597,18 +610,9 @@ def run(n: int, seed: int, variants: list[str], fs: float = 100.0) -> tuple[dict
                             rows[variant] = _measure(w, c.truth.d)
                         finally:
                             input_weighting.MAX_BAND_HZ = old
-                    elif variant == "band_cut":
-                        input_weighting.BAND_AT_CUTOFF = True
-                        try:
+                    elif variant in CORE_SWITCHES:
+                        with core_switch(*CORE_SWITCHES[variant]):
                             rows[variant] = _measure(w, c.truth.d)
-                        finally:
-                            input_weighting.BAND_AT_CUTOFF = False
-                    elif variant == "lagrange":
-                        motor.SPLINE_INPUTS = False
-                        try:
-                            rows[variant] = _measure(w, c.truth.d)
-                        finally:
-                            motor.SPLINE_INPUTS = True
                     elif variant in GAIN49_VARIANTS:
                         with smoother_gain(*GAIN49_VARIANTS[variant]):
                             rows[variant] = _measure(w, c.truth.d)
