@@ -1,0 +1,31 @@
+"""benchmarks.rates_bias: pooled default rows and the met / open / missed call of each cell."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from benchmarks import rates_bias as rb  # noqa: E402
+
+
+def test_a_cell_is_met_open_or_missed_by_its_95_percent_interval():
+    assert rb.call(0.015, 0.002, 0.02) == "met"  # [1.11, 1.89] %
+    assert rb.call(0.015, 0.004, 0.02) == "open"  # reaches 2.28 %
+    assert rb.call(-0.03, 0.004, 0.02) == "missed"  # [-3.78, -2.22] %
+    assert rb.call(0.0, 0.02, 0.02) == "open"  # wide on both sides
+
+
+def test_the_runs_default_rows_are_pooled_window_by_window():
+    rng = np.random.default_rng(0)
+    a, b = 1.0 + 0.01 * rng.standard_normal((300, 4)), 1.02 + 0.01 * rng.standard_normal((200, 4))
+    b[0, 1] = np.nan  # a refused window is left out
+    runs = [{"per_window": {"2|0.1 % / 1e-3 rad|default": a.tolist(), "2|0.1 % / 1e-3 rad|other": a.tolist()}},
+            {"per_window": {"2|0.1 % / 1e-3 rad|default": b.tolist(), "2|0.1 % / 1e-3 rad|other": a.tolist()}}]
+    c = rb.pooled_cells(runs)
+    assert list(c) == ["2|0.1 % / 1e-3 rad"] and c["2|0.1 % / 1e-3 rad"]["n"] == 499
+    both = np.concatenate([a, b[1:]])
+    np.testing.assert_allclose(c["2|0.1 % / 1e-3 rad"]["bias"], both.mean(axis=0) - 1.0)
+    np.testing.assert_allclose(c["2|0.1 % / 1e-3 rad"]["se"], both.std(axis=0, ddof=1) / np.sqrt(499))
