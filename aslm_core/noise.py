@@ -431,7 +431,8 @@ def spectrum_at(spectrum: InputSpectrum, freqs: np.ndarray) -> np.ndarray:
 
 def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float = WIENER_SMOOTH_HZ,
                   return_cutoffs: bool = False, return_error: bool = False,
-                  spectrum: InputSpectrum | None = None, tail: bool = False) -> np.ndarray | tuple:
+                  spectrum: InputSpectrum | None = None, tail: bool = False,
+                  cutoffs_before_tail: bool = False) -> np.ndarray | tuple:
     """Conditional mean of jointly stationary signals observed in white noise of known std: a non-causal
     multichannel Wiener smoother.
 
@@ -460,9 +461,11 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         :data:`FLOOR_FROM_HZ` by the power law (slope at most −1) fitted to its log-spectrum over [cut-off / 2,
         cut-off), the cross-spectrum at the coherence of that band, instead of zero, and hold it at zero from
         :data:`FLOOR_FROM_HZ` up (the floor band's premise, as :func:`pooled_spectrum`); the cut-off returned is
-        then where that spectrum ends.  Only where every channel carries noise, as ``spectrum``.  The ambient
-        signal does not stop where one window's estimate loses it in the floor (docs/numerics.md, "Stop 41: the
-        signal above the smoother's cut-off").
+        then where that spectrum ends, unless ``cutoffs_before_tail``.  Only where every channel carries noise, as
+        ``spectrum``.  The ambient signal does not stop where one window's estimate loses it in the floor
+        (docs/numerics.md, "Stop 41: the signal above the smoother's cut-off").
+    cutoffs_before_tail : bool
+        With ``return_cutoffs``: the cut-offs of the window's own estimate (or of ``spectrum``) before any tail.
 
     Returns
     -------
@@ -470,7 +473,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         The smoothed signals.
     ndarray, shape (c,)
         Only with ``return_cutoffs``: per channel the frequency above which its signal is taken as zero
-        (where its averaged power sinks to its floor; fs/2 when it never does) [Hz].
+        (where its averaged power sinks to its floor; fs/2 when it never does) [Hz]; with ``tail``, where the
+        continued spectrum ends, or with ``cutoffs_before_tail`` where the window's own estimate did.
     ndarray, shape (m,), and ndarray, shape (m, c, c)
         Only with ``return_error``: frequencies [Hz] and, per frequency, the covariance spectrum of the error
         x − x̂, P_x = R − R·(S + R)⁻¹·R = gain·R, in per-sample units (white noise of variance σ² has
@@ -481,8 +485,7 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     Each signal is extended at both ends by a point reflection (``_extend``), its line removed, and taken
     to the Fourier domain.  Per frequency the measured cross-spectral matrix S_m (the periodogram matrix
     averaged over ``smooth_hz``; without the frequency's own bin with :data:`GAIN_WITHOUT_OWN_BIN`) is the signal's
-    S plus R = diag(σ²); S = S_m − R with its negative
-    eigenvalues clipped, and a channel's signal is zero above the first frequency (from 0.5 Hz) where its
+    S plus R = diag(σ²); S = S_m − R with its negative eigenvalues clipped, and a channel's signal is zero above the first frequency (from 0.5 Hz) where its
     power sinks to its floor (ambient content falls with frequency; without that rule the floor's own
     scatter opened the gain above 5 Hz and left half the error variance there).  The gain is S·(S + R)⁻¹.
     Why the conditional mean: with x̂ = E[x | V, θ measured] the error x − x̂ is uncorrelated with x̂ at
@@ -532,7 +535,7 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         for i in range(c):
             on = np.flatnonzero(given[k_min:, i, i].real <= 0.0)
             ends.append(k_min + int(on[0]) if on.size else given.shape[0])
-    cutoffs = np.array(ends, dtype=np.float64) * fs / ne
+    cutoffs = own_cutoffs = np.array(ends, dtype=np.float64) * fs / ne
     if c == 1:
         if spectrum is not None:
             s = np.maximum(given[:, 0, 0].real, 0.0)
@@ -547,7 +550,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
                 cutoffs = np.array(ends, dtype=np.float64) * fs / ne
         out = (np.fft.irfft(s / (s + r[0]) * spec[0], n=ne) + line[0])[None, pad:pad + n]
         px = (s / (s + r[0]) * var[0]).astype(complex)[:, None, None]
-        return _returned(out, cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px, return_cutoffs, return_error)
+        return _returned(out, own_cutoffs if cutoffs_before_tail else cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px,
+                         return_cutoffs, return_error)
     # Two channels: S = S_m − R with its negative eigenvalue clipped, in closed form per frequency.
     b = _moving_average(spec[0] * spec[1].conj(), width, own_out)
     a, d = p_gain[0] - r[0], p_gain[1] - r[1]
@@ -588,7 +592,8 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     px = np.empty((g00.size, 2, 2), dtype=complex)
     px[:, 0, 0], px[:, 0, 1] = g00 * var[0], g01 * var[1]
     px[:, 1, 0], px[:, 1, 1] = g10 * var[0], g11 * var[1]
-    return _returned(out, cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px, return_cutoffs, return_error)
+    return _returned(out, own_cutoffs if cutoffs_before_tail else cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px,
+                     return_cutoffs, return_error)
 
 
 def _power_tail(s: np.ndarray, end: int, k_min: int, freqs: np.ndarray, top: int) -> int:

@@ -156,8 +156,8 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         For the Wiener smoothers: continue the window's own estimate of the inputs' spectrum above its cut-off
         (:func:`aslm_core.noise.wiener_smooth`'s ``tail``).
     signal_cutoffs : bool
-        For the Wiener smoothers: also record the window's own signal cut-offs of V and θ, before any tail
-        (``Prepared.signal_cutoffs``; one more smoother pass).
+        With ``input_smoother="wiener"`` (the refinement's): also record the signal cut-offs of V and θ before any
+        tail (``Prepared.signal_cutoffs``).
 
     Returns
     -------
@@ -232,13 +232,13 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     if est:
         est.update(noise.input_ratios(V, theta, white))
     input_error = own_cut = None
-    if wiener and signal_cutoffs:
-        own_cut = noise.wiener_smooth(np.stack([V, theta]), 1.0 / dt, [white["noise_v"], white["noise_theta"]],
-                                      return_cutoffs=True)[1]
+    if signal_cutoffs and input_smoother != "wiener":
+        raise ValueError("signal_cutoffs is recorded with input_smoother='wiener' only")
     if wiener:
         (V, theta), cut, *input_error = noise.wiener_smooth(
             np.stack([V, theta]), 1.0 / dt, [white["noise_v"], white["noise_theta"]], return_cutoffs=True,
-            return_error=True, spectrum=input_spectrum, tail=input_tail)
+            return_error=True, spectrum=input_spectrum, tail=input_tail, cutoffs_before_tail=signal_cutoffs)
+        own_cut = cut if signal_cutoffs else None
         if input_smoother == "wiener_lowpass" and lowpass_hz is None and cut.min() < 0.45 / dt:
             # Rounded to 0.1 Hz so the filter designs are cached.
             lowpass_hz = max(0.1, round(PREFILTER_FRACTION * float(cut.min()), 1))

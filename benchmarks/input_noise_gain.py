@@ -30,7 +30,6 @@ the windows off by more than 20 %; then the candidate's rule (:data:`RULES`), ea
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -232,7 +231,7 @@ def main(argv=None) -> dict:
     if args.pooled:
         out = {}
         for fs in rates:
-            runs = [json.loads((common.RESULTS / f"{run_name(s, args.tag, fs)}.json").read_text()) for s in args.pooled]
+            runs = [common.read_json(run_name(s, args.tag, fs)) for s in args.pooled]
             for cls in BIAS_TARGET:
                 p = out[f"{fs:g}|{cls}"] = pooled(runs, fs, cls, rule.candidate)
                 print(f"{fs:5g} {cls[:6]:6s} μ a / b / H2 / Tm " + " / ".join(
@@ -242,7 +241,7 @@ def main(argv=None) -> dict:
         return out
     per_rate = {}
     for fs in rates:
-        run = json.loads((common.RESULTS / f"{run_name(seed, args.tag, fs)}.json").read_text())
+        run = common.read_json(run_name(seed, args.tag, fs))
         names = dict(zip(("candidate", "default"), rows_of(run["per_window"], rule.candidate), strict=True))
         per_rate[fs] = {key: cells(run["per_window"], run["per_window_se"], row) for key, row in names.items()}
         for cell in sorted(per_rate[fs]["candidate"]):

@@ -312,3 +312,21 @@ def test_the_band_at_the_cutoff_candidate_reaches_vs_own_cutoff_past_4_hz(monkey
     iw.refine(prep, w.f0, IdentifyConfig(), d0, 1.0, 0.05)
     iw.refine(prepare(w, floors=True, input_smoother="wiener", input_tail=True), w.f0, IdentifyConfig(), d0, 1.0, 0.05)
     assert seen == pytest.approx([own[0], 4.0])
+
+
+def test_the_impulse_response_starts_where_the_splines_reach_back_begins():
+    """At 25 frames/s the inputs inside a split step come from the spline, which an input sample moves up to
+    ``motor.SPLINE_REACH`` samples back: the response is kept from there (not from 2 samples back, as the 4-point
+    cubics allow), with the static part at the impulse's own sample."""
+    from aslm_core import motor
+
+    c = make_cases(1, level=2, seed=41, input_noise=False, fs=25.0)[0]
+    prep = prepare(c.window)
+    pb = Problem(prep, c.window.f0, IdentifyConfig())
+    d = np.asarray(c.truth.d, dtype=np.float64)
+    h = iw.impulse_response(pb, d, np.zeros(3), np.zeros(3))
+    lead = motor.input_reach(pb.substeps) + 1
+    assert pb.substeps == 4 and lead == motor.SPLINE_REACH + 1
+    peak = np.abs(h[:, 0, 0]).max()
+    assert np.abs(h[: lead - 2, 0, 0]).max() > 1e-3 * peak  # the spline's reach: outputs before the old start move
+    assert np.abs(h[:1, :, :]).max() < 1e-2 * peak  # and it has died out at the kept start
