@@ -277,6 +277,33 @@ def _sens_rate(W, c, fd, fq, s, vd, vq, dsdt, b, w0, ih2, t, k):
     W[k + 2, 3] += ih2
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def substep_layout(n, nm):  # pragma: no cover - numba
+    """Interior inputs per sample step and RK4 sub-steps m, from n samples and nm interior inputs (:func:`dq_inputs`'
+    layout: 2m − 1 per step)."""
+    per = nm // (n - 1) if n > 1 else 1
+    return per, (per + 1) // 2
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def substep_inputs(vd, vq, vdm, vqm, k, j, per, m):  # pragma: no cover - numba
+    """Vd, Vq at the start, the middle and the end of RK4 sub-step j of sample step k (:func:`dq_inputs`' layout)."""
+    base = k * per + 2 * j
+    if j > 0:
+        ud = vdm[base - 1]
+        uq = vqm[base - 1]
+    else:
+        ud = vd[k]
+        uq = vq[k]
+    if j == m - 1:
+        nd = vd[k + 1]
+        nq = vq[k + 1]
+    else:
+        nd = vdm[base + 1]
+        nq = vqm[base + 1]
+    return ud, uq, vdm[base], vqm[base], nd, nq
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, dp_out, dq_out, x_out,
                     store, k0, p_meas, q_meas, X):
@@ -306,8 +333,9 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
     fq = x[1]
     s = x[2]
     # RK4 sub-steps per sample step, from the interior inputs given (see dq_inputs).
-    per = vdm.shape[0] // (n - 1) if n > 1 else 1
-    m = (per + 1) // 2 if rk4 else 1
+    per, m = substep_layout(n, vdm.shape[0])
+    if not rk4:
+        m = 1
     h = dt / m
     h6 = h / 6.0
     for k in range(n):
@@ -336,18 +364,7 @@ def simulate_kernel(vd, vq, vdm, vqm, d, dt, w0, rk4, with_sens, p_out, q_out, d
         if k == n - 1:
             break
         for j in range(m if rk4 else 0):
-            base = k * per + 2 * j
-            if j > 0:
-                ud = vdm[base - 1]
-                uq = vqm[base - 1]
-            md = vdm[base]
-            mq = vqm[base]
-            if j == m - 1:
-                nd = vd[k + 1]
-                nq = vq[k + 1]
-            else:
-                nd = vdm[base + 1]
-                nq = vqm[base + 1]
+            ud, uq, md, mq, nd, nq = substep_inputs(vd, vq, vdm, vqm, k, j, per, m)
             k1 = _f(fd, fq, s, ud, uq, a, b, ih2, tm, w0)
             x2d = fd + 0.5 * h * k1[0]
             x2q = fq + 0.5 * h * k1[1]

@@ -28,7 +28,7 @@ import numba as nb
 import numpy as np
 
 from aslm_core.diagnosis.segment import Segment
-from aslm_core.motor import _start_angular_speed
+from aslm_core.motor import _start_angular_speed, substep_inputs, substep_layout
 
 #: Parameter vector of the kernel: a1, b1, H2, Tm, a2, b2, ρ, c, X' (see the module docstring).
 N_PARAMS = 9
@@ -90,7 +90,8 @@ def simulate_kernel(vd, vq, vdm, vqm, p, dt, w0, p_out, q_out):  # pragma: no co
     f1, f2, _ = _torque_at(c, v0, p)
     s = (c - _start_angular_speed(vd, vq, dt)) / w0
     kap_c = np.conj(1.0 / (1.0 - 1j * p[6]))
-    h = dt
+    per, m = substep_layout(n, vdm.shape[0])
+    h = dt / m
     for k in range(n):
         v = vd[k] + 1j * vq[k]
         out = kap_c * (-1j * v * np.conj(f1 + f2))
@@ -100,15 +101,18 @@ def simulate_kernel(vd, vq, vdm, vqm, p, dt, w0, p_out, q_out):  # pragma: no co
         q_out[k] = out.imag
         if k == n - 1:
             break
-        vm = vdm[k] + 1j * vqm[k]
-        vn = vd[k + 1] + 1j * vq[k + 1]
-        k1 = _rates(f1, f2, s, v, p, w0)
-        k2 = _rates(f1 + 0.5 * h * k1[0], f2 + 0.5 * h * k1[1], s + 0.5 * h * k1[2], vm, p, w0)
-        k3 = _rates(f1 + 0.5 * h * k2[0], f2 + 0.5 * h * k2[1], s + 0.5 * h * k2[2], vm, p, w0)
-        k4 = _rates(f1 + h * k3[0], f2 + h * k3[1], s + h * k3[2], vn, p, w0)
-        f1 += h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-        f2 += h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-        s += h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+        for j in range(m):
+            ud, uq, md, mq, nd, nq = substep_inputs(vd, vq, vdm, vqm, k, j, per, m)
+            vs = ud + 1j * uq
+            vm = md + 1j * mq
+            vn = nd + 1j * nq
+            k1 = _rates(f1, f2, s, vs, p, w0)
+            k2 = _rates(f1 + 0.5 * h * k1[0], f2 + 0.5 * h * k1[1], s + 0.5 * h * k1[2], vm, p, w0)
+            k3 = _rates(f1 + 0.5 * h * k2[0], f2 + 0.5 * h * k2[1], s + 0.5 * h * k2[2], vm, p, w0)
+            k4 = _rates(f1 + h * k3[0], f2 + h * k3[1], s + h * k3[2], vn, p, w0)
+            f1 += h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            f2 += h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+            s += h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
         if not (math.isfinite(s) and abs(f1) < 1e12 and abs(f2) < 1e12):
             return False
     return True

@@ -88,7 +88,7 @@ class Segment:
 
     def __post_init__(self) -> None:
         self.omega0 = motor.omega0_of(self.f0)
-        self.vd, self.vq, self.vdm, self.vqm = motor.dq_inputs(self.V, self.theta)
+        self.vd, self.vq, self.vdm, self.vqm = motor.dq_inputs(self.V, self.theta, motor.substeps(self.dt))
 
     @property
     def v_measured(self) -> np.ndarray:

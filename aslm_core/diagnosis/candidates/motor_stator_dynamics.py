@@ -58,7 +58,7 @@ class MotorStatorDynamics(Candidate):
         w0 = seg.omega0
         veff = seg.V * (1.0 - 2.0 * math.pi * seg.dfreq / w0)
         theff = seg.theta + seg.dvdt / (seg.V * w0)
-        inputs = motor.dq_inputs(veff, theff)
+        inputs = motor.dq_inputs(veff, theff, motor.substeps(seg.dt))
         self._cache["key"] = (key, seg, inputs)
         return inputs
 

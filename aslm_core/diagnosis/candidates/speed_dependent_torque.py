@@ -38,24 +38,28 @@ def _rhs(fd, fq, s, vd, vq, a, b, h2, tm, s0, k, w0):  # pragma: no cover - numb
 
 @nb.njit(cache=True)
 def simulate_k(vd, vq, vdm, vqm, a, b, h2, tm, k, w0, dt, fd, fq, s):  # pragma: no cover - numba
-    """RK4 of eq. 4 with Tm(s) from the steady state (fd, fq, s); returns P_im, Q_im (eq. 5)."""
+    """RK4 of eq. 4 with Tm(s) from the steady state (fd, fq, s), sub-stepped as :func:`motor.simulate_kernel`;
+    returns P_im, Q_im (eq. 5)."""
     n = vd.shape[0]
     p = np.empty(n)
     q = np.empty(n)
     s0 = s
-    h = dt
+    per, m = motor.substep_layout(n, vdm.shape[0])
+    h = dt / m
     for i in range(n):
         p[i] = fd * vq[i] - fq * vd[i]
         q[i] = -vd[i] * fd - vq[i] * fq
         if i == n - 1:
             break
-        k1 = _rhs(fd, fq, s, vd[i], vq[i], a, b, h2, tm, s0, k, w0)
-        k2 = _rhs(fd + 0.5 * h * k1[0], fq + 0.5 * h * k1[1], s + 0.5 * h * k1[2], vdm[i], vqm[i], a, b, h2, tm, s0, k, w0)
-        k3 = _rhs(fd + 0.5 * h * k2[0], fq + 0.5 * h * k2[1], s + 0.5 * h * k2[2], vdm[i], vqm[i], a, b, h2, tm, s0, k, w0)
-        k4 = _rhs(fd + h * k3[0], fq + h * k3[1], s + h * k3[2], vd[i + 1], vq[i + 1], a, b, h2, tm, s0, k, w0)
-        fd += h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-        fq += h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-        s += h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
+        for j in range(m):
+            ud, uq, md, mq, nd, nq = motor.substep_inputs(vd, vq, vdm, vqm, i, j, per, m)
+            k1 = _rhs(fd, fq, s, ud, uq, a, b, h2, tm, s0, k, w0)
+            k2 = _rhs(fd + 0.5 * h * k1[0], fq + 0.5 * h * k1[1], s + 0.5 * h * k1[2], md, mq, a, b, h2, tm, s0, k, w0)
+            k3 = _rhs(fd + 0.5 * h * k2[0], fq + 0.5 * h * k2[1], s + 0.5 * h * k2[2], md, mq, a, b, h2, tm, s0, k, w0)
+            k4 = _rhs(fd + h * k3[0], fq + h * k3[1], s + h * k3[2], nd, nq, a, b, h2, tm, s0, k, w0)
+            fd += h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
+            fq += h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
+            s += h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
         if not (np.isfinite(s) and abs(fd) < 1e12):
             p[:] = np.nan
             q[:] = np.nan

@@ -1,0 +1,111 @@
+"""The diagnosis at every PMU reporting rate: model-true windows should come out ``consistent`` at 25–120 frames/s as
+at 100, and a concealed effect should still be named (issue 11: "every reporting rate ... with the same protocol").
+
+    .venv/bin/python -m benchmarks.diagnosis_rates [--seed 71] [--n 20] [--rates 25 30 50 60 100 120] [--levels 1 2 3]
+        [--input-noise] [--effect NAME] [--workers 2] [--tag NAME]
+
+Per rate and level, ``n`` windows of the project's generator (``aslm_sim``, 1 ms steps), plain ZIP + IM (the model
+the diagnosis holds the recordings against), P and Q at the level's SNR (``--input-noise``: V, θ and f too), each
+diagnosed with the default :class:`DiagnosisConfig`.  Tallied: the verdicts (on a model-true window anything but
+``consistent`` is a false finding), the cause named, and the plain model's D/D_real − 1 (its median |error|).  With
+``--effect``, the named effect of :mod:`aslm_sim.effects` is added to each window (concealed, as in
+``benchmarks.diagnosis``) and the count that names it is the power.  Written to
+``docs/results/diagnosis_rates_seed<seed>[_<tag>].json``.
+
+The code before a change is measured by running this module with that commit's tree first on ``PYTHONPATH`` (the
+module imports only the public API).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import time  # noqa: E402
+import zlib  # noqa: E402
+from collections import Counter  # noqa: E402
+from concurrent.futures import ProcessPoolExecutor  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from benchmarks import common  # noqa: E402
+
+RATES = (25.0, 30.0, 50.0, 60.0, 100.0, 120.0)
+
+
+def diagnosed(job: tuple) -> dict:
+    """One window's diagnosis: (rate, level, index, seed, input_noise, effect) → verdict, cause, D/D_real."""
+    from aslm_core.diagnosis import diagnose
+    from aslm_sim import make_cases
+
+    fs, level, i, seed, input_noise, effect = job
+    case = make_cases(1, level=level, seed=seed * 100_000 + int(fs) * 100 + i, fs=fs, input_noise=input_noise)[0]
+    window, model = case.window, None
+    if effect:
+        from aslm_sim.effects import apply_effect
+
+        ec = apply_effect(case, effect, seed=zlib.crc32(f"{effect}/{fs}/{level}/{i}".encode()))
+        window, model = ec.window, ec.model
+    t0 = time.perf_counter()
+    r = diagnose(window, model)
+    d = np.array([r.model.dynamic[k] for k in ("a", "b", "H2", "Tm")])
+    return {"fs": fs, "level": level, "i": i, "verdict": r.verdict, "cause": r.cause,
+            "d_ratio": (d / case.truth.d).tolist(), "elapsed_s": time.perf_counter() - t0}
+
+
+def summary(rows: list[dict], effect: str | None) -> list[dict]:
+    """Per rate and level: the verdicts, the causes named and the plain model's median |D/D_real − 1|."""
+    out = []
+    for fs in sorted({r["fs"] for r in rows}):
+        for level in sorted({r["level"] for r in rows}):
+            cell = [r for r in rows if r["fs"] == fs and r["level"] == level]
+            if not cell:
+                continue
+            err = np.abs(np.array([r["d_ratio"] for r in cell]) - 1.0)
+            out.append({"fs": fs, "level": level, "n": len(cell),
+                        "verdicts": dict(Counter(r["verdict"] for r in cell)),
+                        "causes": dict(Counter(r["cause"] for r in cell if r["cause"])),
+                        "named_effect": sum(r["cause"] == effect for r in cell) if effect else None,
+                        "median_abs_error": np.median(err, axis=0).tolist(), "max_abs_error": err.max(axis=0).tolist()})
+    return out
+
+
+def main() -> None:
+    p = common.parser(__doc__.splitlines()[0])
+    p.add_argument("--seed", type=int, default=71)
+    p.add_argument("--n", type=int, default=20, help="windows per rate and level")
+    p.add_argument("--rates", type=float, nargs="+", default=list(RATES))
+    p.add_argument("--levels", type=int, nargs="+", default=[1, 2, 3])
+    p.add_argument("--input-noise", action="store_true", help="V, θ and f noisy too (the generator's SNR rule)")
+    p.add_argument("--effect", default="", help="a concealed effect of aslm_sim.effects added to every window")
+    p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    p.add_argument("--tag", default="")
+    args = p.parse_args()
+    n = 2 if args.quick else args.n
+    jobs = [(fs, level, i, args.seed, args.input_noise, args.effect or None)
+            for fs in args.rates for level in args.levels for i in range(n)]
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(args.workers) as ex:
+        rows = list(ex.map(diagnosed, jobs, chunksize=2))
+    cells = summary(rows, args.effect or None)
+    table = []
+    for c in cells:
+        v = c["verdicts"]
+        wrong = c["n"] - (c["named_effect"] if args.effect else v.get("consistent", 0))
+        table.append([f"{c['fs']:g}", c["level"], c["n"], v.get("consistent", 0),
+                      c["named_effect"] if args.effect else "–", wrong,
+                      ", ".join(f"{k} {m}" for k, m in sorted(c["causes"].items())) or "–",
+                      " / ".join(f"{100 * x:.1f}" for x in c["median_abs_error"])])
+    print(common.md_table(["frames/s", "DL", "n", "consistent", "effect named", "other verdict or cause",
+                           "causes named", "plain D median |error| a / b / H2 / Tm [%]"], table))
+    print(f"{time.perf_counter() - t0:.0f} s")
+    if not args.no_write:
+        name = f"diagnosis_rates_seed{args.seed}" + (f"_{args.tag}" if args.tag else "")
+        path = common.write_json(name, {"args": vars(args), "machine": common.machine(), "cells": cells, "rows": rows})
+        print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
