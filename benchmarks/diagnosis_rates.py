@@ -3,14 +3,16 @@ at 100, and a concealed effect should still be named (issue 11: "every reporting
 
     .venv/bin/python -m benchmarks.diagnosis_rates [--seed 71] [--n 20] [--rates 25 30 50 60 100 120] [--levels 1 2 3]
         [--input-noise] [--effect NAME] [--workers 2] [--tag NAME]
+    .venv/bin/python -m benchmarks.diagnosis_rates --andes 1 2 3 4 5 6 7 8 9 10 [--snr 22]
 
 Per rate and level, ``n`` windows of the project's generator (``aslm_sim``, 1 ms steps), plain ZIP + IM (the model
 the diagnosis holds the recordings against), P and Q at the level's SNR (``--input-noise``: V, θ and f too), each
 diagnosed with the default :class:`DiagnosisConfig`.  Tallied: the verdicts (on a model-true window anything but
 ``consistent`` is a false finding), the cause named, and the plain model's D/D_real − 1 (its median |error|).  With
 ``--effect``, the named effect of :mod:`aslm_sim.effects` is added to each window (concealed, as in
-``benchmarks.diagnosis``) and the count that names it is the power.  Written to
-``docs/results/diagnosis_rates_seed<seed>[_<tag>].json``.
+``benchmarks.diagnosis``) and the count that names it is the power.  With ``--andes``, an independent simulator's
+model-true windows instead: ANDES's ``model`` scenario (``benchmarks.andes_rates``' records and decimation).  Written to
+``docs/results/diagnosis_rates_seed<seed>[_<tag>].json`` (``diagnosis_rates_andes[_<tag>].json``).
 
 The code before a change is measured by running this module with that commit's tree first on ``PYTHONPATH`` (the
 module imports only the public API).
@@ -37,7 +39,6 @@ RATES = (25.0, 30.0, 50.0, 60.0, 100.0, 120.0)
 
 def diagnosed(job: tuple) -> dict:
     """One window's diagnosis: (rate, level, index, seed, input_noise, effect) → verdict, cause, D/D_real."""
-    from aslm_core.diagnosis import diagnose
     from aslm_sim import make_cases
 
     fs, level, i, seed, input_noise, effect = job
@@ -48,11 +49,38 @@ def diagnosed(job: tuple) -> dict:
 
         ec = apply_effect(case, effect, seed=zlib.crc32(f"{effect}/{fs}/{level}/{i}".encode()))
         window, model = ec.window, ec.model
+    return _row(window, model, case.truth.d, fs=fs, level=level, i=i)
+
+
+def _row(window, model, truth: np.ndarray, **key) -> dict:
+    from aslm_core.diagnosis import diagnose
+
     t0 = time.perf_counter()
     r = diagnose(window, model)
     d = np.array([r.model.dynamic[k] for k in ("a", "b", "H2", "Tm")])
-    return {"fs": fs, "level": level, "i": i, "verdict": r.verdict, "cause": r.cause,
-            "d_ratio": (d / case.truth.d).tolist(), "elapsed_s": time.perf_counter() - t0}
+    return {**key, "verdict": r.verdict, "cause": r.cause, "d_ratio": (d / truth).tolist(),
+            "elapsed_s": time.perf_counter() - t0}
+
+
+def andes_record(seed: int) -> tuple[dict, np.ndarray]:
+    """ANDES's 72 s record of the ``model`` scenario (bus 9's ZIP load and Motor3: the plain model holds) and its D."""
+    from benchmarks.andes_crosscheck import scenario_record
+    from benchmarks.andes_history import TF
+
+    rec, facts = scenario_record("model", tf=TF, tstep=0.01, amp=0.15, seed=seed)
+    return rec, np.asarray(facts["truth"])
+
+
+def andes_diagnosed(job: tuple) -> dict:
+    """One ANDES window's diagnosis: (ambient seed, window, rate, P/Q SNR [dB]); P and Q noisy, V and θ exact, the
+    lower rates every second or fourth sample of the 100 frames/s window (``benchmarks.andes_rates``'s protocol)."""
+    from benchmarks.andes_crosscheck import noisy_window
+    from benchmarks.andes_rates import STEPS, WINDOWS, decimated
+
+    seed, j, fs, snr = job
+    rec, truth = andes_record(seed)
+    w = noisy_window(rec, *WINDOWS[j], snr, np.random.default_rng([seed, j, int(round(snr * 10))]))
+    return _row(decimated(w, STEPS[fs]), None, truth, fs=fs, level=f"andes {snr:g} dB", i=seed * 100 + j)
 
 
 def summary(rows: list[dict], effect: str | None) -> list[dict]:
@@ -81,14 +109,25 @@ def main() -> None:
     p.add_argument("--input-noise", action="store_true", help="V, θ and f noisy too (the generator's SNR rule)")
     p.add_argument("--effect", default="", help="a concealed effect of aslm_sim.effects added to every window")
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    p.add_argument("--andes", type=int, nargs="*", default=None, metavar="SEED",
+                   help="instead: ANDES's model-scenario records of these ambient seeds (seven 10 s windows each, P and "
+                        "Q at --snr, exact V and θ) at 100, 50 and 25 frames/s")
+    p.add_argument("--snr", type=float, default=22.0, help="P/Q SNR of the ANDES windows [dB]")
     p.add_argument("--tag", default="")
     args = p.parse_args()
     n = 2 if args.quick else args.n
-    jobs = [(fs, level, i, args.seed, args.input_noise, args.effect or None)
-            for fs in args.rates for level in args.levels for i in range(n)]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as ex:
-        rows = list(ex.map(diagnosed, jobs, chunksize=2))
+        if args.andes is not None:
+            from benchmarks.andes_rates import STEPS, WINDOWS
+
+            list(ex.map(andes_record, args.andes))  # simulated once per seed (cached) before the windows share it
+            jobs = [(seed, j, fs, args.snr) for seed in args.andes for j in range(len(WINDOWS)) for fs in STEPS]
+            rows = list(ex.map(andes_diagnosed, jobs, chunksize=3))
+        else:
+            jobs = [(fs, level, i, args.seed, args.input_noise, args.effect or None)
+                    for fs in args.rates for level in args.levels for i in range(n)]
+            rows = list(ex.map(diagnosed, jobs, chunksize=2))
     cells = summary(rows, args.effect or None)
     table = []
     for c in cells:
@@ -102,7 +141,8 @@ def main() -> None:
                            "causes named", "plain D median |error| a / b / H2 / Tm [%]"], table))
     print(f"{time.perf_counter() - t0:.0f} s")
     if not args.no_write:
-        name = f"diagnosis_rates_seed{args.seed}" + (f"_{args.tag}" if args.tag else "")
+        name = ("diagnosis_rates_andes" if args.andes is not None else f"diagnosis_rates_seed{args.seed}") + (
+            f"_{args.tag}" if args.tag else "")
         path = common.write_json(name, {"args": vars(args), "machine": common.machine(), "cells": cells, "rows": rows})
         print(f"wrote {path}")
 
