@@ -4,6 +4,7 @@
     .venv/bin/python benchmarks/diagnosis.py --quick    # ~2 min smoke run
     .venv/bin/python benchmarks/diagnosis.py --input-noise   # V, θ, f noisy too (PMU-like)
     .venv/bin/python benchmarks/diagnosis.py --timing 30     # CPU time per diagnosis, one process
+    .venv/bin/python benchmarks/diagnosis.py --fs 50         # the same cases at 50 frames/s (the service's default)
 
 Each library effect (and two effects outside the library) is applied to synthetic ZIP + IM cases
 (``input_noise=False``: noise on P and Q at the level's SNR, paper eq. 10) by :mod:`aslm_sim.effects`
@@ -45,7 +46,7 @@ LEVELS = (1, 2, 3)
 def _base(level: int, i: int, input_noise: bool = False):
     from aslm_sim.cases import make_case
 
-    return make_case(10_000 * level + i, level=level, input_noise=input_noise)
+    return make_case(10_000 * level + i, level=level, input_noise=input_noise, fs=_FS)
 
 
 def case(job: tuple):
@@ -238,10 +239,13 @@ def main(argv: list[str] | None = None) -> int:
                                              "overwrite the run of record)")
     p.add_argument("--config", action="append", default=[], metavar="NAME=VALUE",
                    help="a DiagnosisConfig option other than its default (repeatable; e.g. cross_fit=true)")
+    p.add_argument("--fs", type=float, default=100.0,
+                   help="the cases' reporting rate [frames/s] (the same cases, sampled at this rate; written with "
+                        "_fs<rate> in the name unless 100)")
     args = p.parse_args(argv)
     overrides = config_overrides(args.config)
     if args.timing:
-        return _timing(args.timing, args.input_noise, overrides)
+        return _timing(args.timing, args.input_noise, overrides, args.fs)
     n_eff, n_clean, n_user = (1, 2, 1) if args.quick else (args.per_level, args.clean, max(4, args.clean // 3))
     jobs = _jobs(n_eff, n_clean, n_user, args.input_noise)
     if args.only:
@@ -251,21 +255,25 @@ def main(argv: list[str] | None = None) -> int:
         keep = set(args.cases.split(","))
         jobs = [j for j in jobs if f"{j[0]}/{j[1]}/{j[2]}" in keep]
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.workers, initializer=_init, initargs=(overrides,)) as pool:
+    with ProcessPoolExecutor(max_workers=args.workers, initializer=_init, initargs=(overrides, args.fs)) as pool:
         recs = list(pool.map(run_one, jobs, chunksize=1))
     wall = time.perf_counter() - t0
     s = summarise(recs)
     s["wall_s"] = wall
     s["command"] = "benchmarks/diagnosis.py" + (" --quick" if args.quick else "") + (
         " --input-noise" if args.input_noise else "") + (f" --only {args.only}" if args.only else "") + (
-        f" --cases {args.cases}" if args.cases else "") + "".join(f" --config {c}" for c in args.config)
+        f" --cases {args.cases}" if args.cases else "") + "".join(f" --config {c}" for c in args.config) + (
+        f" --fs {args.fs:g}" if args.fs != 100.0 else "")
     s["input_noise"] = args.input_noise
+    s["fs"] = args.fs
     s["machine"] = {"cpus": os.cpu_count(), "python": platform.python_version(), "workers": args.workers}
     print(markdown(s))
     print(f"\nwall {wall:.0f} s for {len(recs)} diagnoses ({args.workers} workers)")
     if not args.no_write:
         RESULTS.parent.mkdir(parents=True, exist_ok=True)
         stem = "diagnosis" + ("_input_noise" if args.input_noise else "") + ("_quick" if args.quick else "")
+        if args.fs != 100.0:
+            stem += f"_fs{args.fs:g}"
         if args.only or args.cases:
             stem += "_only"
         if args.tag:
@@ -275,9 +283,9 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _timing(n: int, input_noise: bool, overrides: dict | None = None) -> int:
+def _timing(n: int, input_noise: bool, overrides: dict | None = None, fs: float = 100.0) -> int:
     """N diagnoses in this process (effects and levels interleaved); CPU time per diagnosis."""
-    _init(overrides)
+    _init(overrides, fs)
     effects = [*LIBRARY_EFFECTS, *OUTSIDE_EFFECTS, "none"]
     jobs = [(effects[k % len(effects)], 1 + k % 3, k // len(effects), input_noise) for k in range(n + 1)]
     recs = [run_one(j) for j in jobs][1:]  # the first one pays for loading compiled kernels
@@ -292,14 +300,19 @@ def _timing(n: int, input_noise: bool, overrides: dict | None = None) -> int:
 
 #: The diagnosis's options in this process (``--config``; None: its defaults), set by :func:`_init`.
 _CONFIG_OVERRIDES: dict | None = None
+#: The cases' reporting rate in this process [frames/s] (``--fs``), set by :func:`_init`.
+_FS = 100.0
 
 
-def _init(overrides: dict | None = None) -> None:
-    global _CONFIG_OVERRIDES
+def _init(overrides: dict | None = None, fs: float = 100.0) -> None:
+    global _CONFIG_OVERRIDES, _FS
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     from aslm_core import warmup
 
     _CONFIG_OVERRIDES = overrides
+    if fs != _FS:
+        _base.cache_clear()
+    _FS = fs
     warmup()
 
 

@@ -80,3 +80,16 @@ def test_config_overrides_reach_the_diagnosis_and_a_wrong_name_is_a_clear_error(
     for bad in ("crossfit=true", "cross_fit"):
         with pytest.raises(SystemExit, match="NAME=VALUE"):
             selftest.config_overrides([bad])
+
+
+def test_the_self_test_samples_its_cases_at_the_rate_it_is_given():
+    from benchmarks import diagnosis as selftest
+
+    selftest._init(None, 25.0)
+    try:
+        base, ec, _, _ = selftest.case(("none", 2, 0))
+        assert base.window.dt == pytest.approx(0.04) and ec.window.V.size == base.window.V.size == 250
+    finally:
+        selftest._init(None)
+    base, _, _, _ = selftest.case(("none", 2, 0))
+    assert base.window.V.size == 1000  # the cache of the 25 frames/s cases is not reused at 100
