@@ -11,8 +11,8 @@ active power, at the operating point) and the equilibrium is that of the plain m
 torque–speed exponent: 0 constant torque (the plain model), 1 linear, 2 fan/centrifugal pump.  Near the
 operating point it adds a damping k·Tm/(1 − s0) to the slip dynamics, small beside the electrical torque's
 slope a·V²·ω0/b², so k is only weakly identifiable from ambient data — reported with its uncertainty.
-One nonlinear parameter fitted in the upper stage with D; the motor is integrated by RK4 at the sample
-step (cubic half-step inputs, as :mod:`aslm_core.motor`).
+One nonlinear parameter fitted in the upper stage with D; the motor is integrated by RK4 as :mod:`aslm_core.motor`
+integrates it (at the sample step, split into sub-steps below ~99 frames/s, the inputs inside a step from cubics).
 
 Signature: the single-motor residual is coherent with V and dV/dt around the motor's electromechanical
 (slip) mode; P and Q alike.
