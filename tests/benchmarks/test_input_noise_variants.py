@@ -264,3 +264,21 @@ def test_the_stop_50_variants_reach_the_core_and_restore_it():
     assert not np.allclose(np.array(per[key + "band_cut"]), d, rtol=0, atol=1e-9)
     per, _, _ = iv.run(1, 41, ["lagrange"], fs=25.0)
     assert not np.allclose(np.array(per[key + "lagrange"]), np.array(per[key + "default"]), rtol=0, atol=1e-9)
+
+
+def test_the_vouched_reading_keeps_the_windows_without_the_20pct_flag_and_takes_the_bound_over_them(monkeypatch):
+    r = [[1.1, 1.0, 1.0, 1.0], [0.9, 1.0, 1.0, 1.0], [1.5, 1.0, 1.0, 1.0], [1.0, 1.2, 1.0, 0.8]]
+    se = [[0.05, 0.01, 0.01, 0.01], [0.05, 0.01, 0.01, 0.01], [0.2, 0.01, 0.01, 0.01], [0.01, 0.01, 0.01, 0.01]]
+    var = [[0.01] * 4, [0.01] * 4, [1.0] * 4, [0.04] * 4]  # the dropped window's bound is large, as a poorly excited one's
+    bounds = [{"2": {"0.1 % / 1e-3 rad|structural": v}} for v in var]
+    monkeypatch.setattr(common, "read_json", lambda name: {"per_window_relative_variance": bounds})
+    run = {"seed": 43, "per_window": {"2|0.1 % / 1e-3 rad|default": r, "2|0.1 % / 1e-3 rad|cap4": r},
+           "per_window_se": {"2|0.1 % / 1e-3 rad|default": se, "2|0.1 % / 1e-3 rad|cap4": se}}
+    out = iv.vouched_ratios(run)
+    c = out["2|0.1 % / 1e-3 rad"]
+    assert list(out) == ["2|0.1 % / 1e-3 rad"] and (c["n"], c["kept"]) == (4, 3)  # 0.2 > 0.06 × 1.5: flagged, out
+    keep = np.array(r)[[0, 1, 3]]
+    want = keep.std(axis=0, ddof=1) / np.sqrt(np.array(var)[[0, 1, 3]].mean(axis=0))
+    np.testing.assert_allclose(c["vouched"], want)
+    np.testing.assert_allclose(c["all"], np.array(r).std(axis=0, ddof=1) / np.sqrt(np.array(var).mean(axis=0)))
+    assert (c["off_20pct_kept"], c["off_20pct_dropped"]) == (0, 1)
