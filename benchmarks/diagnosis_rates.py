@@ -116,6 +116,8 @@ def main() -> None:
     p.add_argument("--tag", default="")
     args = p.parse_args()
     n = 2 if args.quick else args.n
+    if n >= 100:  # window i of rate fs is seeded seed·100000 + fs·100 + i: more would reuse another rate's windows
+        raise SystemExit("--n: at most 99 windows per rate and level")
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.workers) as ex:
         if args.andes is not None:
