@@ -5,7 +5,7 @@ at 100, and a concealed effect should still be named (issue 11: "every reporting
         [--input-noise] [--effect NAME] [--workers 2] [--tag NAME]
     .venv/bin/python -m benchmarks.diagnosis_rates --andes 1 2 3 4 5 6 7 8 9 10 [--snr 22]
 
-Per rate and level, ``n`` windows of the project's generator (``aslm_sim``, 1 ms steps), plain ZIP + IM (the model
+Per rate and level, ``n`` windows of the project's generator (``aslm_sim``, 1 ms steps; other records at each rate), plain ZIP + IM (the model
 the diagnosis holds the recordings against), P and Q at the level's SNR (``--input-noise``: V, θ and f too), each
 diagnosed with the default :class:`DiagnosisConfig`.  Tallied: the verdicts (on a model-true window anything but
 ``consistent`` is a false finding), the cause named, and the plain model's D/D_real − 1 (its median |error|).  With
