@@ -5,6 +5,7 @@
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm2   # the second confirmation (below)
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm3   # the third, once (docs/diagnosis.md)
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once (and so on to confirm14)
+    .venv/bin/python -m benchmarks.diagnosis_independent --set dev --fs 25   # the same windows at 25 frames/s
 
 Each scenario of :mod:`aslm_sim.andes.effects` (a kind and a seed: the motor data, the effect's magnitude,
 the ambient noise) is simulated by ANDES for 22 s (10 ms step) and cut into two 10 s windows (2–12 s,
@@ -143,8 +144,9 @@ def noise_draw(key: str, level: int, t0: float) -> tuple[np.random.Generator, fl
     return rng, float(NOISE_LEVELS[level] + rng.uniform(-SNR_SPREAD_DB, SNR_SPREAD_DB))
 
 
-def _window(rec: dict, t0: float, t1: float, level: int, input_noise: bool, key: str):
-    """One noisy window of a recording: P/Q noise at the level's SNR, V/θ noise when asked."""
+def _window(rec: dict, t0: float, t1: float, level: int, input_noise: bool, key: str, step: int = 1):
+    """One noisy window of a recording: P/Q noise at the level's SNR, V/θ noise when asked; with ``step`` > 1 every
+    step-th sample of it (a PMU reporting at 100/step frames/s, the same noise values at its instants)."""
     from aslm_core import Window
 
     rng, snr = noise_draw(key, level, t0)
@@ -156,7 +158,8 @@ def _window(rec: dict, t0: float, t1: float, level: int, input_noise: bool, key:
     if input_noise:
         ch["V"] += vth[0] * INPUT_NOISE["V"] * np.mean(ch["V"])
         ch["theta"] += vth[1] * INPUT_NOISE["theta"]
-    w = Window(rec["t"][sl], ch["V"], ch["theta"], ch["P"], ch["Q"], f0=60.0, bus="andes-bus9")
+    k = slice(None, None, step)
+    w = Window(rec["t"][sl][k], ch["V"][k], ch["theta"][k], ch["P"][k], ch["Q"][k], f0=60.0, bus="andes-bus9")
     return w, float(snr)
 
 
@@ -171,7 +174,8 @@ def run_job(job: tuple) -> list[dict]:
     from aslm_core.diagnosis import diagnose
     from aslm_sim.andes.effects import recording
 
-    kind, seed, modes = job
+    kind, seed, modes, *rest = job
+    step = rest[0] if rest else 1
     t_sim, c_sim = time.perf_counter(), time.process_time()
     try:
         rec = recording(kind, seed, tf=TF, tstep=TSTEP)
@@ -183,7 +187,7 @@ def run_job(job: tuple) -> list[dict]:
     for input_noise in modes:
         for t0, t1 in WINDOWS:
             for level in LEVELS:
-                w, snr = _window(rec, t0, t1, level, input_noise, f"{kind}/{seed}")
+                w, snr = _window(rec, t0, t1, level, input_noise, f"{kind}/{seed}", step)
                 c0, w0 = time.process_time(), time.perf_counter()
                 try:
                     rep = diagnose(w, config=diagnosis_config())
@@ -320,8 +324,13 @@ def main(argv: list[str] | None = None) -> int:
                    help="only fill the recording cache (ANDES), diagnose and score nothing")
     p.add_argument("--config", action="append", default=[], metavar="NAME=VALUE",
                    help="a DiagnosisConfig option other than its default (repeatable; e.g. cross_fit=true)")
+    p.add_argument("--fs", type=float, default=100.0, choices=(100.0, 50.0, 25.0),
+                   help="reporting rate [frames/s]: every second or fourth sample of the 100 frames/s windows (written "
+                        "with _fs<rate> in the name unless 100)")
     args = p.parse_args(argv)
     overrides = config_overrides(args.config)
+    step = int(round(100.0 / args.fs))
+    name = args.set + (f"_fs{args.fs:g}" if step > 1 else "") + (f"_{args.tag}" if args.tag else "")
     only = {int(x) for x in args.seeds.split(",") if x}
     todo_jobs = [(k, s) for k, s in jobs(args.set, [k for k in args.kinds.split(",") if k] or None)
                  if not only or s in only]
@@ -330,8 +339,9 @@ def main(argv: list[str] | None = None) -> int:
     from aslm_core.diagnosis.candidates import MODULES
 
     modes = {"pq": (False,), "input": (True,), "both": (False, True)}[args.noise]
-    todo = [(k, s, modes) for k, s in todo_jobs if not args.cached_only or any(cache_dir().glob(f"v*-{k}-{s}-*.npz"))]
-    partial = cache_dir() / f"diagnosis_independent_{args.set}{'_' + args.tag if args.tag else ''}.partial.jsonl"
+    todo = [(k, s, modes, step) for k, s in todo_jobs
+            if not args.cached_only or any(cache_dir().glob(f"v*-{k}-{s}-*.npz"))]
+    partial = cache_dir() / f"diagnosis_independent_{name}.partial.jsonl"
     partial.parent.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     recs: list[dict] = []
@@ -346,17 +356,17 @@ def main(argv: list[str] | None = None) -> int:
             recs += rows
             fh.writelines(json.dumps(r, default=float) + "\n" for r in rows)
             fh.flush()
-            k, s, _ = futs[f]
+            k, s, _, _ = futs[f]
             print(f"{k}/{s}: " + ", ".join(outcome(r) for r in rows)
                   + (f" (sim {rows[0]['sim_s']:.0f} s)" if rows else " FAILED"), flush=True)
     wall = time.perf_counter() - t0
-    out_path = RESULTS / f"diagnosis_independent_{args.set}{'_' + args.tag if args.tag else ''}.json"
+    out_path = RESULTS / f"diagnosis_independent_{name}.json"
     if out_path.exists():  # a run of the other noise mode: keep its records, this run replaces its own mode's
-        ran = {k for k, _, _ in todo}
+        ran = {k for k, _, _, _ in todo}
         kept = [r for r in json.loads(out_path.read_text())["records"]
                 if r["input_noise"] not in modes or r["kind"] not in ran]
         recs = kept + recs
-    summary = {"set": args.set, "seeds": SETS[args.set], "wall_s": wall, "load_avg": os.getloadavg(), "failed": failed,
+    summary = {"set": args.set, "fs": args.fs, "seeds": SETS[args.set], "wall_s": wall, "load_avg": os.getloadavg(), "failed": failed,
                "library": list(MODULES), "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
                                                      "workers": args.workers},
                "command": "benchmarks/diagnosis_independent.py " + " ".join(argv if argv is not None else sys.argv[1:])}

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
@@ -93,3 +94,15 @@ def test_the_self_test_samples_its_cases_at_the_rate_it_is_given():
         selftest._init(None)
     base, _, _, _ = selftest.case(("none", 2, 0))
     assert base.window.V.size == 1000  # the cache of the 25 frames/s cases is not reused at 100
+
+
+def test_a_window_at_a_lower_rate_is_every_step_th_sample_of_the_same_noisy_window():
+    t = np.arange(0.0, 22.0 + 1e-9, 0.01)
+    rng = np.random.default_rng(1)
+    rec = {"t": t, "V": 1.0 + 0.01 * rng.standard_normal(t.size), "theta": 0.01 * rng.standard_normal(t.size),
+           "P": 0.5 + 0.01 * rng.standard_normal(t.size), "Q": 0.2 + 0.01 * rng.standard_normal(t.size)}
+    full, snr = di._window(rec, 2.0, 12.0, 2, True, "clean/1")
+    quarter, snr4 = di._window(rec, 2.0, 12.0, 2, True, "clean/1", step=4)
+    assert snr4 == snr and quarter.V.size == 251 and full.V.size == 1001
+    for ch in ("t", "V", "theta", "P", "Q"):
+        np.testing.assert_array_equal(getattr(quarter, ch), getattr(full, ch)[::4])
