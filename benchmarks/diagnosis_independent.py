@@ -158,8 +158,11 @@ def _window(rec: dict, t0: float, t1: float, level: int, input_noise: bool, key:
     if input_noise:
         ch["V"] += vth[0] * INPUT_NOISE["V"] * np.mean(ch["V"])
         ch["theta"] += vth[1] * INPUT_NOISE["theta"]
-    k = slice(None, None, step)
-    w = Window(rec["t"][sl][k], ch["V"][k], ch["theta"][k], ch["P"][k], ch["Q"][k], f0=60.0, bus="andes-bus9")
+    w = Window(rec["t"][sl], ch["V"], ch["theta"], ch["P"], ch["Q"], f0=60.0, bus="andes-bus9")
+    if step > 1:
+        from benchmarks.andes_rates import decimated
+
+        w = decimated(w, step)
     return w, float(snr)
 
 
