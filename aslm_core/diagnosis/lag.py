@@ -7,6 +7,7 @@ one; :func:`lag_start` picks T's start from a scan with D held at the plain fit.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -16,16 +17,19 @@ from aslm_core.diagnosis.segment import Segment
 
 
 def lagged(x: np.ndarray, T: float, dt: float) -> np.ndarray:
-    """First-order lag of x with time constant T [s] (trapezoidal rule), starting at rest at x[0].
+    """First-order lag of x with time constant T [s], T·dx_f/dt = x − x_f, starting at rest at x[0].
 
-    T ≤ 0 returns x itself (a copy): the lag's limit, without the trapezoid's marginal pole at z = −1.
+    Exact for x linear between samples (y_{k+1} = α·y_k + c0·x_k + c1·x_{k+1}, α = e^{−dt/T}), so the lag holds
+    at any dt/T: at 25 frames/s with T at its 0.02 s bound dt/T is 2, where the trapezoidal rule used before
+    collapsed to a two-sample average.  T ≤ 0 returns x itself (a copy): the lag's limit.
     """
     if T <= 0.0:
         return np.array(x, dtype=float)
-    a = (2.0 * T - dt) / (2.0 * T + dt)
-    b = (1.0 - a) / 2.0
-    zi = signal.lfiltic([b, b], [1.0, -a], y=[x[0]], x=[x[0]])
-    return signal.lfilter([b, b], [1.0, -a], x, zi=zi)[0]
+    alpha = math.exp(-dt / T)
+    c1 = 1.0 - (T / dt) * (1.0 - alpha)
+    c0 = (1.0 - alpha) - c1
+    zi = signal.lfiltic([c1, c0], [1.0, -alpha], y=[x[0]], x=[x[0]])
+    return signal.lfilter([c1, c0], [1.0, -alpha], x, zi=zi)[0]
 
 
 def lag_start(seg: Segment, ctx, x: np.ndarray, grid: Sequence[float], default: float) -> float:
