@@ -17,13 +17,12 @@ The model, per window (deviations from the window's operating point):
 
 The likelihood is the Kalman filter's prediction-error decomposition over the samples after ``skip_s`` (the
 identifier's skipped first second), from a wide prior on the initial state. The fit alternates EM for the VAR, Σ_w and
-the four noise variances at the current D with L-BFGS-B on D, c_P and c_Q at the current VAR, from the default's D and
-the Yule–Walker VAR with the measured floor taken off the lag-0 covariance. It is not adopted: it is worse than the
-default, and even on data of its own model the alternation ends far from the generating D (docs/numerics.md, "Stop 52:
-the joint likelihood over latent V and θ in the time domain").
+the four noise variances at the current D, accelerated by SQUAREM, with L-BFGS-B on D, c_P and c_Q at the current
+nuisance, from the default's D and the Yule–Walker VAR with the measured floor taken off the lag-0 covariance. It is
+not adopted (docs/numerics.md, "Stop 52: the joint likelihood over latent V and θ in the time domain").
 
-    .venv/bin/python -m benchmarks.input_noise_kalman [--n 100] [--order 12] [--em-first 100] [--rounds 3]
-        [--cells "3|0.1 % / 1e-3 rad"]
+    .venv/bin/python -m benchmarks.input_noise_kalman [--n 100] [--order 12] [--cycles-first 40] [--cycles 15]
+        [--rounds 4] [--cells "3|0.1 % / 1e-3 rad"]
 """
 
 from __future__ import annotations
@@ -198,13 +197,13 @@ class JointModel:
         self.r0 = np.array([fl["noise_v"], fl["noise_theta"], fl["noise_p"], fl["noise_q"]]) ** 2
         self.ns = 3 + 2 * order
 
-    def var_start(self) -> tuple[np.ndarray, np.ndarray]:
+    def var_start(self, inputs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """VAR(p) coefficients (p, 2, 2) and innovation covariance from the Yule–Walker equations with the inputs'
-        measured floor taken off the lag-0 covariance."""
-        x = self.y[:, :2] - self.y[:, :2].mean(axis=0)
+        measured floor taken off the lag-0 covariance, or of ``inputs`` (n, 2) as they are (smoothed ones)."""
+        x = (self.y[:, :2] if inputs is None else inputs) - (self.y[:, :2] if inputs is None else inputs).mean(axis=0)
         n, p = x.shape[0], self.p
         g = [x[k:].T @ x[:n - k] / n for k in range(p + 1)]  # g[k] = E[x_{t+k} x_tᵀ]
-        g0 = g[0] - np.diag(self.r0[:2])
+        g0 = g[0] - (np.diag(self.r0[:2]) if inputs is None else 0.0)
         if np.any(np.linalg.eigvalsh(g0) <= 0):
             g0 = g[0].copy()
         gl = lambda k: g0 if k == 0 else (g[k] if k > 0 else g[-k].T)  # noqa: E731
@@ -218,19 +217,11 @@ class JointModel:
         return coef.reshape(2, p, 2).transpose(1, 0, 2), sw
 
     def pack(self, d, cp, cq, A, sw, r) -> np.ndarray:
-        w, v = np.linalg.eigh(sw)
-        c = np.linalg.cholesky((v * np.maximum(w, 1e-12 * max(float(w.max()), 1e-300))) @ v.T)
-        return np.r_[d, cp, cq, A.ravel(), math.log(c[0, 0]), c[1, 0], math.log(c[1, 1]), np.log(r)]
+        """The parameter vector [D, c_P, c_Q, nuisance (:func:`_nuisance_vector`)]."""
+        return np.r_[d, cp, cq, _nuisance_vector(A, sw, r)]
 
     def unpack(self, th: np.ndarray):
-        p = self.p
-        d = th[:4]
-        cp, cq = th[4], th[5]
-        A = th[6:6 + 4 * p].reshape(p, 2, 2)
-        l0, l1, l2 = th[6 + 4 * p:9 + 4 * p]
-        c = np.array([[math.exp(min(max(l0, -60.0), 10.0)), 0.0], [l1, math.exp(min(max(l2, -60.0), 10.0))]])
-        r = np.exp(np.clip(th[9 + 4 * p:13 + 4 * p], -80.0, 10.0))
-        return d, cp, cq, A, c @ c.T, r
+        return (th[:4], th[4], th[5], *_nuisance(th[6:], self.p))
 
     def matrices(self, th: np.ndarray):
         """F, G·Σ_w·Gᵀ, H, r of the state [z, x_k, …, x_{k−p+1}]; None without a steady state."""
@@ -300,39 +291,85 @@ def static_slopes(jm: JointModel, d: np.ndarray) -> tuple[float, float]:
     return cp, cq
 
 
-def joint_ml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, order: int = 4, skip_s: float = 1.0,
-             rounds: int = 3, em_iter: int = 20, fix_d: bool = False, fit_r: bool = True,
-             em_first: int = 0) -> tuple[np.ndarray, dict]:
+def em_step(jm: JointModel, d, cp, cq, u: np.ndarray, fit_r: bool) -> np.ndarray:
+    """One EM update of the nuisance vector u = [A (4p), log-Cholesky of Σ_w (3), log r (4)] at D, c_P, c_Q."""
+    p = jm.p
+    A, sw, r = _nuisance(u, p)
+    m = jm.matrices(jm.pack(d, cp, cq, A, sw, r))
+    if m is None:
+        return u
+    F, Gq, H, _r = m
+    s11, s10, s00, cnt, r_new = var_moments(F, Gq, H, r, jm.y, jm._p0, p)
+    coef = np.linalg.solve(s00.T, s10.T).T
+    sw = (s11 - coef @ s10.T) / cnt
+    sw = 0.5 * (sw + sw.T)
+    A = coef.reshape(2, p, 2).transpose(1, 0, 2)
+    return _nuisance_vector(A, sw, r_new if fit_r else r)
+
+
+def _nuisance_vector(A, sw, r) -> np.ndarray:
+    w, v = np.linalg.eigh(sw)
+    c = np.linalg.cholesky((v * np.maximum(w, 1e-12 * max(float(w.max()), 1e-300))) @ v.T)
+    return np.r_[A.ravel(), math.log(c[0, 0]), c[1, 0], math.log(c[1, 1]), np.log(r)]
+
+
+def _nuisance(u: np.ndarray, p: int):
+    A = u[:4 * p].reshape(p, 2, 2)
+    l0, l1, l2 = u[4 * p:4 * p + 3]
+    c = np.array([[math.exp(min(max(l0, -60.0), 10.0)), 0.0], [l1, math.exp(min(max(l2, -60.0), 10.0))]])
+    return A, c @ c.T, np.exp(np.clip(u[4 * p + 3:4 * p + 7], -80.0, 10.0))
+
+
+def em_fit(jm: JointModel, d, cp, cq, u: np.ndarray, cycles: int, fit_r: bool = True) -> np.ndarray:
+    """The nuisance at D, c_P, c_Q by EM accelerated by SQUAREM (Varadhan & Roland 2008, scheme S3), each cycle
+    kept only where it does not lower the likelihood."""
+    def nll(v):
+        A, sw, r = _nuisance(v, jm.p)
+        return jm.nll(jm.pack(d, cp, cq, A, sw, r))
+    for _ in range(cycles):
+        u1 = em_step(jm, d, cp, cq, u, fit_r)
+        u2 = em_step(jm, d, cp, cq, u1, fit_r)
+        rr = u1 - u
+        vv = u2 - u1 - rr
+        nv = float(np.linalg.norm(vv))
+        alpha = -max(1.0, float(np.linalg.norm(rr)) / nv) if nv > 0 else -1.0
+        u3 = em_step(jm, d, cp, cq, u - 2.0 * alpha * rr + alpha * alpha * vv, fit_r)
+        f3, f2 = nll(u3), nll(u2)
+        u = u3 if f3 <= f2 else u2
+    return u
+
+
+def joint_ml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, order: int = 12, skip_s: float = 1.0,
+             rounds: int = 4, cycles_first: int = 40, cycles: int = 15, fix_d: bool = False, fit_r: bool = True,
+             smoothed: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
     """D [a, b, H2, Tm] maximising the joint likelihood over latent V and θ, from d0; and the fit's record.
 
-    Alternates the VAR and Σ_w by EM at the current D and the motor's D with c_P, c_Q by L-BFGS-B at the current VAR;
-    the noise variances by EM too (``fit_r``) or at the window's floors."""
+    Alternates the nuisance (the VAR, Σ_w and, with ``fit_r``, the noise variances) by accelerated EM at the current D
+    (:func:`em_fit`, ``cycles_first`` cycles before D first moves, ``cycles`` after) with D and c_P, c_Q by L-BFGS-B at
+    the current nuisance.  The VAR starts from the Yule–Walker equations on the measured inputs with their floor taken
+    off, or on ``smoothed`` inputs (V [pu], θ [rad]) as they are."""
     jm = JointModel(V, theta, P, Q, dt, f0, order, skip_s)
     jm._p0 = jm.p0()
-    A, sw = jm.var_start()
+    if smoothed is None:
+        A, sw = jm.var_start()
+    else:
+        t = np.arange(V.size) * dt
+        line = np.polyfit(t, theta, 1)
+        A, sw = jm.var_start(np.stack([smoothed[0] - jm.v0, smoothed[1] - np.polyval(line, t)], axis=1))
     d = np.asarray(d0, float).copy()
     cp, cq = static_slopes(jm, d)
-    r = jm.r0.copy()
+    u = _nuisance_vector(A, sw, jm.r0.copy())
     lo, hi = dynamic_bounds(float(P.mean()))
     scale = np.maximum(np.abs(d0), 1e-3)
-    nll0 = jm.nll(jm.pack(d, cp, cq, A, sw, r))
+    nll0 = jm.nll(jm.pack(d, cp, cq, A, sw, jm.r0))
     hist = []
     nfev = 0
     for rnd in range(rounds):
-        for _ in range(em_iter + (em_first if rnd == 0 else 0)):
-            m = jm.matrices(jm.pack(d, cp, cq, A, sw, r))
-            if m is None:
-                break
-            F, Gq, H, _r = m
-            s11, s10, s00, cnt, r_new = var_moments(F, Gq, H, r, jm.y, jm._p0, order)
-            if fit_r:
-                r = r_new
-            coef = np.linalg.solve(s00.T, s10.T).T  # (2, 2p)
-            sw = (s11 - coef @ s10.T) / cnt
-            sw = 0.5 * (sw + sw.T)
-            A = coef.reshape(2, order, 2).transpose(1, 0, 2)
-        def f(u, A=A, sw=sw, r=r):  # noqa: E306 - the VAR and noise of this round
-            return jm.nll(jm.pack(u[:4] * scale, u[4], u[5], A, sw, r))
+        u = em_fit(jm, d, cp, cq, u, cycles_first if rnd == 0 else cycles, fit_r)
+        A, sw, r = _nuisance(u, order)
+
+        def f(x, A=A, sw=sw, r=r):  # the nuisance of this round
+            return jm.nll(jm.pack(x[:4] * scale, x[4], x[5], A, sw, r))
         bounds = [((d[i] / scale[i],) * 2 if fix_d else (lo[i] / scale[i], hi[i] / scale[i])) for i in range(4)]
         bounds += [(None, None)] * 2
         res = optimize.minimize(f, np.r_[d / scale, cp, cq], method="L-BFGS-B", bounds=bounds,
@@ -340,8 +377,9 @@ def joint_ml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, order: int = 
         nfev += res.nfev
         d, cp, cq = res.x[:4] * scale, float(res.x[4]), float(res.x[5])
         hist.append(float(res.fun))
+    A, sw, r = _nuisance(u, order)
     return d, {"nll0": float(nll0), "nll": float(hist[-1]), "nll_rounds": hist, "nit": nfev,
-               "r": r.tolist(), "r0": jm.r0.tolist()}
+               "theta": jm.pack(d, cp, cq, A, sw, r).tolist(), "r": r.tolist(), "r0": jm.r0.tolist()}
 
 
 def summarise(rows: list[dict], key: str) -> dict:
@@ -360,8 +398,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--n", type=int, default=100)
     ap.add_argument("--first", type=int, default=0)
     ap.add_argument("--order", type=int, default=12)
-    ap.add_argument("--em-first", type=int, default=100, help="EM iterations on the VAR before D first moves")
-    ap.add_argument("--rounds", type=int, default=3, help="rounds of 20 EM iterations and a D step")
+    ap.add_argument("--cycles-first", type=int, default=40, help="accelerated EM cycles before D first moves")
+    ap.add_argument("--cycles", type=int, default=15, help="accelerated EM cycles in each later round")
+    ap.add_argument("--rounds", type=int, default=4, help="rounds of EM cycles and a D step")
     ap.add_argument("--cells", nargs="*", default=None, help="'level|class' keys (default: every noisy cell)")
     ap.add_argument("--out", default="input_noise_kalman")
     args = ap.parse_args(argv)
@@ -380,8 +419,8 @@ def main(argv=None) -> dict:
             continue
         dt = float(np.median(np.diff(w.t)))
         t1 = time.perf_counter()
-        d, rec = joint_ml(w.V, w.theta, w.P, w.Q, dt, w.f0, r.d, order=args.order, em_first=args.em_first,
-                          rounds=args.rounds)
+        d, rec = joint_ml(w.V, w.theta, w.P, w.Q, dt, w.f0, r.d, order=args.order, rounds=args.rounds,
+                          cycles_first=args.cycles_first, cycles=args.cycles)
         rec["s"] = time.perf_counter() - t1
         cells.setdefault(key, []).append({"i": i, "default": (r.d / c.truth.d).tolist(),
                                           "kalman": (d / c.truth.d).tolist(),
@@ -394,7 +433,7 @@ def main(argv=None) -> dict:
             print(f"{key:24s} {name:8s} n {row['n']} μ {np.round(row['mu'], 3)} σ/bound "
                   f"{np.round(row['sigma_over_bound'], 2)} z_mad {np.round(row['z_mad'], 2)} far {row['n_far_3']}")
     out = {"machine": common.machine(), "n": args.n, "first": args.first, "order": args.order,
-           "em_first": args.em_first, "rounds": args.rounds, "seed": CONFIRM_SEED,
+           "cycles_first": args.cycles_first, "cycles": args.cycles, "rounds": args.rounds, "seed": CONFIRM_SEED,
            "summary": summ, "cells": cells, "total_s": time.perf_counter() - t0}
     if not args.no_write:
         common.write_json(args.out, out)
