@@ -300,7 +300,7 @@ def draw_error(freqs: np.ndarray, px: np.ndarray, n: int, fs: float, k: int,
 
 def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndarray] | None], win: slice, *,
              n_probes: int = N_PROBES, band_hz: float = BAND_HZ, seed: int = 0,
-             error_draws: bool = False) -> NoiseModel:
+             error_draws: bool = False, exact_quiet: bool = False) -> NoiseModel:
     """Noise model of a segment for a fitted model.
 
     Parameters
@@ -323,6 +323,9 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
         at the measured floors, the bound of that error at every frequency (the default: on ``confirm7`` and
         ``confirm8`` the smoother's spectrum left P's and Q's residual above the modelled noise at 2–5 Hz, where
         they respond to input content V itself does not show above its floor; docs/diagnosis.md, "Stop 32").
+    exact_quiet : bool
+        No noise on an input the segment marks exact (``seg.exact_inputs``), and P's and Q's floors from the model on
+        the inputs as they are where both are (``DiagnosisConfig.exact_inputs_quiet``); False: every input's floor.
 
     Returns
     -------
@@ -330,14 +333,21 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
     """
     fs = seg.fs
     # The measured inputs' floors (reported; with conditional-mean inputs the draws come from their error spectrum).
-    sv = noise_floor(seg.v_measured[win], fs)["sigma"]
-    st = noise_floor(seg.theta_measured[win], fs)["sigma"]
-    fc = 0.8 * FLOOR_FROM_HZ
-    lp = output(perturbed(seg, _lowpass(seg.V, fs, fc), _lowpass(seg.theta, fs, fc)))
+    # With exact_quiet an input the identifier's rule takes as exact carries no noise: what lies above the floor's
+    # edge is its own content (at 25 frames/s the band 5–12.5 Hz holds ambient V and θ, which read as noise put P's
+    # floor at 3–9 × the injected one on ANDES's records).
+    exact = seg.exact_inputs if exact_quiet else (False, False)
+    sv = 0.0 if exact[0] else noise_floor(seg.v_measured[win], fs)["sigma"]
+    st = 0.0 if exact[1] else noise_floor(seg.theta_measured[win], fs)["sigma"]
     base = output(seg)
     if base is None:
         raise ValueError("the model cannot be played back on this window")
-    ref = lp if lp is not None else base
+    if all(exact):
+        ref = base  # nothing to keep out of P's and Q's floors: the model on the inputs as they are
+    else:
+        fc = 0.8 * FLOOR_FROM_HZ
+        lp = output(perturbed(seg, _lowpass(seg.V, fs, fc), _lowpass(seg.theta, fs, fc)))
+        ref = lp if lp is not None else base
     fp = noise_floor((seg.P - ref[0])[win], fs)
     fq = noise_floor((seg.Q - ref[1])[win], fs)
     nm = NoiseModel(max(fp["sigma"], 1e-12), max(fq["sigma"], 1e-12), fs, band_hz, sv, st, floors={"P": fp, "Q": fq},

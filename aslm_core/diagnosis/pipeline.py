@@ -138,6 +138,13 @@ class DiagnosisConfig:
     input_tail : bool
         With ``input_mean``: the smoother's estimate of the inputs' spectrum continued above its cut-off by the
         power law it follows below (the identifier's ``input_spectrum_tail``; docs/diagnosis.md, "Stop 42").
+    exact_inputs_quiet : bool
+        An input the identifier's floor rule takes as exact (:func:`aslm_core.preprocess.white_floor`) carries no
+        noise in the noise model, and P's and Q's floors are read from the model on the inputs as they are; False:
+        every input's floor above 5 Hz is taken as its noise and propagated.  Below ~50 frames/s that band holds the
+        inputs' own content, which the default reads as noise (on ANDES's records at 25 frames/s P's floor came out
+        3–9 × the injected noise); an option since stop 52, with its trade-off in docs/diagnosis.md, "Stop 52: the
+        noise model at low rates".
     gain_metric : {"channels", "decorrelated"}
         The held-out log-likelihood gain (the penalty's and the ranking's) over P and Q as they are, or over P and
         Q given P, the noise model's P/Q covariance per coefficient taken out (:func:`engine.compare`; the default
@@ -177,6 +184,7 @@ class DiagnosisConfig:
     challengers: bool = True
     input_mean: bool = True
     input_tail: bool = False
+    exact_inputs_quiet: bool = False
     gain_metric: str = "decorrelated"
     cross_fit: bool = True
     mirror_gap_s: float = 1.0
@@ -231,10 +239,12 @@ def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _Windo
     if not first.ok:
         raise ValueError("the model has no motor equilibrium at the window's first sample")
     win = slice(seg.k0, seg.ke)
-    noise = estimate_noise(seg, lambda s: engine.output(_PLAIN, s, ctx, first), win, band_hz=config.band_hz)
+    noise = estimate_noise(seg, lambda s: engine.output(_PLAIN, s, ctx, first), win, band_hz=config.band_hz,
+                           exact_quiet=config.exact_inputs_quiet)
     plain = engine.fit_candidate(_PLAIN, seg, ctx, noise)
     if noise.has_inputs and plain.ok:
-        noise = estimate_noise(seg, lambda s: engine.output(_PLAIN, s, ctx, plain), win, band_hz=config.band_hz)
+        noise = estimate_noise(seg, lambda s: engine.output(_PLAIN, s, ctx, plain), win, band_hz=config.band_hz,
+                               exact_quiet=config.exact_inputs_quiet)
         plain = engine.fit_candidate(_PLAIN, seg, ctx, noise, d_start=plain.d)
     test_noise = _through(seg, noise, _PLAIN, ctx, plain)
     # Location uses the model identified from the whole window (the playback of DESIGN §3): a model fitted

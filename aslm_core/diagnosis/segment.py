@@ -64,6 +64,10 @@ class Segment:
         Samples between the skip and the second fold's held-out samples (``held_out_first`` only): the model's
         states start from a steady state the recording is not in, and what that leaves decays with the slowest
         state's time constant, which the skip alone does not cover for a lag of seconds.
+    exact_inputs : (bool, bool)
+        Whether V and θ are exact by the identifier's rule (:func:`aslm_core.preprocess.white_floor`: the band above
+        the floor's edge holds the input's own falling spectrum, not white PMU noise); the noise model then
+        propagates no noise from them.
     """
 
     t: np.ndarray
@@ -85,6 +89,7 @@ class Segment:
     input_error: tuple[np.ndarray, np.ndarray] | None = None
     held_out_first: bool = False
     mirror_gap: int = 0
+    exact_inputs: tuple[bool, bool] = (False, False)
 
     def __post_init__(self) -> None:
         self.omega0 = motor.omega0_of(self.f0)
@@ -270,8 +275,9 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
         Where V or θ carries white noise, V and θ (and Δf, dV/dt built from them) are their conditional mean
         (:func:`conditional_mean`); a recorded f is used as measured.
     """
-    raw, smooth = conditional_mean(window, tail=input_tail) if input_mean else (prepare(window), None)
+    raw, smooth = conditional_mean(window, tail=input_tail) if input_mean else (prepare(window, floors=True), None)
     prep = raw if smooth is None else smooth
+    exact = tuple(not (white_floor(raw.noise, c) and raw.noise[f"noise_{c}"] > 0.0) for c in ("v", "theta"))
     n = prep.V.shape[0]
     dt = prep.dt
     fs = 1.0 / dt
@@ -290,4 +296,5 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
     extra = {} if smooth is None else {
         "V_raw": raw.V, "theta_raw": raw.theta, "input_error": error_spectrum(raw, smooth)}
     return Segment(t=prep.t, V=prep.V, theta=prep.theta, P=prep.P, Q=prep.Q, dfreq=df, dvdt=dvdt, dt=dt,
-                   f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus, dfreq_from_theta=from_theta, **extra)
+                   f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus, dfreq_from_theta=from_theta,
+                   exact_inputs=exact, **extra)
