@@ -20,8 +20,7 @@ def lagged(x: np.ndarray, T: float, dt: float) -> np.ndarray:
     """First-order lag of x with time constant T [s], T·dx_f/dt = x − x_f, starting at rest at x[0].
 
     Exact for x linear between samples (y_{k+1} = α·y_k + c0·x_k + c1·x_{k+1}, α = e^{−dt/T}), so the lag holds
-    at any dt/T: at 25 frames/s with T at its 0.02 s bound dt/T is 2, where the trapezoidal rule used before
-    collapsed to a two-sample average.  T ≤ 0 returns x itself (a copy): the lag's limit.
+    at any dt/T (2 at 25 frames/s with T at its 0.02 s bound).  T ≤ 0 returns x itself (a copy): the lag's limit.
     """
     if T <= 0.0:
         return np.array(x, dtype=float)

@@ -334,8 +334,7 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
     fs = seg.fs
     # The measured inputs' floors (reported; with conditional-mean inputs the draws come from their error spectrum).
     # With exact_quiet an input the identifier's rule takes as exact carries no noise: what lies above the floor's
-    # edge is its own content (at 25 frames/s the band 5–12.5 Hz holds ambient V and θ, which read as noise put P's
-    # floor at 3–9 × the injected one on ANDES's records).
+    # edge is its own content (at 25 frames/s the band is 5–12.5 Hz, where ambient V and θ still have some).
     exact = seg.exact_inputs if exact_quiet else (False, False)
     sv = 0.0 if exact[0] else noise_floor(seg.v_measured[win], fs)["sigma"]
     st = 0.0 if exact[1] else noise_floor(seg.theta_measured[win], fs)["sigma"]

@@ -141,10 +141,9 @@ class DiagnosisConfig:
     exact_inputs_quiet : bool
         An input the identifier's floor rule takes as exact (:func:`aslm_core.preprocess.white_floor`) carries no
         noise in the noise model, and P's and Q's floors are read from the model on the inputs as they are; False:
-        every input's floor above 5 Hz is taken as its noise and propagated.  Below ~50 frames/s that band holds the
-        inputs' own content, which the default reads as noise (on ANDES's records at 25 frames/s P's floor came out
-        3–9 × the injected noise); an option since stop 52, with its trade-off in docs/diagnosis.md, "Stop 52: the
-        noise model at low rates".
+        every input's floor above 5 Hz is taken as its noise and propagated.  At low reporting rates that band holds
+        the inputs' own content, which the default reads as noise; an option, with its trade-off in
+        docs/diagnosis.md, "Stop 52: the noise model at low rates".
     gain_metric : {"channels", "decorrelated"}
         The held-out log-likelihood gain (the penalty's and the ranking's) over P and Q as they are, or over P and
         Q given P, the noise model's P/Q covariance per coefficient taken out (:func:`engine.compare`; the default

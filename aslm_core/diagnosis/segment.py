@@ -66,8 +66,8 @@ class Segment:
         state's time constant, which the skip alone does not cover for a lag of seconds.
     exact_inputs : (bool, bool)
         Whether V and θ are exact by the identifier's rule (:func:`aslm_core.preprocess.white_floor`: the band above
-        the floor's edge holds the input's own falling spectrum, not white PMU noise); the noise model then
-        propagates no noise from them.
+        the floor's edge holds the input's own falling spectrum, not white PMU noise); with
+        ``DiagnosisConfig.exact_inputs_quiet`` the noise model propagates no noise from them.
     """
 
     t: np.ndarray
