@@ -196,6 +196,7 @@ class JointModel:
         fl = channel_floors(V, theta, P, Q, 1.0 / dt)
         self.r0 = np.array([fl["noise_v"], fl["noise_theta"], fl["noise_p"], fl["noise_q"]]) ** 2
         self.ns = 3 + 2 * order
+        self.prior = self.p0()
 
     def var_start(self, inputs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """VAR(p) coefficients (p, 2, 2) and innovation covariance from the Yule–Walker equations with the inputs'
@@ -264,7 +265,7 @@ class JointModel:
             return 1e12
         F, Gq, H, r = m
         try:
-            v = kalman_nll(F, Gq, H, r, self.y, self.k0, self._p0, FREEZE_AT)
+            v = kalman_nll(F, Gq, H, r, self.y, self.k0, self.prior, FREEZE_AT)
         except np.linalg.LinAlgError:
             return 1e12
         return v if math.isfinite(v) else 1e12
@@ -299,7 +300,7 @@ def em_step(jm: JointModel, d, cp, cq, u: np.ndarray, fit_r: bool) -> np.ndarray
     if m is None:
         return u
     F, Gq, H, _r = m
-    s11, s10, s00, cnt, r_new = var_moments(F, Gq, H, r, jm.y, jm._p0, p)
+    s11, s10, s00, cnt, r_new = var_moments(F, Gq, H, r, jm.y, jm.prior, p)
     coef = np.linalg.solve(s00.T, s10.T).T
     sw = (s11 - coef @ s10.T) / cnt
     sw = 0.5 * (sw + sw.T)
@@ -349,7 +350,6 @@ def joint_ml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, order: int = 
     the current nuisance.  The VAR starts from the Yule–Walker equations on the measured inputs with their floor taken
     off, or on ``smoothed`` inputs (V [pu], θ [rad]) as they are."""
     jm = JointModel(V, theta, P, Q, dt, f0, order, skip_s)
-    jm._p0 = jm.p0()
     if smoothed is None:
         A, sw = jm.var_start()
     else:
@@ -378,7 +378,7 @@ def joint_ml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, order: int = 
         d, cp, cq = res.x[:4] * scale, float(res.x[4]), float(res.x[5])
         hist.append(float(res.fun))
     A, sw, r = _nuisance(u, order)
-    return d, {"nll0": float(nll0), "nll": float(hist[-1]), "nll_rounds": hist, "nit": nfev,
+    return d, {"nll0": float(nll0), "nll": float(hist[-1]), "nll_rounds": hist, "nfev": nfev,
                "theta": jm.pack(d, cp, cq, A, sw, r).tolist(), "r": r.tolist(), "r0": jm.r0.tolist()}
 
 
@@ -426,7 +426,7 @@ def main(argv=None) -> dict:
                                           "kalman": (d / c.truth.d).tolist(),
                                           "bound_var": bounds[i][str(level)][f"{cls}|structural"], **rec})
         print(f"{i} {key} default {np.round(r.d / c.truth.d, 3)} kalman {np.round(d / c.truth.d, 3)} "
-              f"({rec['s']:.1f} s, {rec['nit']} it, nll {rec['nll0']:.1f} -> {rec['nll']:.1f})", flush=True)
+              f"({rec['s']:.1f} s, {rec['nfev']} evaluations, nll {rec['nll0']:.1f} -> {rec['nll']:.1f})", flush=True)
     summ = {key: {name: summarise(rows, name) for name in ("default", "kalman")} for key, rows in cells.items()}
     for key, per in summ.items():
         for name, row in per.items():

@@ -112,7 +112,6 @@ def test_accelerated_em_climbs_at_least_as_far_as_plain_em_in_as_many_steps():
     V = w.V + 1e-3 * float(np.mean(w.V)) * rng.standard_normal(w.V.size)
     th = w.theta + 1e-3 * rng.standard_normal(w.V.size)
     jm = JointModel(V, th, w.P, w.Q, float(np.median(np.diff(w.t))), w.f0, 6, 1.0)
-    jm._p0 = jm.p0()
     d = c.truth.d
     cp, cq = static_slopes(jm, d)
     A, sw = jm.var_start()
