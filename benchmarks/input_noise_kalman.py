@@ -198,13 +198,13 @@ class JointModel:
         self.ns = 3 + 2 * order
         self.prior = self.p0()
 
-    def var_start(self, inputs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def var_start(self) -> tuple[np.ndarray, np.ndarray]:
         """VAR(p) coefficients (p, 2, 2) and innovation covariance from the Yule–Walker equations with the inputs'
-        measured floor taken off the lag-0 covariance, or of ``inputs`` (n, 2) as they are (smoothed ones)."""
-        x = (self.y[:, :2] if inputs is None else inputs) - (self.y[:, :2] if inputs is None else inputs).mean(axis=0)
+        measured floor taken off the lag-0 covariance."""
+        x = self.y[:, :2] - self.y[:, :2].mean(axis=0)
         n, p = x.shape[0], self.p
         g = [x[k:].T @ x[:n - k] / n for k in range(p + 1)]  # g[k] = E[x_{t+k} x_tᵀ]
-        g0 = g[0] - (np.diag(self.r0[:2]) if inputs is None else 0.0)
+        g0 = g[0] - np.diag(self.r0[:2])
         if np.any(np.linalg.eigvalsh(g0) <= 0):
             g0 = g[0].copy()
         gl = lambda k: g0 if k == 0 else (g[k] if k > 0 else g[-k].T)  # noqa: E731
@@ -271,11 +271,12 @@ class JointModel:
         return v if math.isfinite(v) else 1e12
 
 
-def static_slopes(jm: JointModel, d: np.ndarray) -> tuple[float, float]:
-    """c_P, c_Q by least squares of P, Q minus the linear motor driven by the measured inputs, on ΔV."""
+def motor_response(jm: JointModel, d: np.ndarray) -> np.ndarray | None:
+    """[ΔP_im, ΔQ_im] (n, 2) of the linear motor at d driven by the window's measured input deviations; None without
+    a steady state."""
     lin = linear_motor(d, jm.v0, jm.w_off, jm.omega0)
     if lin is None:
-        return 0.0, 0.0
+        return None
     Am, Bm, Cm, Dm = lin
     phi, g0, g1 = first_order_hold(Am, Bm, jm.dt)
     x = jm.y[:, :2]
@@ -285,8 +286,16 @@ def static_slopes(jm: JointModel, d: np.ndarray) -> tuple[float, float]:
         out[k] = Cm @ z + Dm @ x[k]
         if k + 1 < x.shape[0]:
             z = phi @ z + g0 @ x[k] + g1 @ x[k + 1]
+    return out
+
+
+def static_slopes(jm: JointModel, d: np.ndarray) -> tuple[float, float]:
+    """c_P, c_Q by least squares of P, Q minus the linear motor driven by the measured inputs, on ΔV."""
+    out = motor_response(jm, d)
+    if out is None:
+        return 0.0, 0.0
     k0 = jm.k0
-    dv = x[k0:, 0]
+    dv = jm.y[k0:, 0]
     cp = float(np.dot(dv, jm.y[k0:, 2] - out[k0:, 0]) / np.dot(dv, dv))
     cq = float(np.dot(dv, jm.y[k0:, 3] - out[k0:, 1]) / np.dot(dv, dv))
     return cp, cq
@@ -341,21 +350,16 @@ def em_fit(jm: JointModel, d, cp, cq, u: np.ndarray, cycles: int, fit_r: bool = 
 
 
 def joint_ml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, order: int = 12, skip_s: float = 1.0,
-             rounds: int = 4, cycles_first: int = 40, cycles: int = 15, fix_d: bool = False, fit_r: bool = True,
-             smoothed: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, dict]:
+             rounds: int = 4, cycles_first: int = 40, cycles: int = 15,
+             fit_r: bool = True) -> tuple[np.ndarray, dict]:
     """D [a, b, H2, Tm] maximising the joint likelihood over latent V and θ, from d0; and the fit's record.
 
     Alternates the nuisance (the VAR, Σ_w and, with ``fit_r``, the noise variances) by accelerated EM at the current D
     (:func:`em_fit`, ``cycles_first`` cycles before D first moves, ``cycles`` after) with D and c_P, c_Q by L-BFGS-B at
     the current nuisance.  The VAR starts from the Yule–Walker equations on the measured inputs with their floor taken
-    off, or on ``smoothed`` inputs (V [pu], θ [rad]) as they are."""
+    off."""
     jm = JointModel(V, theta, P, Q, dt, f0, order, skip_s)
-    if smoothed is None:
-        A, sw = jm.var_start()
-    else:
-        t = np.arange(V.size) * dt
-        line = np.polyfit(t, theta, 1)
-        A, sw = jm.var_start(np.stack([smoothed[0] - jm.v0, smoothed[1] - np.polyval(line, t)], axis=1))
+    A, sw = jm.var_start()
     d = np.asarray(d0, float).copy()
     cp, cq = static_slopes(jm, d)
     u = _nuisance_vector(A, sw, jm.r0.copy())
@@ -370,7 +374,7 @@ def joint_ml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, order: int = 
 
         def f(x, A=A, sw=sw, r=r):  # the nuisance of this round
             return jm.nll(jm.pack(x[:4] * scale, x[4], x[5], A, sw, r))
-        bounds = [((d[i] / scale[i],) * 2 if fix_d else (lo[i] / scale[i], hi[i] / scale[i])) for i in range(4)]
+        bounds = [(lo[i] / scale[i], hi[i] / scale[i]) for i in range(4)]
         bounds += [(None, None)] * 2
         res = optimize.minimize(f, np.r_[d / scale, cp, cq], method="L-BFGS-B", bounds=bounds,
                                 options={"maxiter": 200})

@@ -18,7 +18,7 @@ from benchmarks.input_noise_kalman import (
     em_step,
     first_order_hold,
     kalman_nll,
-    linear_motor,
+    motor_response,
     static_slopes,
 )
 
@@ -91,15 +91,7 @@ def _unexplained(jm: JointModel, d: np.ndarray) -> np.ndarray:
     """Share of P's and Q's variance after the skipped second that the linear motor at d and the least-squares static
     slopes leave, driven by the record's own inputs."""
     cp, cq = static_slopes(jm, d)
-    Am, Bm, Cm, Dm = linear_motor(d, jm.v0, jm.w_off, jm.omega0)
-    phi, g0, g1 = first_order_hold(Am, Bm, jm.dt)
-    x = jm.y[:, :2]
-    z = np.zeros(3)
-    out = np.empty((x.shape[0], 2))
-    for k in range(x.shape[0]):
-        out[k] = Cm @ z + Dm @ x[k] + np.array([cp, cq]) * x[k, 0]
-        if k + 1 < x.shape[0]:
-            z = phi @ z + g0 @ x[k] + g1 @ x[k + 1]
+    out = motor_response(jm, d) + np.outer(jm.y[:, 0], [cp, cq])
     res = jm.y[jm.k0:, 2:] - out[jm.k0:]
     res -= res.mean(axis=0)
     return res.var(axis=0) / jm.y[jm.k0:, 2:].var(axis=0)
