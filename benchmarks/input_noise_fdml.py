@@ -1,0 +1,324 @@
+"""The joint likelihood over latent V and θ in the frequency domain, with the transient term (issue 11, stop 53; a
+candidate).
+
+Stop 46 built this likelihood on the windows' tapered DFTs and it failed: a finite window's DFT carries the response to
+the inputs before the window, and the model Y = H·X had no term for it (docs/numerics.md, "Stop 46"). For a linear
+system of finite order the term is exact and small: with x_{t+1} = Φ·x_t + B·u_t, y_t = C·x_t + D·u_t and the DFT
+over N samples without a taper, Y(k) = G(ζ_k)·U(k) + C·(ζ_k·I − Φ)⁻¹·ζ_k·(x_0 − x_N), ζ_k = exp(2πjk/N)
+(Pintelon & Schoukens, *System Identification*, the transient term). Here x is the linearised motor's three states,
+so the term has three real unknowns; it is linear in them and is profiled out by generalised least squares.
+
+The model, per window (V about its mean, θ about its least-squares line, whose slope sets the frame the motor is
+linearised in, as :mod:`benchmarks.input_noise_kalman`; the samples after the identifier's skipped first second):
+
+* the latent inputs' DFT X(k) ~ CN(0, S_x(f_k)), S_x = S0^½·E_b·S0^½ with S0 the window's own smoothed estimate and
+  E_b a Hermitian 2×2 per band of :data:`WIDTH_HZ` (four real parameters a band, as stop 46's learnt bound);
+* z(k) = [V, θ, P, Q](k) = [X, G·X + T·Δ] + noise, G the motor (paper eq. 4–5) linearised about its steady state and
+  discretised with the inputs linear between samples, plus the static slopes c_P, c_Q on ΔV; the noise white with
+  the window's floors (:func:`aslm_core.noise.channel_floors`, read above 5 Hz, independent of the bins used);
+* only the bins up to :data:`TOP_HZ`, where the bound says the information is.
+
+The fit: L-BFGS-B over D (in its bounds), c_P, c_Q and the bands' E_b together, from the default's D, the static
+slopes of the measured inputs and E_b = I; the gradient analytic in E_b, by central differences in D and the slopes.
+
+    .venv/bin/python -m benchmarks.input_noise_fdml [--seed 41] [--n 50] [--cells "3|0.1 % / 1e-3 rad"] [--check]
+
+``--check``: on the clean records at the truth, P's and Q's relative misfit |Y − G·X − T·Δ|² / |Y|² per band, with and
+without the transient term (stop 46's measurement of why the tapered form failed).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import json  # noqa: E402
+import math  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+from scipy import optimize  # noqa: E402
+
+from aslm_core import IdentifyConfig, WindowError, identify, motor, noise  # noqa: E402
+from aslm_core.params import dynamic_bounds  # noqa: E402
+from benchmarks import common  # noqa: E402
+from benchmarks.input_noise import noisy_draws  # noqa: E402
+from benchmarks.input_noise_kalman import first_order_hold, linear_motor  # noqa: E402
+
+LEVELS = (1, 2, 3)
+DEFAULT = IdentifyConfig()
+#: Band width of the learnt spectrum's relative deviation [Hz] (stop 46's learnt bound).
+WIDTH_HZ = 0.5
+#: Highest bin used [Hz]: above it the signal lies under the PMU floor (stop 46).
+TOP_HZ = 5.0
+#: Bands of the misfit check [Hz] (stop 46's).
+MISFIT_BANDS = ((0.0, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 5.0))
+
+
+class WindowDFT:
+    """One window's DFTs over the regression samples, its operating point, floors and the inputs' smoothed spectrum."""
+
+    def __init__(self, V, theta, P, Q, dt: float, f0: float, skip_s: float):
+        n = V.size
+        k0 = int(math.ceil(skip_s / dt - 1e-9))
+        t = np.arange(n) * dt
+        slope, icpt = np.polyfit(t, theta, 1)
+        self.dt, self.omega0, self.w_off = dt, motor.omega0_of(f0), float(slope)
+        self.v0 = float(V.mean())
+        x = np.stack([V - self.v0, theta - (slope * t + icpt), P - P.mean(), Q - Q.mean()])[:, k0:]
+        self.l = x.shape[1]
+        freqs = np.fft.rfftfreq(self.l, dt)
+        self.sel = (freqs > 0) & (freqs <= TOP_HZ)
+        self.freqs = freqs[self.sel]
+        self.zeta = np.exp(2j * np.pi * np.arange(freqs.size)[self.sel] / self.l)
+        self.z = (np.fft.rfft(x, axis=1).T / math.sqrt(self.l))[self.sel]
+        self.band = np.floor((self.freqs - self.freqs[0]) / WIDTH_HZ + 1e-9).astype(int)
+        self.nb = int(self.band.max()) + 1
+        fl = noise.channel_floors(V, theta, P, Q, 1.0 / dt)
+        self.ru = np.array([fl["noise_v"], fl["noise_theta"]]) ** 2
+        self.ry = np.array([fl["noise_p"], fl["noise_q"]]) ** 2
+        own = noise.pooled_spectrum([noise.input_periodogram(x[:2], 1.0 / dt)], top_hz=TOP_HZ + noise.WIENER_SMOOTH_HZ)
+        s0 = noise.spectrum_at(own, self.freqs) + 0.1 * np.diag(self.ru)
+        w, v = np.linalg.eigh(s0)
+        self.root = (v * np.sqrt(np.maximum(w, 1e-30))[:, None, :]) @ v.conj().transpose(0, 2, 1)
+
+
+def response(win: WindowDFT, d: np.ndarray, cp: float, cq: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """G (m, 2, 2) from [ΔV, Δθ] to [ΔP, ΔQ] and the transient's T (m, 2, 3) at the window's bins; None without a
+    steady state.
+
+    With the inputs linear between samples z_{k+1} = Φ·z_k + Γ0·u_k + Γ1·u_{k+1}; the state w = z − Γ1·u makes it
+    w_{k+1} = Φ·w_k + (Φ·Γ1 + Γ0)·u_k, y = C·w + (C·Γ1 + D)·u, whose DFT is exact with the transient term."""
+    lin = linear_motor(d, win.v0, win.w_off, win.omega0)
+    if lin is None:
+        return None
+    a_m, b_m, c_m, d_m = lin
+    phi, g0, g1 = first_order_hold(a_m, b_m, win.dt)
+    b = phi @ g1 + g0
+    dd = c_m @ g1 + d_m
+    dd[0, 0] += cp
+    dd[1, 0] += cq
+    res = np.linalg.inv(win.zeta[:, None, None] * np.eye(3) - phi)
+    g = c_m @ res @ b + dd
+    return g, (c_m @ res) * win.zeta[:, None, None]
+
+
+def _hermitian(p: np.ndarray) -> np.ndarray:
+    """Per band the lower-triangular L (nb, 2, 2) of E_b = L·Lᴴ from [log L00, log L11, Re L10, Im L10]."""
+    p = p.reshape(-1, 4)
+    lo = np.zeros((p.shape[0], 2, 2), dtype=complex)
+    lo[:, 0, 0] = np.exp(np.clip(p[:, 0], -30, 30))
+    lo[:, 1, 1] = np.exp(np.clip(p[:, 1], -30, 30))
+    lo[:, 1, 0] = p[:, 2] + 1j * p[:, 3]
+    return lo
+
+
+def nll_nuisance(win: WindowDFT, g: np.ndarray, t: np.ndarray, p: np.ndarray,
+                 want_grad: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
+    """Negative log-likelihood (constants dropped) of the window's bins at G, T and the bands' parameters p (4·nb),
+    with Δ profiled out; its gradient in p; and Δ."""
+    lo = _hermitian(p)
+    e = lo @ lo.conj().transpose(0, 2, 1)
+    sx = win.root @ e[win.band] @ win.root
+    m = np.zeros((g.shape[0], 4, 2), dtype=complex)
+    m[:, 0, 0] = m[:, 1, 1] = 1.0
+    m[:, 2:] = g
+    sig = m @ sx @ m.conj().transpose(0, 2, 1)
+    sig[:, range(4), range(4)] += np.r_[win.ru, win.ry]
+    try:
+        c = np.linalg.cholesky(sig)
+    except np.linalg.LinAlgError:
+        return 1e30, np.zeros_like(p), np.zeros(3)
+    inv = np.linalg.inv(sig)
+    ez = np.zeros((g.shape[0], 4, 3), dtype=complex)
+    ez[:, 2:] = t
+    ehi = ez.conj().transpose(0, 2, 1) @ inv
+    a = np.einsum("kij,kjl->il", ehi, ez).real
+    rhs = np.einsum("kij,kj->i", ehi, win.z).real
+    delta = np.linalg.lstsq(a, rhs, rcond=None)[0]
+    r = win.z - (ez @ delta.astype(complex))
+    ir = np.einsum("kij,kj->ki", inv, r)
+    val = float(2.0 * np.log(np.abs(np.diagonal(c, axis1=1, axis2=2))).sum() + np.einsum("ki,ki->", r.conj(), ir).real)
+    if not want_grad:
+        return val, np.zeros_like(p), delta
+    # ∂/∂Σ_k = Σ⁻¹ − Σ⁻¹·r·rᴴ·Σ⁻¹ (Δ at its optimum: the envelope theorem), carried to each band's E_b.
+    wk = inv - ir[:, :, None] * ir.conj()[:, None, :]
+    gs = m.conj().transpose(0, 2, 1) @ wk @ m
+    ge = win.root.conj().transpose(0, 2, 1) @ gs @ win.root
+    gam = np.zeros((win.nb, 2, 2), dtype=complex)
+    np.add.at(gam, win.band, ge)
+    gl = gam @ lo
+    grad = np.empty((win.nb, 4))
+    grad[:, 0] = 2.0 * gl[:, 0, 0].real * lo[:, 0, 0].real
+    grad[:, 1] = 2.0 * gl[:, 1, 1].real * lo[:, 1, 1].real
+    grad[:, 2] = 2.0 * gl[:, 1, 0].real
+    grad[:, 3] = 2.0 * gl[:, 1, 0].imag
+    return val, grad.ravel(), delta
+
+
+def static_slopes(win: WindowDFT, d: np.ndarray) -> tuple[float, float]:
+    """c_P, c_Q by least squares over the bins of P, Q minus the motor's response to the measured inputs, on ΔV."""
+    gt = response(win, d, 0.0, 0.0)
+    if gt is None:
+        return 0.0, 0.0
+    y = win.z[:, 2:] - np.einsum("kij,kj->ki", gt[0], win.z[:, :2])
+    u = win.z[:, 0]
+    den = float(np.vdot(u, u).real)
+    return float(np.vdot(u, y[:, 0]).real / den), float(np.vdot(u, y[:, 1]).real / den)
+
+
+def fdml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, skip_s: float = 1.0,
+         maxiter: int = 3000) -> tuple[np.ndarray, dict]:
+    """D [a, b, H2, Tm] maximising the window's frequency-domain likelihood over latent V and θ with the transient term
+    (module docstring), from d0; and the fit's record."""
+    win = WindowDFT(V, theta, P, Q, dt, f0, skip_s)
+    d0 = np.asarray(d0, float)
+    lo, hi = dynamic_bounds(float(P.mean()))
+    q = 4 * win.nb
+
+    def value(p: np.ndarray, e: np.ndarray) -> float:
+        gt = response(win, p[:4], p[4], p[5])
+        return 1e30 if gt is None else nll_nuisance(win, gt[0], gt[1], e, False)[0]
+
+    def f(p: np.ndarray, e: np.ndarray, s: np.ndarray, which: range) -> tuple[float, np.ndarray, np.ndarray]:
+        """The value, its gradient in the outer parameters ``which`` (central differences at steps 1e-6·s) and in
+        the bands' parameters (analytic)."""
+        gt = response(win, p[:4], p[4], p[5])
+        if gt is None:
+            return 1e30, np.zeros(len(which)), np.zeros(q)
+        val, ge, _ = nll_nuisance(win, gt[0], gt[1], e)
+        go = np.empty(len(which))
+        for k, j in enumerate(which):
+            h = 1e-6 * s[j]
+            pp, pm = p.copy(), p.copy()
+            pp[j] += h
+            pm[j] -= h
+            go[k] = (value(pp, e) - value(pm, e)) / (2.0 * h)
+        return val, go, ge
+
+    p0 = np.r_[d0, static_slopes(win, d0)]
+    s0 = np.maximum(np.abs(p0), 1e-3)
+    opts = {"maxiter": maxiter, "ftol": 1e-15, "gtol": 1e-7}
+    val0 = value(p0, np.zeros(q))
+
+    def f_nuisance(y):
+        p = p0.copy()
+        p[4:] = y[:2]
+        val, go, ge = f(p, y[2:], s0, range(4, 6))
+        return val, np.r_[go, ge]
+
+    # The nuisance first, at d0 (scratch: from E_b = I the joint descent's line search stalled on some windows).
+    nui = optimize.minimize(f_nuisance, np.r_[p0[4:], np.zeros(q)], jac=True, method="L-BFGS-B", options=opts)
+    p1 = np.r_[d0, nui.x[:2]]
+    e1 = nui.x[2:]
+    # Each outer parameter in units of its curvature's standard deviation, so that the quasi-Newton descent's first
+    # steps are of the right size in D as in the bands (unscaled, it stopped after one step on some windows).
+    f1 = value(p1, e1)
+    curv = np.empty(6)
+    for j in range(6):
+        h = 1e-3 * s0[j]
+        pp, pm = p1.copy(), p1.copy()
+        pp[j] += h
+        pm[j] -= h
+        curv[j] = (value(pp, e1) - 2.0 * f1 + value(pm, e1)) / (h * h)
+    s = np.where(curv > 0, 1.0 / np.sqrt(np.maximum(curv, 1e-300)), 0.01 * s0)
+
+    def f_joint(y):
+        val, go, ge = f(p1 + y[:6] * s, y[6:], s, range(6))
+        return val, np.r_[go * s, ge]
+
+    bounds = [((lo[i] - p1[i]) / s[i], (hi[i] - p1[i]) / s[i]) for i in range(4)] + [(None, None)] * (2 + q)
+    res = optimize.minimize(f_joint, np.r_[np.zeros(6), e1], jac=True, method="L-BFGS-B", bounds=bounds, options=opts)
+    p = p1 + res.x[:6] * s
+    return p[:4], {"nll0": float(val0), "nll_at_d0": float(nui.fun), "nll": float(res.fun), "nit": int(res.nit),
+                   "nfev": int(res.nfev), "message": str(res.message), "cp": float(p[4]), "cq": float(p[5])}
+
+
+def misfit(case) -> dict:
+    """On the clean record at the truth: P's and Q's |Y − G·X − T·Δ|² / |Y|² per :data:`MISFIT_BANDS` band, with Δ by
+    least squares (``transient``) and without it (``none``)."""
+    w = case.clean
+    dt = float(np.median(np.diff(w.t)))
+    d = np.asarray(case.truth.d, float)
+    win = WindowDFT(w.V, w.theta, w.P, w.Q, dt, w.f0, 1.0)
+    cp, cq = static_slopes(win, d)
+    g, t = response(win, d, cp, cq)
+    y = win.z[:, 2:] - np.einsum("kij,kj->ki", g, win.z[:, :2])
+    tt = t.reshape(-1, 3)
+    a = np.vstack([tt.real, tt.imag])
+    delta = np.linalg.lstsq(a, np.r_[y.ravel().real, y.ravel().imag], rcond=None)[0]
+    out = {}
+    for name, r in (("none", y), ("transient", y - t @ delta)):
+        out[name] = [[float(np.sum(np.abs(r[sel, j]) ** 2) / np.sum(np.abs(win.z[sel, 2 + j]) ** 2))
+                      for lo_, hi_ in MISFIT_BANDS for sel in [(win.freqs > lo_) & (win.freqs <= hi_)]]
+                     for j in range(2)]
+    return out
+
+
+def main(argv=None) -> dict:
+    ap = common.parser(__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=50)
+    ap.add_argument("--first", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=41, help="windows (default 41, a development seed)")
+    ap.add_argument("--cells", nargs="*", default=None, help="'level|class' keys (default: every noisy cell)")
+    ap.add_argument("--check", action="store_true", help="the model's misfit on the clean records at the truth")
+    ap.add_argument("--out", default=None)
+    args = ap.parse_args(argv)
+    n = 2 if args.quick else args.n
+    cases = {level: common.cases(args.first + n, level=level, seed=args.seed) for level in LEVELS}
+    t0 = time.perf_counter()
+    if args.check:
+        mis = [misfit(cases[3][i]) for i in range(args.first, args.first + n)]
+        for name in ("none", "transient"):
+            arr = np.array([m[name] for m in mis])
+            for j, ch in enumerate("PQ"):
+                print(f"{name:9s} {ch}: " + ", ".join(
+                    f"{lo_:g}–{hi_:g} Hz {np.median(arr[:, j, b]):.2g} [max {arr[:, j, b].max():.2g}]"
+                    for b, (lo_, hi_) in enumerate(MISFIT_BANDS)))
+        return {"misfit": mis}
+    bounds = None
+    if args.seed == 43:
+        stored = json.loads((common.RESULTS / "input_noise_bound_n300.json").read_text())
+        bounds = stored["per_window_relative_variance"]
+    cells: dict[str, list] = {}
+    for i, level, cls, c, w in noisy_draws(cases, args.seed, args.first + n, LEVELS):
+        key = f"{level}|{cls}"
+        if i < args.first or (args.cells and key not in args.cells):
+            continue
+        try:
+            r = identify(w, config=DEFAULT)
+        except WindowError:
+            continue
+        dt = float(np.median(np.diff(w.t)))
+        t1 = time.perf_counter()
+        d, rec = fdml(w.V, w.theta, w.P, w.Q, dt, w.f0, r.d, skip_s=float(r.quality.get("skip_s", 1.0)))
+        rec["s"] = time.perf_counter() - t1
+        row = {"i": i, "default": (r.d / c.truth.d).tolist(), "fdml": (d / c.truth.d).tolist(), **rec}
+        if bounds is not None:
+            row["bound_var"] = bounds[i][str(level)][f"{cls}|structural"]
+        cells.setdefault(key, []).append(row)
+        print(f"{i} {key} default {np.round(r.d / c.truth.d, 3)} fdml {np.round(d / c.truth.d, 3)} "
+              f"({rec['s']:.1f} s, {rec['nit']} it, {rec['message'][:30]}, nll {rec['nll0']:.1f} -> {rec['nll']:.1f})", flush=True)
+    summ = {}
+    for key, rows in cells.items():
+        summ[key] = {}
+        for name in ("default", "fdml"):
+            r = np.array([row[name] for row in rows])
+            s = {"n": len(rows), "mu": r.mean(axis=0).tolist(), "sigma": r.std(axis=0, ddof=1).tolist()}
+            if bounds is not None:
+                var = np.array([row["bound_var"] for row in rows])
+                s["sigma_over_bound"] = (r.std(axis=0, ddof=1) / np.sqrt(var.mean(axis=0))).tolist()
+            summ[key][name] = s
+            print(f"{key:24s} {name:8s} n {s['n']} μ {np.round(s['mu'], 3)} σ {np.round(s['sigma'], 4)}"
+                  + (f" σ/bound {np.round(s['sigma_over_bound'], 2)}" if bounds is not None else ""))
+    out = {"machine": common.machine(), "n": n, "first": args.first, "seed": args.seed, "width_hz": WIDTH_HZ,
+           "top_hz": TOP_HZ, "summary": summ, "cells": cells, "total_s": time.perf_counter() - t0}
+    if not args.no_write and not args.quick:
+        common.write_json(args.out or f"input_noise_fdml_seed{args.seed}", out)
+    return out
+
+
+if __name__ == "__main__":
+    main()
