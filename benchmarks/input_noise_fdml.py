@@ -25,7 +25,7 @@ in D and the slopes, each of these scaled by its curvature; restarted while a re
 (docs/numerics.md, "Stop 53: the frequency-domain joint likelihood with the transient term").
 
     .venv/bin/python -m benchmarks.input_noise_fdml [--seed 41] [--n 50] [--cells "3|0.1 % / 1e-3 rad"] [--nonlinear 2]
-        [--oracle-noise] [--oracle-spectrum] [--own-model] [--exact DL] [--check] [--report NAME]
+        [--oracle-noise] [--oracle-spectrum] [--own-model] [--difference] [--exact DL] [--check] [--report NAME]
 
 On seed 43 each row carries the window's structural bound (``input_noise_bound_n300.json``) and its learnt bound
 below 5 Hz (``input_noise_bound_spectrum.json``); the summary gives σ over both RMS bounds, the robust spread of the
@@ -73,7 +73,7 @@ MISFIT_BANDS = ((0.0, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 5.0))
 class WindowDFT:
     """One window's DFTs over the regression samples, its operating point, floors and the inputs' smoothed spectrum."""
 
-    def __init__(self, V, theta, P, Q, dt: float, f0: float, skip_s: float):
+    def __init__(self, V, theta, P, Q, dt: float, f0: float, skip_s: float, difference: bool = False):
         n = V.size
         k0 = int(math.ceil(skip_s / dt - 1e-9))
         t = np.arange(n) * dt
@@ -83,13 +83,17 @@ class WindowDFT:
         full = np.stack([V - self.v0, theta - (slope * t + icpt), P - P.mean(), Q - Q.mean()])
         self.V, self.theta, self.u, self.k0 = np.asarray(V, float), np.asarray(theta, float), full[:2], k0
         x = full[:, k0:]
-        self.z_measured = None
+        self.difference = difference
         self.l = x.shape[1]
         freqs = np.fft.rfftfreq(self.l, dt)
         self.sel = (freqs > 0) & (freqs <= TOP_HZ)
         self.freqs = freqs[self.sel]
         self.zeta = np.exp(2j * np.pi * np.arange(freqs.size)[self.sel] / self.l)
-        self.z = (np.fft.rfft(x, axis=1).T / math.sqrt(self.l))[self.sel]
+        # Differenced, every channel (a linear system's relation and its transient hold for the differences too): the
+        # inputs' spectrum is flatter, so their DFT bins leak less into each other; white noise becomes the known
+        # MA(1) spectrum 2·σ²·(1 − cos ω), :attr:`gain` per bin.
+        self.gain = np.abs(1.0 - 1.0 / self.zeta) ** 2 if difference else np.ones(self.zeta.size)
+        self.z = (np.fft.rfft(self._differenced(full), axis=1).T / math.sqrt(self.l))[self.sel]
         self.z_measured = self.z.copy()
         self.band = np.floor((self.freqs - self.freqs[0]) / WIDTH_HZ + 1e-9).astype(int)
         self.nb = int(self.band.max()) + 1
@@ -100,7 +104,11 @@ class WindowDFT:
         self.ry = np.array([fl["noise_p"], fl["noise_q"]]) ** 2
         own = noise.pooled_spectrum([noise.input_periodogram(x[:2], 1.0 / dt)], top_hz=TOP_HZ + noise.WIENER_SMOOTH_HZ)
         s0 = noise.spectrum_at(own, self.freqs) + 0.1 * np.diag(self.ru)
-        self.root = _root(s0)
+        self.root = _root(s0 * self.gain[:, None, None])
+
+    def _differenced(self, x: np.ndarray) -> np.ndarray:
+        """The regression samples of x (c, n), differenced when :attr:`difference` (the first from the sample before)."""
+        return np.diff(x[:, self.k0 - 1:], axis=1) if self.difference else x[:, self.k0:]
 
 
 def _root(s: np.ndarray) -> np.ndarray:
@@ -152,7 +160,7 @@ def remainder(win: WindowDFT, d: np.ndarray) -> np.ndarray | None:
         y[k] = c_m @ zs + d_m @ u[:, k]
         if k + 1 < u.shape[1]:
             zs = phi @ zs + g0 @ u[:, k] + g1 @ u[:, k + 1]
-    r = np.stack([p_nl, q_nl], axis=1)[win.k0:] - y[win.k0:]
+    r = win._differenced((np.stack([p_nl, q_nl], axis=1) - y).T).T
     r = r - r.mean(axis=0)
     return (np.fft.rfft(r, axis=0) / math.sqrt(win.l))[win.sel]
 
@@ -178,7 +186,7 @@ def nll_nuisance(win: WindowDFT, g: np.ndarray, t: np.ndarray, p: np.ndarray,
     m[:, 0, 0] = m[:, 1, 1] = 1.0
     m[:, 2:] = g
     sig = m @ sx @ m.conj().transpose(0, 2, 1)
-    sig[:, range(4), range(4)] += np.r_[win.ru, win.ry]
+    sig[:, range(4), range(4)] += np.r_[win.ru, win.ry][None, :] * win.gain[:, None]
     try:
         c = np.linalg.cholesky(sig)
     except np.linalg.LinAlgError:
@@ -223,18 +231,19 @@ def static_slopes(win: WindowDFT, d: np.ndarray) -> tuple[float, float]:
 
 def fdml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, skip_s: float = 1.0, maxiter: int = 3000,
          nonlinear: int = 0, noise_var: np.ndarray | None = None,
-         spectrum: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+         spectrum: np.ndarray | None = None, difference: bool = False) -> tuple[np.ndarray, dict]:
     """D [a, b, H2, Tm] maximising the window's frequency-domain likelihood over latent V and θ with the transient term
     (module docstring), from d0; and the fit's record.  ``nonlinear`` > 0: the motor's nonlinear remainder
     (:func:`remainder`) taken off P and Q first, at d0 and then ``nonlinear − 1`` times more at the fitted D.
     ``noise_var``: the noise variances of V, θ, P, Q to use instead of the window's floors (an oracle's);
     ``spectrum``: the inputs' signal spectrum (every rfft bin of the regression samples, (l//2 + 1, 2, 2)) whose shape
-    the bands scale, instead of the window's own smoothed estimate (an oracle's)."""
-    win = WindowDFT(V, theta, P, Q, dt, f0, skip_s)
+    the bands scale, instead of the window's own smoothed estimate (an oracle's).  ``difference``: the DFTs of the
+    differenced signals (:class:`WindowDFT`)."""
+    win = WindowDFT(V, theta, P, Q, dt, f0, skip_s, difference)
     if noise_var is not None:  # an oracle's: the injected variances of V, θ, P, Q instead of the window's floors
         win.ru, win.ry = np.maximum(noise_var[:2], RU_MIN * win.ru.max()), np.asarray(noise_var[2:], float)
     if spectrum is not None:  # an oracle's: the inputs' signal spectrum's shape on the rfft bins of the window
-        win.root = _root(spectrum[win.sel] + 1e-6 * np.diag(win.ru))
+        win.root = _root((spectrum[win.sel] + 1e-6 * np.diag(win.ru)) * win.gain[:, None, None])
     lo, hi = dynamic_bounds(float(P.mean()))
     d = np.asarray(d0, float)
     rec: dict = {}
@@ -415,6 +424,7 @@ def main(argv=None) -> dict:
     ap.add_argument("--exact", type=int, default=None, metavar="DL",
                     help="the windows of this level with exact V and θ (noise on P and Q only) instead of the noisy cells")
     ap.add_argument("--report", default=None, help="print the summary of a stored run (its JSON name); no run")
+    ap.add_argument("--difference", action="store_true", help="the DFTs of the differenced signals (less leakage)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args(argv)
     if args.report:
@@ -465,7 +475,7 @@ def main(argv=None) -> dict:
             spectrum = signal_spectrum(*long_inputs(c, 300.0), w.V.size - k0)
         t1 = time.perf_counter()
         d, rec = fdml(w.V, w.theta, P, Q, dt, w.f0, start, skip_s=skip_s, nonlinear=nonlinear, noise_var=noise_var,
-                      spectrum=spectrum)
+                      spectrum=spectrum, difference=args.difference)
         rec["s"] = time.perf_counter() - t1
         row = {"i": i, "default": (r.d / c.truth.d).tolist(), "fdml": (d / c.truth.d).tolist(), **rec}
         if bounds is not None:

@@ -5,6 +5,7 @@ the likelihood's gradient in the bands' spectrum is right."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from benchmarks import common
 from benchmarks.input_noise_fdml import (
@@ -46,9 +47,10 @@ def _window(n: int = 1000, dt: float = 0.01, seed: int = 3):
     return V, theta, 0.9 + y[:, 0], 0.4 + y[:, 1], dt, f0, d, cp, cq
 
 
-def test_the_dft_with_its_transient_is_exact_for_the_discretised_motor():
+@pytest.mark.parametrize("difference", [False, True])
+def test_the_dft_with_its_transient_is_exact_for_the_discretised_motor(difference):
     V, theta, P, Q, dt, f0, d, cp, cq = _window()
-    win = WindowDFT(V, theta, P, Q, dt, f0, skip_s=1.0)
+    win = WindowDFT(V, theta, P, Q, dt, f0, skip_s=1.0, difference=difference)
     g, t = response(win, d, cp, cq)
     y = win.z[:, 2:] - np.einsum("kij,kj->ki", g, win.z[:, :2])
     tt = t.reshape(-1, 3)
