@@ -110,6 +110,21 @@ def noisy_draws(cases: dict, seed: int, n: int, levels=(1, 2, 3)):
                     yield i, level, cls, c, w
 
 
+def identified_draws(draws, first: int = 0, cells=None, config: IdentifyConfig | None = None):
+    """The draws of :func:`noisy_draws` (or any of its shape) from window ``first`` on, in the ``cells`` ('level|class'
+    keys; all when None), each with the default's (or ``config``'s) answer: (i, level, class, key, case, window,
+    result); windows the identifier refuses are left out."""
+    for i, level, cls, c, w in draws:
+        key = f"{level}|{cls}"
+        if i < first or (cells and key not in cells):
+            continue
+        try:
+            r = identify(w, config=config or IdentifyConfig())
+        except WindowError:
+            continue
+        yield i, level, cls, key, c, w, r
+
+
 def _one(w: Window, candidates: dict | None = None) -> dict:
     """Every candidate on one window, in turn."""
     out = {}

@@ -49,11 +49,11 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import optimize  # noqa: E402
 
-from aslm_core import IdentifyConfig, WindowError, identify, motor, noise  # noqa: E402
+from aslm_core import IdentifyConfig, motor, noise  # noqa: E402
 from aslm_core.params import dynamic_bounds  # noqa: E402
 from aslm_core.preprocess import white_floor  # noqa: E402
 from benchmarks import common  # noqa: E402
-from benchmarks.input_noise import noisy_draws  # noqa: E402
+from benchmarks.input_noise import identified_draws, noisy_draws  # noqa: E402
 from benchmarks.input_noise_bound import long_inputs  # noqa: E402
 from benchmarks.input_noise_bound_spectrum import signal_spectrum  # noqa: E402
 from benchmarks.input_noise_kalman import first_order_hold, linear_motor  # noqa: E402
@@ -452,14 +452,7 @@ def main(argv=None) -> dict:
     if args.exact is not None:
         bounds = None
         draws = ((i, args.exact, "none", c, c.window) for i, c in enumerate(cases[args.exact]))
-    for i, level, cls, c, w in draws:
-        key = f"{level}|{cls}"
-        if i < args.first or (args.cells and key not in args.cells):
-            continue
-        try:
-            r = identify(w, config=DEFAULT)
-        except WindowError:
-            continue
+    for i, level, cls, key, c, w, r in identified_draws(draws, args.first, args.cells, DEFAULT):
         dt = float(np.median(np.diff(w.t)))
         skip_s = float(r.quality.get("skip_s", 1.0))
         P, Q, start, nonlinear = w.P, w.Q, r.d, args.nonlinear

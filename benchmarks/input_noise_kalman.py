@@ -40,11 +40,11 @@ import numba as nb  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import linalg, optimize  # noqa: E402
 
-from aslm_core import IdentifyConfig, WindowError, identify, motor  # noqa: E402
+from aslm_core import IdentifyConfig, motor  # noqa: E402
 from aslm_core.noise import channel_floors  # noqa: E402
 from aslm_core.params import dynamic_bounds  # noqa: E402
 from benchmarks import common  # noqa: E402
-from benchmarks.input_noise import CONFIRM_SEED, noisy_draws  # noqa: E402
+from benchmarks.input_noise import CONFIRM_SEED, identified_draws, noisy_draws  # noqa: E402
 
 LEVELS = (1, 2, 3)
 DEFAULT = IdentifyConfig()
@@ -413,14 +413,8 @@ def main(argv=None) -> dict:
     cases = {level: common.cases(args.first + args.n, level=level, seed=CONFIRM_SEED) for level in LEVELS}
     t0 = time.perf_counter()
     cells: dict[str, list] = {}
-    for i, level, cls, c, w in noisy_draws(cases, CONFIRM_SEED, args.first + args.n, LEVELS):
-        key = f"{level}|{cls}"
-        if i < args.first or (args.cells and key not in args.cells):
-            continue
-        try:
-            r = identify(w, config=DEFAULT)
-        except WindowError:
-            continue
+    draws = noisy_draws(cases, CONFIRM_SEED, args.first + args.n, LEVELS)
+    for i, level, cls, key, c, w, r in identified_draws(draws, args.first, args.cells, DEFAULT):
         dt = float(np.median(np.diff(w.t)))
         t1 = time.perf_counter()
         d, rec = joint_ml(w.V, w.theta, w.P, w.Q, dt, w.f0, r.d, order=args.order, rounds=args.rounds,
