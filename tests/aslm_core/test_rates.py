@@ -59,3 +59,15 @@ def test_the_spline_inside_the_step_is_the_not_a_knot_cubic_spline():
         fr = np.arange(1, 8) / 8.0
         want = CubicSpline(np.arange(n), x)((np.arange(n - 1)[:, None] + fr[None, :]).ravel())
         np.testing.assert_allclose(motor._spline_interior(x, fr), want, atol=1e-13)
+
+
+@pytest.mark.parametrize("fs", (25, 50, 100))
+def test_an_exact_input_is_reported_exact_at_every_rate_and_its_floor_is_its_content(fs):
+    """With exact V and θ the floor band (above 5 Hz) holds the inputs' own content, more of it the lower the rate
+    (~3e-7 pu at 100 frames/s, 1e-5–3e-5 at 25 on these windows): `quality` reports that level as noise_v and marks the
+    input exact by input_ratio 1e6, and the level stays far under the good PMU class (3e-4 of V)."""
+    for c in make_cases(6, level=2, seed=76, fs=float(fs), input_noise=False):
+        q = identify(c.window).quality
+        assert q["input_ratio_v"] == q["input_ratio_theta"] == 1e6
+        assert q["noise_v"] < 0.1 * 3e-4 * float(np.mean(c.window.V))
+        assert q["noise_theta"] < 0.3 * 3e-4
