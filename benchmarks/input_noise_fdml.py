@@ -63,7 +63,7 @@ DEFAULT = IdentifyConfig()
 #: Band width of the learnt spectrum's relative deviation [Hz] (stop 46's learnt bound).
 WIDTH_HZ = 0.5
 #: Highest bin used [Hz]: above it the signal lies under the PMU floor (stop 46).
-TOP_HZ = float(os.environ.get("FDML_TOP_HZ", "5.0"))
+TOP_HZ = 5.0
 #: An exact input's noise variance as a fraction of its floor band's level: the likelihood needs Σ positive [-].
 RU_MIN = 1e-4
 #: Bands of the misfit check [Hz] (stop 46's).
@@ -90,8 +90,8 @@ class WindowDFT:
         self.freqs = freqs[self.sel]
         self.zeta = np.exp(2j * np.pi * np.arange(freqs.size)[self.sel] / self.l)
         # Differenced, every channel (a linear system's relation and its transient hold for the differences too): the
-        # inputs' spectrum is flatter, so their DFT bins leak less into each other; white noise becomes the known
-        # MA(1) spectrum 2·σ²·(1 − cos ω), :attr:`gain` per bin.
+        # inputs' spectrum is flatter, so their DFT bins should leak less into each other (tried against the own-model
+        # gap, and worse: docs/numerics.md, stop 53); white noise becomes MA(1), 2·σ²·(1 − cos ω), :attr:`gain` per bin.
         self.gain = np.abs(1.0 - 1.0 / self.zeta) ** 2 if difference else np.ones(self.zeta.size)
         self.z = (np.fft.rfft(self._differenced(full), axis=1).T / math.sqrt(self.l))[self.sel]
         self.z_measured = self.z.copy()
@@ -261,8 +261,8 @@ def fdml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, skip_s: float = 1
 def _fit(win: WindowDFT, d0: np.ndarray, lo: np.ndarray, hi: np.ndarray, maxiter: int,
          restarts: int = 6) -> tuple[np.ndarray, dict]:
     """:func:`fdml`'s descent on the window's current DFTs from d0, restarted (the nuisance at the new D, the scaling
-    re-measured) while a restart gains more than 0.01 nats: from a start a few per cent off the quasi-Newton descent
-    can stop far short (scratch, the candidate's own model at DL 3's noise: from 3 % off it stopped 5,000 nats short)."""
+    re-measured) while a restart gains more than 0.01 nats: from a start a few per cent off, one quasi-Newton descent
+    can stop far short of the maximum (docs/numerics.md, stop 53)."""
     d, rec = _descent(win, d0, lo, hi, maxiter)
     for k in range(restarts):
         d2, rec2 = _descent(win, d, lo, hi, maxiter)

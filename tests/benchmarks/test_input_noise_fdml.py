@@ -1,6 +1,8 @@
 """The frequency-domain joint likelihood with the transient term (``benchmarks.input_noise_fdml``): the DFT relation with
-its transient is exact for the discretised linear motor, the transient term takes the clean records' misfit down, and
-the likelihood's gradient in the bands' spectrum is right."""
+its transient is exact for the discretised linear motor (plain and differenced), the transient term takes the clean
+records' misfit down, the likelihood's gradient in the bands' spectrum is right, the motor's nonlinear remainder is
+second order and removes the exact-input bias it causes, and the restarted descent finds the same maximum from 3 % off
+as from the truth."""
 
 from __future__ import annotations
 
