@@ -45,13 +45,26 @@ def rows(job: tuple, fs: float) -> list[dict]:
         rep = diagnose(ec.window, model, config=DiagnosisConfig(exact_inputs_quiet=quiet))
         for ch in ("P", "Q"):
             noise = (getattr(base.window, ch) - getattr(base.clean, ch))[win]
-            alone = band_excess(noise, seg.fs, noise_floor(noise, seg.fs))
+            floor = noise_floor(noise, seg.fs)
+            alone = band_excess(noise, seg.fs, floor)
             out.append({"case": "/".join(map(str, job)), "quiet": quiet, "verdict": rep.verdict,
                         "located": list(rep.located.channels), "channel": ch,
                         "bands": [b.band for b in rep.located.spectrum[ch]],
                         "ratio": [b.ratio for b in rep.located.spectrum[ch]],
-                        "noise_alone_ratio": [b["ratio"] for b in alone]})
+                        "noise_alone_ratio": [b["ratio"] for b in alone],
+                        "noise_alone_p": [b["p_value"] for b in alone],
+                        "noise_alone_p_median_dof": [_p_median_dof(b, noise.size, seg.fs, floor["bins"])
+                                                     for b in alone]})
     return out
+
+
+def _p_median_dof(band: dict, n: int, fs: float, floor_bins: int) -> float:
+    """A band test's p-value with the floor's degrees of freedom those of a median of its bins, 2·M·ln² 2."""
+    import math
+
+    from scipy import stats
+
+    return float(stats.f.sf(band["ratio"], 2 * _bins(band["band"], n, fs), 2.0 * floor_bins * math.log(2.0) ** 2))
 
 
 def white_false_alarms(draws: int, fs: float, seed: int = 3) -> dict[str, float]:
@@ -59,10 +72,8 @@ def white_false_alarms(draws: int, fs: float, seed: int = 3) -> dict[str, float]
     which some band of :func:`~aslm_core.diagnosis.locate.band_excess` is significant against the draw's own floor
     (``as_is``), and the same with the floor's degrees of freedom those of a median of M exponential bins, 2·M·ln² 2,
     instead of a mean's 2·M (``median_dof``, a candidate, not in the diagnosis)."""
-    import math
 
     import numpy as np
-    from scipy import stats
 
     from aslm_core.diagnosis.locate import band_excess
     from aslm_core.noise import noise_floor
@@ -75,9 +86,7 @@ def white_false_alarms(draws: int, fs: float, seed: int = 3) -> dict[str, float]
         floor = noise_floor(e, fs)
         bands = band_excess(e, fs, floor)
         hits["as_is"] += any(b["significant"] for b in bands)
-        dfd = 2.0 * floor["bins"] * math.log(2.0) ** 2
-        hits["median_dof"] += any(
-            stats.f.sf(b["ratio"], 2 * _bins(b["band"], n, fs), dfd) < 0.01 / 8 for b in bands)
+        hits["median_dof"] += any(_p_median_dof(b, n, fs, floor["bins"]) < 0.01 / 8 for b in bands)
     return {k: v / draws for k, v in hits.items()}
 
 
@@ -107,7 +116,9 @@ def main(argv=None) -> list[dict]:
     for r in out:
         print(f"{r['case']:16s} quiet={str(r['quiet']):5s} {r['verdict']:12s} located {r['located']!s:10s} "
               f"{r['channel']}: diagnosis " + " / ".join(f"{x:.2f}" for x in r["ratio"])
-              + "   noise alone " + " / ".join(f"{x:.2f}" for x in r["noise_alone_ratio"]))
+              + "   noise alone " + " / ".join(f"{x:.2f}" for x in r["noise_alone_ratio"])
+              + "   its p " + " / ".join(f"{x:.1e}" for x in r["noise_alone_p"])
+              + " (median's degrees of freedom " + " / ".join(f"{x:.1e}" for x in r["noise_alone_p_median_dof"]) + ")")
     return out
 
 

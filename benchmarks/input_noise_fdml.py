@@ -137,6 +137,21 @@ def response(win: WindowDFT, d: np.ndarray, cp: float, cq: float) -> tuple[np.nd
     return g, (c_m @ res) * win.zeta[:, None, None]
 
 
+def linear_playback(win: WindowDFT, lin: tuple) -> np.ndarray:
+    """[ΔP_im, ΔQ_im] (n, 2) [pu] of the linearised motor ``lin`` (:func:`~benchmarks.input_noise_kalman.linear_motor`)
+    driven by the window's input deviations over the whole window, inputs linear between samples, from zero state."""
+    a_m, b_m, c_m, d_m = lin
+    phi, g0, g1 = first_order_hold(a_m, b_m, win.dt)
+    u = win.u
+    zs = np.zeros(3)
+    y = np.empty((u.shape[1], 2))
+    for k in range(u.shape[1]):
+        y[k] = c_m @ zs + d_m @ u[:, k]
+        if k + 1 < u.shape[1]:
+            zs = phi @ zs + g0 @ u[:, k] + g1 @ u[:, k + 1]
+    return y
+
+
 def remainder(win: WindowDFT, d: np.ndarray) -> np.ndarray | None:
     """The motor's nonlinear remainder at the window's bins (m, 2): the DFT of the compiled simulator's P_im, Q_im
     (paper eq. 4–5, from the steady state at the first sample) minus the linearised motor's response, both driven by
@@ -151,15 +166,7 @@ def remainder(win: WindowDFT, d: np.ndarray) -> np.ndarray | None:
         return None
     if not (np.all(np.isfinite(p_nl)) and np.all(np.isfinite(q_nl))):
         return None
-    a_m, b_m, c_m, d_m = lin
-    phi, g0, g1 = first_order_hold(a_m, b_m, win.dt)
-    u = win.u
-    zs = np.zeros(3)
-    y = np.empty((u.shape[1], 2))
-    for k in range(u.shape[1]):
-        y[k] = c_m @ zs + d_m @ u[:, k]
-        if k + 1 < u.shape[1]:
-            zs = phi @ zs + g0 @ u[:, k] + g1 @ u[:, k + 1]
+    y = linear_playback(win, lin)
     r = win._differenced((np.stack([p_nl, q_nl], axis=1) - y).T).T
     r = r - r.mean(axis=0)
     return (np.fft.rfft(r, axis=0) / math.sqrt(win.l))[win.sel]
@@ -343,16 +350,8 @@ def own_model_pq(case, rng: np.random.Generator, p_std: float, q_std: float) -> 
     d = np.asarray(case.truth.d, float)
     win = WindowDFT(cl.V, cl.theta, cl.P, cl.Q, dt, cl.f0, 1.0)
     cp, cq = static_slopes(win, d)
-    a_m, b_m, c_m, d_m = linear_motor(d, win.v0, win.w_off, win.omega0)
-    phi, g0, g1 = first_order_hold(a_m, b_m, dt)
-    u = win.u
-    zs = np.zeros(3)
-    y = np.empty((u.shape[1], 2))
-    for k in range(u.shape[1]):
-        y[k] = c_m @ zs + d_m @ u[:, k] + [cp * u[0, k], cq * u[0, k]]
-        if k + 1 < u.shape[1]:
-            zs = phi @ zs + g0 @ u[:, k] + g1 @ u[:, k + 1]
-    n = u.shape[1]
+    y = linear_playback(win, linear_motor(d, win.v0, win.w_off, win.omega0)) + np.outer(win.u[0], [cp, cq])
+    n = y.shape[0]
     return (cl.P.mean() + y[:, 0] + p_std * rng.standard_normal(n),
             cl.Q.mean() + y[:, 1] + q_std * rng.standard_normal(n))
 
