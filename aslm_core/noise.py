@@ -104,13 +104,21 @@ def noise_floor(r: np.ndarray, fs: float, from_hz: float = FLOOR_FROM_HZ) -> dic
     dict
         ``psd`` [pu²/Hz] (median of the band's bins divided by ln 2 — the median of a χ²₂ periodogram
         bin is ln 2 times its mean — so a tone or a few outliers do not lift the floor), ``sigma`` [pu] (white-noise std that floor implies, sqrt(psd·fs/2)),
-        ``bins`` (number of bins), ``band`` [Hz].
+        ``bins`` (number of bins), ``dof`` (the χ² degrees of freedom of ``psd`` as an estimate of the
+        white level, for F tests against it) [-], ``band`` [Hz].
+
+    Notes
+    -----
+    The floor is a median of M exponential bins over ln 2, whose relative variance is about 1/(M·ln² 2)
+    where their mean's is 1/M; a scaled χ²_ν has 2/ν, so the floor counts as ν = 2·M·ln² 2 ≈ 0.96·M degrees
+    of freedom, not the mean's 2·M.
     """
     f, pxx = periodogram(r, fs)
     sel = _floor_band(f, fs, from_hz)
     vals = pxx[sel]
     psd = float(np.median(vals) / math.log(2.0))
     return {"psd": psd, "sigma": math.sqrt(psd * fs / 2), "bins": int(vals.size),
+            "dof": 2.0 * vals.size * math.log(2.0) ** 2,
             "band": [float(f[sel][0]), float(f[sel][-1])]}
 
 

@@ -12,7 +12,9 @@ the model's nor the playback's.
 
 ``--white N``: the same band tests on N draws of white noise alone over a 10 s window at ``--fs`` (the regression
 samples of the self-test's windows), against each draw's own floor: how often some band is significant, which the
-test's level (``alpha`` 0.01 over 8 tests, P and Q) puts at 0.005 a channel.
+test's level (``alpha`` 0.01 over 8 tests, P and Q) puts at 0.005 a channel.  Since stop 54 the diagnosis counts the
+floor (a median of M bins) as 2·M·ln² 2 degrees of freedom; ``mean_dof`` is the test before, which counted it as a
+mean's 2·M.
 """
 
 from __future__ import annotations
@@ -53,25 +55,23 @@ def rows(job: tuple, fs: float) -> list[dict]:
                         "ratio": [b.ratio for b in rep.located.spectrum[ch]],
                         "noise_alone_ratio": [b["ratio"] for b in alone],
                         "noise_alone_p": [b["p_value"] for b in alone],
-                        "noise_alone_p_median_dof": [_p_median_dof(b, noise.size, seg.fs, floor["bins"])
-                                                     for b in alone]})
+                        "noise_alone_p_mean_dof": [_p_mean_dof(b, noise.size, seg.fs, floor["bins"])
+                                                   for b in alone]})
     return out
 
 
-def _p_median_dof(band: dict, n: int, fs: float, floor_bins: int) -> float:
-    """A band test's p-value with the floor's degrees of freedom those of a median of its bins, 2·M·ln² 2."""
-    import math
-
+def _p_mean_dof(band: dict, n: int, fs: float, floor_bins: int) -> float:
+    """A band test's p-value as before stop 54: the floor's degrees of freedom those of a mean of its M bins, 2·M."""
     from scipy import stats
 
-    return float(stats.f.sf(band["ratio"], 2 * _bins(band["band"], n, fs), 2.0 * floor_bins * math.log(2.0) ** 2))
+    return float(stats.f.sf(band["ratio"], 2 * _bins(band["band"], n, fs), 2 * floor_bins))
 
 
 def white_false_alarms(draws: int, fs: float, seed: int = 3) -> dict[str, float]:
     """Share of white-noise draws (the samples a 10 s window's location tests, from 1 s to 0.1 s before its end) in
     which some band of :func:`~aslm_core.diagnosis.locate.band_excess` is significant against the draw's own floor
-    (``as_is``), and the same with the floor's degrees of freedom those of a median of M exponential bins, 2·M·ln² 2,
-    instead of a mean's 2·M (``median_dof``, a candidate, not in the diagnosis)."""
+    (``diagnosis``: the floor a median of M bins, 2·M·ln² 2 degrees of freedom), and the same with the floor taken
+    as a mean of its M bins, 2·M (``mean_dof``, the test before stop 54)."""
 
     import numpy as np
 
@@ -80,13 +80,13 @@ def white_false_alarms(draws: int, fs: float, seed: int = 3) -> dict[str, float]
 
     n = int(round(10.0 * fs)) - int(round(1.0 * fs)) - max(1, int(round(0.1 * fs)))
     rng = np.random.default_rng(seed)
-    hits = {"as_is": 0, "median_dof": 0}
+    hits = {"diagnosis": 0, "mean_dof": 0}
     for _ in range(draws):
         e = rng.standard_normal(n)
         floor = noise_floor(e, fs)
         bands = band_excess(e, fs, floor)
-        hits["as_is"] += any(b["significant"] for b in bands)
-        hits["median_dof"] += any(_p_median_dof(b, n, fs, floor["bins"]) < 0.01 / 8 for b in bands)
+        hits["diagnosis"] += any(b["significant"] for b in bands)
+        hits["mean_dof"] += any(_p_mean_dof(b, n, fs, floor["bins"]) < 0.01 / 8 for b in bands)
     return {k: v / draws for k, v in hits.items()}
 
 
@@ -101,24 +101,31 @@ def _bins(band: list[float], n: int, fs: float) -> int:
 def main(argv=None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default="none/2/1,none_user/2/1", help="effect/level/i, comma-separated")
-    ap.add_argument("--fs", type=float, default=25.0, help="reporting rate [frames/s]")
+    ap.add_argument("--fs", type=float, nargs="+", default=[25.0], help="reporting rate(s) [frames/s]")
     ap.add_argument("--white", type=int, default=0, metavar="N", help="the false-alarm share on N white-noise draws")
+    ap.add_argument("--seed", type=int, default=3, help="the white-noise draws' seed")
     args = ap.parse_args(argv)
     if args.white:
-        share = white_false_alarms(args.white, args.fs)
-        print(f"{args.fs:g} frames/s, {args.white} draws of white noise alone: some band significant in "
-              f"{share['as_is']:.4f} (the test as it is), {share['median_dof']:.4f} (the floor's median degrees of freedom)")
-        return [{"fs": args.fs, "draws": args.white, **share}]
+        out = []
+        for fs in args.fs:
+            share = white_false_alarms(args.white, fs, args.seed)
+            se = (0.005 * 0.995 / args.white) ** 0.5
+            print(f"{fs:g} frames/s, {args.white} draws of white noise alone (seed {args.seed}): some band significant "
+                  f"in {share['diagnosis']:.4f} (the diagnosis), {share['mean_dof']:.4f} (the floor as a mean, before "
+                  f"stop 54); the level 0.0050, its simulation error ±{se:.4f}")
+            out.append({"fs": fs, "draws": args.white, "seed": args.seed, **share})
+        return out
     out = []
     for item in args.cases.split(","):
         effect, level, i = item.split("/")
-        out += rows((effect, int(level), int(i)), args.fs)
+        out += rows((effect, int(level), int(i)), args.fs[0])
     for r in out:
         print(f"{r['case']:16s} quiet={str(r['quiet']):5s} {r['verdict']:12s} located {r['located']!s:10s} "
               f"{r['channel']}: diagnosis " + " / ".join(f"{x:.2f}" for x in r["ratio"])
               + "   noise alone " + " / ".join(f"{x:.2f}" for x in r["noise_alone_ratio"])
               + "   its p " + " / ".join(f"{x:.1e}" for x in r["noise_alone_p"])
-              + " (median's degrees of freedom " + " / ".join(f"{x:.1e}" for x in r["noise_alone_p_median_dof"]) + ")")
+              + " (the floor as a mean, before stop 54: " + " / ".join(f"{x:.1e}" for x in r["noise_alone_p_mean_dof"])
+              + ")")
     return out
 
 

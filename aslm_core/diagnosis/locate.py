@@ -31,7 +31,7 @@ def band_excess(r: np.ndarray, fs: float, floor: dict, *, alpha: float = 0.01, n
     fs : float
         Sample rate [Hz].
     floor : dict
-        From :func:`noise_floor` (``psd`` [pu²/Hz], ``bins``); optionally ``extra_psd``: the expected PSD of
+        From :func:`noise_floor` (``psd`` [pu²/Hz], ``dof``); optionally ``extra_psd``: the expected PSD of
         noise propagated from the inputs, per bin of :func:`periodogram` of ``r`` [pu²/Hz], added to the
         white floor.
     alpha : float
@@ -41,8 +41,9 @@ def band_excess(r: np.ndarray, fs: float, floor: dict, *, alpha: float = 0.01, n
 
     Notes
     -----
-    Under white noise the band mean of m periodogram bins over the floor's mean of M bins is
-    F(2m, 2M)-distributed; a band is significant at ``alpha`` Bonferroni-corrected over ``n_tests``.
+    Under white noise the band mean of m periodogram bins over the floor is F(2m, ν)-distributed, ν the
+    floor's degrees of freedom (a median of M bins: 2·M·ln² 2, :func:`noise_floor`); a band is significant
+    at ``alpha`` Bonferroni-corrected over ``n_tests``.
     With ``extra_psd`` the band mean is compared with the band mean of the expected PSD.
 
     Returns
@@ -62,7 +63,7 @@ def band_excess(r: np.ndarray, fs: float, floor: dict, *, alpha: float = 0.01, n
             continue
         ratio = float(pxx[sel].mean() / expected[sel].mean())
         df_hz = float(f[1] - f[0])
-        p = float(stats.f.sf(ratio, 2 * m, 2 * floor["bins"]))
+        p = float(stats.f.sf(ratio, 2 * m, floor["dof"]))
         out.append({"band": [lo, hi], "ratio": ratio,
                     "excess_var": float(max(pxx[sel].sum() - expected[sel].sum(), 0.0) * df_hz),
                     "p_value": p, "significant": bool(p < alpha / n_tests)})
