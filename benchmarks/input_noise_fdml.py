@@ -56,7 +56,7 @@ from benchmarks import common  # noqa: E402
 from benchmarks.input_noise import identified_draws, noisy_draws  # noqa: E402
 from benchmarks.input_noise_bound import long_inputs  # noqa: E402
 from benchmarks.input_noise_bound_spectrum import signal_spectrum  # noqa: E402
-from benchmarks.input_noise_kalman import first_order_hold, linear_motor  # noqa: E402
+from benchmarks.input_noise_kalman import first_order_hold, linear_motor, linear_response  # noqa: E402
 
 LEVELS = (1, 2, 3)
 DEFAULT = IdentifyConfig()
@@ -140,16 +140,7 @@ def response(win: WindowDFT, d: np.ndarray, cp: float, cq: float) -> tuple[np.nd
 def linear_playback(win: WindowDFT, lin: tuple) -> np.ndarray:
     """[ΔP_im, ΔQ_im] (n, 2) [pu] of the linearised motor ``lin`` (:func:`~benchmarks.input_noise_kalman.linear_motor`)
     driven by the window's input deviations over the whole window, inputs linear between samples, from zero state."""
-    a_m, b_m, c_m, d_m = lin
-    phi, g0, g1 = first_order_hold(a_m, b_m, win.dt)
-    u = win.u
-    zs = np.zeros(3)
-    y = np.empty((u.shape[1], 2))
-    for k in range(u.shape[1]):
-        y[k] = c_m @ zs + d_m @ u[:, k]
-        if k + 1 < u.shape[1]:
-            zs = phi @ zs + g0 @ u[:, k] + g1 @ u[:, k + 1]
-    return y
+    return linear_response(lin, win.u.T, win.dt)
 
 
 def remainder(win: WindowDFT, d: np.ndarray) -> np.ndarray | None:

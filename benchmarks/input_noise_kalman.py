@@ -86,6 +86,20 @@ def first_order_hold(A: np.ndarray, B: np.ndarray, dt: float):
     return phi, g1 - g2, g2
 
 
+def linear_response(lin: tuple, u: np.ndarray, dt: float) -> np.ndarray:
+    """Output (n, 2) of the linear system ``lin`` = (A, B, C, D) (:func:`linear_motor`: [ΔP_im, ΔQ_im] [pu]) driven by
+    u (n, 2) (the input deviations [ΔV pu, Δθ rad]), linear between samples, from zero state."""
+    a_m, b_m, c_m, d_m = lin
+    phi, g0, g1 = first_order_hold(a_m, b_m, dt)
+    z = np.zeros(a_m.shape[0])
+    out = np.empty((u.shape[0], c_m.shape[0]))
+    for k in range(u.shape[0]):
+        out[k] = c_m @ z + d_m @ u[k]
+        if k + 1 < u.shape[0]:
+            z = phi @ z + g0 @ u[k] + g1 @ u[k + 1]
+    return out
+
+
 #: The filter's gain is frozen from this sample on: the Riccati recursion has settled by then, and a fixed step keeps
 #: the likelihood smooth in the parameters (a convergence test would switch it at a step that moves with them, which
 #: spoils finite-difference gradients) [samples].
@@ -277,16 +291,7 @@ def motor_response(jm: JointModel, d: np.ndarray) -> np.ndarray | None:
     lin = linear_motor(d, jm.v0, jm.w_off, jm.omega0)
     if lin is None:
         return None
-    Am, Bm, Cm, Dm = lin
-    phi, g0, g1 = first_order_hold(Am, Bm, jm.dt)
-    x = jm.y[:, :2]
-    z = np.zeros(3)
-    out = np.empty((x.shape[0], 2))
-    for k in range(x.shape[0]):
-        out[k] = Cm @ z + Dm @ x[k]
-        if k + 1 < x.shape[0]:
-            z = phi @ z + g0 @ x[k] + g1 @ x[k + 1]
-    return out
+    return linear_response(lin, jm.y[:, :2], jm.dt)
 
 
 def static_slopes(jm: JointModel, d: np.ndarray) -> tuple[float, float]:
