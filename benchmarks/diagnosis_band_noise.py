@@ -8,7 +8,7 @@ that noise's own floor (:func:`aslm_core.noise.noise_floor`).  Where the two agr
 the model's nor the playback's.
 
     .venv/bin/python -m benchmarks.diagnosis_band_noise [--cases none/2/1,none_user/2/1] [--fs 25]
-    .venv/bin/python -m benchmarks.diagnosis_band_noise --white 4000 [--fs 25]
+    .venv/bin/python -m benchmarks.diagnosis_band_noise --white 4000 [--fs 25 [30 ...]] [--seed S] [--out NAME]
 
 ``--white N``: the same band tests on N draws of white noise alone over a 10 s window at ``--fs`` (the regression
 samples of the self-test's windows), against each draw's own floor: how often some band is significant, which the
@@ -104,6 +104,7 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--fs", type=float, nargs="+", default=[25.0], help="reporting rate(s) [frames/s]")
     ap.add_argument("--white", type=int, default=0, metavar="N", help="the false-alarm share on N white-noise draws")
     ap.add_argument("--seed", type=int, default=3, help="the white-noise draws' seed")
+    ap.add_argument("--out", default="", help="write docs/results/<out>.json")
     args = ap.parse_args(argv)
     if args.white:
         out = []
@@ -114,6 +115,7 @@ def main(argv=None) -> list[dict]:
                   f"in {share['diagnosis']:.4f} (the diagnosis), {share['mean_dof']:.4f} (the floor as a mean, before "
                   f"stop 54); the level 0.0050, its simulation error ±{se:.4f}")
             out.append({"fs": fs, "draws": args.white, "seed": args.seed, **share})
+        _write(args.out, out)
         return out
     out = []
     for item in args.cases.split(","):
@@ -126,7 +128,19 @@ def main(argv=None) -> list[dict]:
               + "   its p " + " / ".join(f"{x:.1e}" for x in r["noise_alone_p"])
               + " (the floor as a mean, before stop 54: " + " / ".join(f"{x:.1e}" for x in r["noise_alone_p_mean_dof"])
               + ")")
+    _write(args.out, out)
     return out
+
+
+def _write(name: str, rows: list[dict]) -> None:
+    """docs/results/<name>.json, if a name is given."""
+    if name:
+        import json
+        from pathlib import Path
+
+        path = Path(__file__).resolve().parent.parent / "docs" / "results" / f"{name}.json"
+        path.write_text(json.dumps(rows, indent=1) + "\n")
+        print(f"wrote {path}")
 
 
 if __name__ == "__main__":

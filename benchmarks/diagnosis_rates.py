@@ -2,12 +2,13 @@
 at 100, and a concealed effect should still be named (issue 11: "every reporting rate ... with the same protocol").
 
     .venv/bin/python -m benchmarks.diagnosis_rates [--seed 71] [--n 20] [--rates 25 30 50 60 100 120] [--levels 1 2 3]
-        [--input-noise] [--effect NAME] [--workers 2] [--tag NAME]
+        [--input-noise] [--effect NAME] [--workers 2] [--tag NAME] [--config NAME=VALUE ...]
     .venv/bin/python -m benchmarks.diagnosis_rates --andes 1 2 3 4 5 6 7 8 9 10 [--snr 22]
 
 Per rate and level, ``n`` windows of the project's generator (``aslm_sim``, 1 ms steps; other records at each rate), plain ZIP + IM (the model
 the diagnosis holds the recordings against), P and Q at the level's SNR (``--input-noise``: V, θ and f too), each
-diagnosed with the default :class:`DiagnosisConfig`.  Tallied: the verdicts (on a model-true window anything but
+diagnosed with the default :class:`DiagnosisConfig` (``--config``: fields of it changed, e.g.
+``exact_inputs_quiet=true``).  Tallied: the verdicts (on a model-true window anything but
 ``consistent`` is a false finding), the cause named, and the plain model's D/D_real − 1 (its median |error|).  With
 ``--effect``, the named effect of :mod:`aslm_sim.effects` is added to each window (concealed, as in
 ``benchmarks.diagnosis``) and the count that names it is the power.  With ``--andes``, an independent simulator's
@@ -41,7 +42,7 @@ def diagnosed(job: tuple) -> dict:
     """One window's diagnosis: (rate, level, index, seed, input_noise, effect) → verdict, cause, D/D_real."""
     from aslm_sim import make_cases
 
-    fs, level, i, seed, input_noise, effect = job
+    fs, level, i, seed, input_noise, effect, config = job
     case = make_cases(1, level=level, seed=seed * 100_000 + int(fs) * 100 + i, fs=fs, input_noise=input_noise)[0]
     window, model = case.window, None
     if effect:
@@ -49,14 +50,14 @@ def diagnosed(job: tuple) -> dict:
 
         ec = apply_effect(case, effect, seed=zlib.crc32(f"{effect}/{fs}/{level}/{i}".encode()))
         window, model = ec.window, ec.model
-    return _row(window, model, case.truth.d, fs=fs, level=level, i=i)
+    return _row(window, model, case.truth.d, config, fs=fs, level=level, i=i)
 
 
-def _row(window, model, truth: np.ndarray, **key) -> dict:
-    from aslm_core.diagnosis import diagnose
+def _row(window, model, truth: np.ndarray, config: dict, **key) -> dict:
+    from aslm_core.diagnosis import DiagnosisConfig, diagnose
 
     t0 = time.perf_counter()
-    r = diagnose(window, model)
+    r = diagnose(window, model, config=DiagnosisConfig(**config))
     d = np.array([r.model.dynamic[k] for k in ("a", "b", "H2", "Tm")])
     return {**key, "verdict": r.verdict, "cause": r.cause, "d_ratio": (d / truth).tolist(),
             "elapsed_s": time.perf_counter() - t0}
@@ -72,15 +73,15 @@ def andes_record(seed: int) -> tuple[dict, np.ndarray]:
 
 
 def andes_diagnosed(job: tuple) -> dict:
-    """One ANDES window's diagnosis: (ambient seed, window, rate, P/Q SNR [dB]); P and Q noisy, V and θ exact, the
-    lower rates every second or fourth sample of the 100 frames/s window (``benchmarks.andes_rates``'s protocol)."""
+    """One ANDES window's diagnosis: (ambient seed, window, rate, P/Q SNR [dB], config); P and Q noisy, V and θ exact,
+    the lower rates every second or fourth sample of the 100 frames/s window (``benchmarks.andes_rates``'s protocol)."""
     from benchmarks.andes_crosscheck import noisy_window
     from benchmarks.andes_rates import STEPS, WINDOWS, decimated
 
-    seed, j, fs, snr = job
+    seed, j, fs, snr, config = job
     rec, truth = andes_record(seed)
     w = noisy_window(rec, *WINDOWS[j], snr, np.random.default_rng([seed, j, int(round(snr * 10))]))
-    return _row(decimated(w, STEPS[fs]), None, truth, fs=fs, level=f"andes {snr:g} dB", i=seed * 100 + j)
+    return _row(decimated(w, STEPS[fs]), None, truth, config, fs=fs, level=f"andes {snr:g} dB", i=seed * 100 + j)
 
 
 def summary(rows: list[dict], effect: str | None) -> list[dict]:
@@ -114,7 +115,12 @@ def main() -> None:
                         "Q at --snr, exact V and θ) at 100, 50 and 25 frames/s")
     p.add_argument("--snr", type=float, default=22.0, help="P/Q SNR of the ANDES windows [dB]")
     p.add_argument("--tag", default="")
+    p.add_argument("--config", action="append", default=[], metavar="NAME=VALUE",
+                   help="a DiagnosisConfig field changed for every window (repeatable)")
     args = p.parse_args()
+    from benchmarks.diagnosis import config_overrides
+
+    config = config_overrides(args.config)
     n = 2 if args.quick else args.n
     if n >= 100:  # window i of rate fs is seeded seed·100000 + fs·100 + i: more would reuse another rate's windows
         raise SystemExit("--n: at most 99 windows per rate and level")
@@ -124,10 +130,10 @@ def main() -> None:
             from benchmarks.andes_rates import STEPS, WINDOWS
 
             list(ex.map(andes_record, args.andes))  # simulated once per seed (cached) before the windows share it
-            jobs = [(seed, j, fs, args.snr) for seed in args.andes for j in range(len(WINDOWS)) for fs in STEPS]
+            jobs = [(seed, j, fs, args.snr, config) for seed in args.andes for j in range(len(WINDOWS)) for fs in STEPS]
             rows = list(ex.map(andes_diagnosed, jobs, chunksize=3))
         else:
-            jobs = [(fs, level, i, args.seed, args.input_noise, args.effect or None)
+            jobs = [(fs, level, i, args.seed, args.input_noise, args.effect or None, config)
                     for fs in args.rates for level in args.levels for i in range(n)]
             rows = list(ex.map(diagnosed, jobs, chunksize=2))
     cells = summary(rows, args.effect or None)

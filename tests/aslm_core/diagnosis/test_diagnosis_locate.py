@@ -41,6 +41,28 @@ def test_white_noise_false_alarm_rate_is_small():
     assert hits <= 3
 
 
+def test_band_test_holds_its_level_at_25_frames_per_second():
+    # At 25 frames/s the floor is the median of 61 bins: counted as a mean's 2·M degrees of freedom the test flags
+    # white noise at over twice its level (1.2 % of these draws; 0.37 % as a median's 2·M·ln² 2).
+    from scipy import stats
+
+    fs, n, draws, level = 25.0, 223, 3000, 0.01 / 8
+    rng = np.random.default_rng(11)
+    hits = {"median": 0, "mean": 0}
+    for _ in range(draws):
+        r = rng.standard_normal(n)
+        fl = noise_floor(r, fs)
+        assert fl["dof"] == 2.0 * fl["bins"] * np.log(2.0) ** 2
+        bands = band_excess(r, fs, fl)
+        hits["median"] += any(b["significant"] for b in bands)
+        f = np.fft.rfftfreq(n, 1.0 / fs)
+        hits["mean"] += any(stats.f.sf(b["ratio"], 2 * int(((f >= b["band"][0]) & (f < b["band"][1])).sum()),
+                                       2 * fl["bins"]) < level for b in bands)
+    se = (0.005 * 0.995 / draws) ** 0.5
+    assert hits["median"] / draws <= 0.005 + 2 * se
+    assert hits["mean"] / draws > 0.005 + 3 * se
+
+
 def test_coherence_with_the_driver_that_made_the_residual():
     rng = np.random.default_rng(3)
     n = 1000
