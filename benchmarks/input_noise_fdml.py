@@ -26,6 +26,13 @@ in D and the slopes, each of these scaled by its curvature; restarted while a re
 
     .venv/bin/python -m benchmarks.input_noise_fdml [--seed 41] [--n 50] [--cells "3|0.1 % / 1e-3 rad"] [--nonlinear 2]
         [--oracle-noise] [--oracle-spectrum] [--own-model] [--difference] [--exact DL] [--check] [--report NAME]
+        [--circular [gaussian|phases|segment]] [--edge [POLE ...]]
+
+``--circular``, ``--edge`` (stop 54): data drawn from the fit's own model with the latent inputs circular Gaussian, the
+window's own with their phases scrambled, or a segment of a longer Gaussian draw (:func:`circular_draw`); and the
+inputs' edge term of a process with the given poles (:class:`WindowDFT`).  Which of these reach the bound says where
+stop 53's own-model gap comes from (docs/numerics.md, "Stop 54: the joint likelihood's own-model gap is the segment's
+edges").
 
 On seed 43 each row carries the window's structural bound (``input_noise_bound_n300.json``) and its learnt bound
 below 5 Hz (``input_noise_bound_spectrum.json``); the summary gives σ over both RMS bounds, the robust spread of the
@@ -73,7 +80,8 @@ MISFIT_BANDS = ((0.0, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 5.0))
 class WindowDFT:
     """One window's DFTs over the regression samples, its operating point, floors and the inputs' smoothed spectrum."""
 
-    def __init__(self, V, theta, P, Q, dt: float, f0: float, skip_s: float, difference: bool = False):
+    def __init__(self, V, theta, P, Q, dt: float, f0: float, skip_s: float, difference: bool = False,
+                 edge: tuple[complex, ...] = ()):
         n = V.size
         k0 = int(math.ceil(skip_s / dt - 1e-9))
         t = np.arange(n) * dt
@@ -93,6 +101,15 @@ class WindowDFT:
         # inputs' spectrum is flatter, so their DFT bins should leak less into each other (tried against the own-model
         # gap, and worse: docs/numerics.md, stop 53); white noise becomes MA(1), 2·σ²·(1 − cos ω), :attr:`gain` per bin.
         self.gain = np.abs(1.0 - 1.0 / self.zeta) ** 2 if difference else np.ones(self.zeta.size)
+        # The inputs' own edge (stop 54): a segment of an integrated process x_t = x_{t−1} + e_t has the DFT
+        # E(k)/(1 − ζ_k⁻¹) + (x_{−1} − x_{N−1})/(1 − ζ_k⁻¹), independent bins plus one real unknown per input whose
+        # shape is known (a leftover linear trend has the same shape); an AR(1) with pole p the same with 1 − p·ζ_k⁻¹,
+        # a pair of complex poles two real unknowns over (1 − p·ζ_k⁻¹)(1 − p̄·ζ_k⁻¹).  Without it that common part
+        # leaks into every bin and the bins' prior, independent, cannot see it as a few numbers.  ``edge``: the
+        # generating process's poles in the s-plane [1/s] (0: the integrator; one of each complex pair).
+        if edge and difference:
+            raise ValueError("the input edge term is written for the undifferenced DFTs")
+        self.tau = _edge_basis(self.zeta, edge, dt) / math.sqrt(self.l) if edge else None
         self.z = (np.fft.rfft(self._differenced(full), axis=1).T / math.sqrt(self.l))[self.sel]
         self.z_measured = self.z.copy()
         self.band = np.floor((self.freqs - self.freqs[0]) / WIDTH_HZ + 1e-9).astype(int)
@@ -109,6 +126,19 @@ class WindowDFT:
     def _differenced(self, x: np.ndarray) -> np.ndarray:
         """The regression samples of x (c, n), differenced when :attr:`difference` (the first from the sample before)."""
         return np.diff(x[:, self.k0 - 1:], axis=1) if self.difference else x[:, self.k0:]
+
+
+def _edge_basis(zeta: np.ndarray, poles: tuple[complex, ...], dt: float) -> np.ndarray:
+    """The edge term's shapes (m, nb) at the bins ζ for a process with these s-plane poles [1/s] (:class:`WindowDFT`)."""
+    cols = []
+    for s in poles:
+        p = complex(np.exp(complex(s) * dt))
+        if abs(p.imag) < 1e-12:
+            cols.append(1.0 / (1.0 - p.real / zeta))
+        else:
+            den = (1.0 - p / zeta) * (1.0 - p.conjugate() / zeta)
+            cols += [1.0 / den, (1.0 / zeta) / den]
+    return np.stack(cols, axis=1)
 
 
 def _root(s: np.ndarray) -> np.ndarray:
@@ -188,10 +218,15 @@ def nll_nuisance(win: WindowDFT, g: np.ndarray, t: np.ndarray, p: np.ndarray,
     try:
         c = np.linalg.cholesky(sig)
     except np.linalg.LinAlgError:
-        return 1e30, np.zeros_like(p), np.zeros(3)
+        return 1e30, np.zeros_like(p), np.zeros(3 + (0 if win.tau is None else 2 * win.tau.shape[1]))
     inv = np.linalg.inv(sig)
-    ez = np.zeros((g.shape[0], 4, 3), dtype=complex)
-    ez[:, 2:] = t
+    nb = 0 if win.tau is None else win.tau.shape[1]
+    ez = np.zeros((g.shape[0], 4, 3 + 2 * nb), dtype=complex)
+    ez[:, 2:, :3] = t
+    for b in range(nb):  # the inputs' edges, through the inputs and through G into P and Q
+        for ch in range(2):
+            ez[:, ch, 3 + 2 * b + ch] = win.tau[:, b]
+            ez[:, 2:, 3 + 2 * b + ch] = g[:, :, ch] * win.tau[:, b, None]
     ehi = ez.conj().transpose(0, 2, 1) @ inv
     a = np.einsum("kij,kjl->il", ehi, ez).real
     rhs = np.einsum("kij,kj->i", ehi, win.z).real
@@ -229,15 +264,16 @@ def static_slopes(win: WindowDFT, d: np.ndarray) -> tuple[float, float]:
 
 def fdml(V, theta, P, Q, dt: float, f0: float, d0: np.ndarray, skip_s: float = 1.0, maxiter: int = 3000,
          nonlinear: int = 0, noise_var: np.ndarray | None = None,
-         spectrum: np.ndarray | None = None, difference: bool = False) -> tuple[np.ndarray, dict]:
+         spectrum: np.ndarray | None = None, difference: bool = False,
+         edge: tuple[complex, ...] = ()) -> tuple[np.ndarray, dict]:
     """D [a, b, H2, Tm] maximising the window's frequency-domain likelihood over latent V and θ with the transient term
     (module docstring), from d0; and the fit's record.  ``nonlinear`` > 0: the motor's nonlinear remainder
     (:func:`remainder`) taken off P and Q first, at d0 and then ``nonlinear − 1`` times more at the fitted D.
     ``noise_var``: the noise variances of V, θ, P, Q to use instead of the window's floors (an oracle's);
     ``spectrum``: the inputs' signal spectrum (every rfft bin of the regression samples, (l//2 + 1, 2, 2)) whose shape
     the bands scale, instead of the window's own smoothed estimate (an oracle's).  ``difference``: the DFTs of the
-    differenced signals (:class:`WindowDFT`)."""
-    win = WindowDFT(V, theta, P, Q, dt, f0, skip_s, difference)
+    differenced signals (:class:`WindowDFT`); ``edge``: the poles of the inputs' edge term (:class:`WindowDFT`, stop 54)."""
+    win = WindowDFT(V, theta, P, Q, dt, f0, skip_s, difference, edge)
     if noise_var is not None:  # an oracle's: the injected variances of V, θ, P, Q instead of the window's floors
         win.ru, win.ry = np.maximum(noise_var[:2], RU_MIN * win.ru.max()), np.asarray(noise_var[2:], float)
     if spectrum is not None:  # an oracle's: the inputs' signal spectrum's shape on the rfft bins of the window
@@ -347,6 +383,71 @@ def own_model_pq(case, rng: np.random.Generator, p_std: float, q_std: float) -> 
             cl.Q.mean() + y[:, 1] + q_std * rng.standard_normal(n))
 
 
+def circular_draw(case, w, rng: np.random.Generator, skip_s: float, p_std: float, q_std: float,
+                  source: str = "gaussian") -> tuple[np.ndarray, ...]:
+    """V, θ, P, Q over the window's regression samples drawn from the candidate's own frequency-domain model exactly
+    (stop 54): latent inputs circular Gaussian with the 300 s realisation's spectrum (independent rfft bins, the
+    bound's S_x), P and Q their response through G at the truth (no transient: the circular steady state), the window's
+    own noise levels on every channel, white.  :class:`WindowDFT` removes θ's least-squares line (a ramp, the edge
+    term's shape) and linearises the motor in the frame it sets, so P and Q are the response to the latent θ less that
+    line: fit with the edge term, the model is then exact.  ``source`` "phases": the latent inputs instead the
+    window's own clean ones with each bin's phase (both channels alike) drawn at random: their per-bin content kept,
+    the coherence across bins (edges, steps) taken away.  "segment": a segment from the middle of a circular Gaussian
+    draw eight times as long (the same spectrum), P and Q its response there: a stationary Gaussian process with the
+    edges of a finite segment, which the independent bins model only approximately."""
+    dt = float(np.median(np.diff(w.t)))
+    k0 = int(math.ceil(skip_s / dt - 1e-9))
+    l = w.V.size - k0
+    sx = signal_spectrum(*long_inputs(case, 300.0), l)
+    z = (rng.standard_normal((sx.shape[0], 2)) + 1j * rng.standard_normal((sx.shape[0], 2))) / math.sqrt(2.0)
+    z[0] = 0.0
+    if l % 2 == 0:
+        z[-1] = z[-1].real * math.sqrt(2.0)
+    x = np.einsum("kij,kj->ki", _root(sx), z)
+    seg_pq = None
+    if source == "segment":
+        big = 8 * l
+        sxl = signal_spectrum(*long_inputs(case, 300.0), big)
+        zl = (rng.standard_normal((sxl.shape[0], 2)) + 1j * rng.standard_normal((sxl.shape[0], 2))) / math.sqrt(2.0)
+        zl[0] = 0.0
+        xl = np.einsum("kij,kj->ki", _root(sxl), zl)
+        xt = np.fft.irfft(xl * math.sqrt(big), big, axis=0)  # (big, 2)
+        start = (big - l) // 2
+        x = np.fft.rfft(xt[start:start + l], axis=0) / math.sqrt(l)
+        seg_pq = (xl, start, big)
+    if source == "phases":
+        cl = WindowDFT(case.clean.V, case.clean.theta, case.clean.P, case.clean.Q, dt, case.clean.f0, skip_s)
+        x = np.fft.rfft(cl.u[:, k0:], axis=1).T / math.sqrt(l) * np.exp(2j * np.pi * rng.random(sx.shape[0]))[:, None]
+        x[0] = 0.0
+        if l % 2 == 0:
+            x[-1] = x[-1].real
+    sd = [float(np.std(getattr(w, ch) - getattr(case.clean, ch))) for ch in ("V", "theta")]
+    V = float(case.clean.V.mean()) + np.fft.irfft(x[:, 0] * math.sqrt(l), l) + sd[0] * rng.standard_normal(l)
+    theta = np.fft.irfft(x[:, 1] * math.sqrt(l), l) + sd[1] * rng.standard_normal(l)
+    d = np.asarray(case.truth.d, float)
+    cp, cq = static_slopes(WindowDFT(case.clean.V, case.clean.theta, case.clean.P, case.clean.Q, dt, case.clean.f0,
+                                     skip_s), d)
+    win = WindowDFT(V, theta, V, V, dt, case.clean.f0, 0.0)
+    win.zeta = np.exp(2j * np.pi * np.arange(sx.shape[0]) / l)  # every bin, for G
+    t = np.arange(l) * dt
+    line = np.polyval(np.polyfit(t, theta, 1), t)
+    if seg_pq is None:
+        g = response(win, d, cp, cq)[0]
+        x[:, 1] -= np.fft.rfft(line) / math.sqrt(l)
+        x[0] = 0.0
+        y = np.fft.irfft(np.einsum("kij,kj->ki", g, x) * math.sqrt(l), l, axis=0)
+    else:  # the long draw's circular response, its segment, less the motor's response to θ's line there
+        xl, start, big = seg_pq
+        win.zeta = np.exp(2j * np.pi * np.arange(xl.shape[0]) / big)
+        g = response(win, d, cp, cq)[0]
+        y = np.fft.irfft(np.einsum("kij,kj->ki", g, xl) * math.sqrt(big), big, axis=0)[start:start + l]
+        win.u = np.stack([np.zeros(l), line])
+        y = y - linear_playback(win, linear_motor(d, win.v0, win.w_off, win.omega0))
+    P = float(case.clean.P.mean()) + y[:, 0] + p_std * rng.standard_normal(l)
+    Q = float(case.clean.Q.mean()) + y[:, 1] + q_std * rng.standard_normal(l)
+    return V, theta, P, Q
+
+
 def misfit(case) -> dict:
     """On the clean record at the truth: P's and Q's |Y − G·X − T·Δ|² / |Y|² per :data:`MISFIT_BANDS` band, with Δ by
     least squares (``transient``) and without it (``none``)."""
@@ -411,14 +512,22 @@ def main(argv=None) -> dict:
                     help="the inputs' spectrum's shape from a 300 s clean realisation instead of the window's own")
     ap.add_argument("--own-model", action="store_true",
                     help="P, Q from the candidate's own linear model (own_model_pq), from the truth, with oracle noise")
+    ap.add_argument("--circular", nargs="?", const="gaussian", choices=("gaussian", "phases", "segment"), default=None,
+                    help="V, θ, P, Q drawn from the candidate's own frequency-domain model (circular_draw; 'phases': "
+                         "the window's own inputs with random phases; 'segment': a stationary Gaussian segment), from "
+                         "the truth, oracle noise; use with --edge")
     ap.add_argument("--exact", type=int, default=None, metavar="DL",
                     help="the windows of this level with exact V and θ (noise on P and Q only) instead of the noisy cells")
     ap.add_argument("--report", default=None, help="print the summary of a stored run (its JSON name); no run")
     ap.add_argument("--difference", action="store_true", help="the DFTs of the differenced signals (less leakage)")
+    ap.add_argument("--edge", nargs="*", default=None, metavar="POLE",
+                    help="the inputs' edge term, profiled out: the poles [1/s, complex as a+bj] of the process it is "
+                         "the transient of (none given: 0, the integrator; two real unknowns a real pole, four a pair)")
     ap.add_argument("--out", default=None)
     args = ap.parse_args(argv)
     if args.report:
         return report(json.loads((common.RESULTS / f"{args.report}.json").read_text())["cells"])
+    edge = () if args.edge is None else tuple(complex(x) for x in args.edge) or (0j,)
     n = 2 if args.quick else args.n
     cases = {level: common.cases(args.first + n, level=level, seed=args.seed) for level in LEVELS}
     t0 = time.perf_counter()
@@ -450,15 +559,20 @@ def main(argv=None) -> dict:
         if args.own_model:
             P, Q = own_model_pq(c, np.random.default_rng([args.seed, i, level, 7]), p_std, q_std)
             start, nonlinear = np.asarray(c.truth.d, float), 0
+        V, theta = w.V, w.theta
+        if args.circular:
+            V, theta, P, Q = circular_draw(c, w, np.random.default_rng([args.seed, i, level, 8]), skip_s, p_std, q_std,
+                                           args.circular)
+            start, nonlinear, skip_s = np.asarray(c.truth.d, float), 0, 0.0
         noise_var = spectrum = None
-        if args.oracle_noise or args.own_model:
+        if args.oracle_noise or args.own_model or args.circular:
             noise_var = np.array([np.var(w.V - c.clean.V), np.var(w.theta - c.clean.theta), p_std**2, q_std**2])
         if args.oracle_spectrum:
             k0 = int(math.ceil(skip_s / dt - 1e-9))
-            spectrum = signal_spectrum(*long_inputs(c, 300.0), w.V.size - k0)
+            spectrum = signal_spectrum(*long_inputs(c, 300.0), V.size - k0)
         t1 = time.perf_counter()
-        d, rec = fdml(w.V, w.theta, P, Q, dt, w.f0, start, skip_s=skip_s, nonlinear=nonlinear, noise_var=noise_var,
-                      spectrum=spectrum, difference=args.difference)
+        d, rec = fdml(V, theta, P, Q, dt, w.f0, start, skip_s=skip_s, nonlinear=nonlinear, noise_var=noise_var,
+                      spectrum=spectrum, difference=args.difference, edge=edge)
         rec["s"] = time.perf_counter() - t1
         row = {"i": i, "default": (r.d / c.truth.d).tolist(), "fdml": (d / c.truth.d).tolist(), **rec}
         if bounds is not None:

@@ -12,6 +12,7 @@ import pytest
 from benchmarks import common
 from benchmarks.input_noise_fdml import (
     WindowDFT,
+    _edge_basis,
     fdml,
     misfit,
     nll_nuisance,
@@ -47,6 +48,27 @@ def _window(n: int = 1000, dt: float = 0.01, seed: int = 3):
         if i + 1 < n:
             z = phi @ z + g0 @ u[:, i] + g1 @ u[:, i + 1]
     return V, theta, 0.9 + y[:, 0], 0.4 + y[:, 1], dt, f0, d, cp, cq
+
+
+@pytest.mark.parametrize("poles", [(0j,), (-3 + 0j,), (-1.2 + 6.0j,)])
+def test_the_edge_basis_is_the_segment_dft_of_an_autoregression_less_its_circular_part(poles):
+    # x_t from its AR recursion, started before the segment: X(k) = E(k)/A(ζ_k⁻¹) + the edge term, real coefficients.
+    dt, n = 0.01, 600
+    p = np.exp(np.asarray(poles) * dt)
+    a = np.real(np.poly(np.r_[p, p.conj()] if abs(p[0].imag) > 0 else p))  # A(z⁻¹) = 1 + a1·z⁻¹ + ...
+    rng = np.random.default_rng(5)
+    e = rng.standard_normal(n + 500)
+    x = np.zeros(n + 500)
+    for t in range(len(a) - 1, x.size):
+        x[t] = e[t] - a[1:] @ x[t - 1::-1][: len(a) - 1]
+    xs, es = x[500:], e[500:]
+    k = np.arange(1, n // 2)
+    zeta = np.exp(2j * np.pi * k / n)
+    den = sum(a[j] * zeta ** (-j) for j in range(len(a)))
+    rest = np.fft.fft(xs)[k] - np.fft.fft(es)[k] / den
+    basis = _edge_basis(zeta, poles, dt)
+    coef = np.linalg.lstsq(np.vstack([basis.real, basis.imag]), np.r_[rest.real, rest.imag], rcond=None)[0]
+    assert np.linalg.norm(rest - basis @ coef) < 1e-9 * np.linalg.norm(rest)
 
 
 @pytest.mark.parametrize("difference", [False, True])
