@@ -31,8 +31,8 @@ in D and the slopes, each of these scaled by its curvature; restarted while a re
 ``--circular``, ``--edge`` (stop 54): data drawn from the fit's own model with the latent inputs circular Gaussian, the
 window's own with their phases scrambled, or a segment of a longer Gaussian draw (:func:`circular_draw`); and the
 inputs' edge term of a process with the given poles (:class:`WindowDFT`).  Which of these reach the bound says where
-stop 53's own-model gap comes from (docs/numerics.md, "Stop 54: the joint likelihood's own-model gap is the segment's
-edges").
+stop 53's own-model gap comes from (docs/numerics.md, "Stop 54: where the joint likelihood's own-model gap comes
+from").
 
 On seed 43 each row carries the window's structural bound (``input_noise_bound_n300.json``) and its learnt bound
 below 5 Hz (``input_noise_bound_spectrum.json``); the summary gives σ over both RMS bounds, the robust spread of the
@@ -383,6 +383,18 @@ def own_model_pq(case, rng: np.random.Generator, p_std: float, q_std: float) -> 
             cl.Q.mean() + y[:, 1] + q_std * rng.standard_normal(n))
 
 
+def _on_grid(sx: np.ndarray, m: int) -> np.ndarray:
+    """A spectrum on the rfft bins of l samples (l//2 + 1, 2, 2), linearly interpolated onto those of m samples: the
+    same spectrum, so that draws of both lengths differ only in length."""
+    f_from = np.linspace(0.0, 0.5, sx.shape[0])
+    f_to = np.fft.rfftfreq(m)
+    out = np.empty((f_to.size, 2, 2), dtype=complex)
+    for i in range(2):
+        for j in range(2):
+            out[:, i, j] = np.interp(f_to, f_from, sx[:, i, j].real) + 1j * np.interp(f_to, f_from, sx[:, i, j].imag)
+    return out
+
+
 def circular_draw(case, w, rng: np.random.Generator, skip_s: float, p_std: float, q_std: float,
                   source: str = "gaussian") -> tuple[np.ndarray, ...]:
     """V, θ, P, Q over the window's regression samples drawn from the candidate's own frequency-domain model exactly
@@ -393,7 +405,7 @@ def circular_draw(case, w, rng: np.random.Generator, skip_s: float, p_std: float
     line: fit with the edge term, the model is then exact.  ``source`` "phases": the latent inputs instead the
     window's own clean ones with each bin's phase (both channels alike) drawn at random: their per-bin content kept,
     the coherence across bins (edges, steps) taken away.  "segment": a segment from the middle of a circular Gaussian
-    draw eight times as long (the same spectrum), P and Q its response there: a stationary Gaussian process with the
+    draw eight times as long (the same spectrum, interpolated onto its finer bins), P and Q its response there: a stationary Gaussian process with the
     edges of a finite segment, which the independent bins model only approximately."""
     dt = float(np.median(np.diff(w.t)))
     k0 = int(math.ceil(skip_s / dt - 1e-9))
@@ -407,7 +419,7 @@ def circular_draw(case, w, rng: np.random.Generator, skip_s: float, p_std: float
     seg_pq = None
     if source == "segment":
         big = 8 * l
-        sxl = signal_spectrum(*long_inputs(case, 300.0), big)
+        sxl = _on_grid(sx, big)
         zl = (rng.standard_normal((sxl.shape[0], 2)) + 1j * rng.standard_normal((sxl.shape[0], 2))) / math.sqrt(2.0)
         zl[0] = 0.0
         xl = np.einsum("kij,kj->ki", _root(sxl), zl)
