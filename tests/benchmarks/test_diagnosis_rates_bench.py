@@ -12,7 +12,7 @@ from benchmarks import diagnosis_rates as dr  # noqa: E402
 
 
 def test_a_job_diagnoses_the_window_of_its_rate_and_compares_the_plain_model_with_the_truth():
-    row = dr.diagnosed((30.0, 3, 0, 5, False, None))
+    row = dr.diagnosed((30.0, 3, 0, 5, False, None, {}))
     assert row["fs"] == 30.0 and row["level"] == 3 and row["verdict"] in {"consistent", "explained", "ambiguous",
                                                                              "unexplained"}
     assert len(row["d_ratio"]) == 4 and max(abs(x - 1.0) for x in row["d_ratio"]) < 0.2
