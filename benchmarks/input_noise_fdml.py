@@ -405,8 +405,9 @@ def circular_draw(case, w, rng: np.random.Generator, skip_s: float, p_std: float
     line: fit with the edge term, the model is then exact.  ``source`` "phases": the latent inputs instead the
     window's own clean ones with each bin's phase (both channels alike) drawn at random: their per-bin content kept,
     the coherence across bins (edges, steps) taken away.  "segment": a segment from the middle of a circular Gaussian
-    draw eight times as long (the same spectrum, interpolated onto its finer bins), P and Q its response there: a stationary Gaussian process with the
-    edges of a finite segment, which the independent bins model only approximately."""
+    draw eight times as long (the same spectrum, interpolated onto its finer bins), P and Q its response there: a
+    stationary Gaussian process with the edges of a finite segment, which the independent bins model only
+    approximately."""
     dt = float(np.median(np.diff(w.t)))
     k0 = int(math.ceil(skip_s / dt - 1e-9))
     l = w.V.size - k0
