@@ -39,7 +39,8 @@ RATES = (25.0, 30.0, 50.0, 60.0, 100.0, 120.0)
 
 
 def diagnosed(job: tuple) -> dict:
-    """One window's diagnosis: (rate, level, index, seed, input_noise, effect) → verdict, cause, D/D_real."""
+    """One window's diagnosis: (rate, level, index, seed, input_noise, effect, DiagnosisConfig overrides) → verdict, cause,
+    D/D_real."""
     from aslm_sim import make_cases
 
     fs, level, i, seed, input_noise, effect, config = job
