@@ -37,6 +37,11 @@ POOL_SPACING_TOL = 0.25
 #: confirmation failed; not adopted (docs/numerics.md, "Stop 49").  Kept so that ``benchmarks.input_noise_gain``'s
 #: figures rerun.
 GAIN_WITHOUT_OWN_BIN = False
+#: The spectrum the smoother's gain and cut-off are read from: ``"periodogram"``, the padded window's periodogram averaged
+#: over :data:`WIENER_SMOOTH_HZ`; ``"multitaper"``, Thomson's estimate on the window itself with Slepian tapers of
+#: half-bandwidth :data:`WIENER_SMOOTH_HZ` / 2 (the same resolution; far less leakage from the steep low-frequency
+#: spectrum into the bins near the cut-off).  A candidate (stop 55).
+GAIN_SPECTRUM = "periodogram"
 
 
 @lru_cache(maxsize=32)
@@ -532,6 +537,10 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     # The cut-off reads the plain average (where the power sinks to the floor); the gain its neighbours' only.
     own_out = GAIN_WITHOUT_OWN_BIN
     p_gain = [_moving_average((spec[i] * spec[i].conj()).real, width, True) for i in range(c)] if own_out else p
+    mt = None
+    if GAIN_SPECTRUM == "multitaper":
+        mt = _multitaper((x - line[:, pad:pad + n]), fs, ne, 0.5 * smooth_hz)
+        p = p_gain = [mt[i, i].real for i in range(c)]
     k_min = int(np.ceil(MIN_CUTOFF_HZ * ne / fs))
     ends = []
     for i in range(c):
@@ -561,7 +570,7 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
         return _returned(out, own_cutoffs if cutoffs_before_tail else cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px,
                          return_cutoffs, return_error)
     # Two channels: S = S_m − R with its negative eigenvalue clipped, in closed form per frequency.
-    b = _moving_average(spec[0] * spec[1].conj(), width, own_out)
+    b = _moving_average(spec[0] * spec[1].conj(), width, own_out) if mt is None else mt[0, 1]
     a, d = p_gain[0] - r[0], p_gain[1] - r[1]
     mid, rad = 0.5 * (a + d), np.sqrt(0.25 * (a - d) ** 2 + np.abs(b) ** 2)
     lo, hi = mid - rad, mid + rad
@@ -602,6 +611,29 @@ def wiener_smooth(x: np.ndarray, fs: float, sigma: np.ndarray, smooth_hz: float 
     px[:, 1, 0], px[:, 1, 1] = g10 * var[0], g11 * var[1]
     return _returned(out, own_cutoffs if cutoffs_before_tail else cutoffs, np.fft.rfftfreq(ne, 1.0 / fs), px,
                      return_cutoffs, return_error)
+
+
+def _multitaper(y: np.ndarray, fs: float, ne: int, half_bw_hz: float) -> np.ndarray:
+    """Thomson's multitaper cross-spectral matrix of the rows of ``y`` (c, n), interpolated onto the rfft grid of ``ne``
+    samples and scaled to that grid's |X_k|² units (white noise of variance σ² gives ne·σ²), shape (c, c, ne // 2 + 1)."""
+    c, n = y.shape
+    nw = max(1.0, half_bw_hz * n / fs)
+    k = max(1, int(2.0 * nw) - 1)
+    tapers = _dpss(n, nw, k)  # (k, n), unit energy
+    yk = np.fft.rfft(tapers[None, :, :] * y[:, None, :], axis=2)  # (c, k, m)
+    s = np.einsum("ikm,jkm->ijm", yk, yk.conj()) / k  # per-sample units
+    f, fe = np.fft.rfftfreq(n, 1.0 / fs), np.fft.rfftfreq(ne, 1.0 / fs)
+    out = np.empty((c, c, fe.size), dtype=complex)
+    for i in range(c):
+        for j in range(c):
+            out[i, j] = np.interp(fe, f, s[i, j].real) + 1j * np.interp(fe, f, s[i, j].imag)
+    return out * ne
+
+
+@lru_cache(maxsize=32)
+def _dpss(n: int, nw: float, k: int) -> np.ndarray:
+    """Slepian tapers of n samples, time-half-bandwidth nw, the first k, unit energy."""
+    return signal.windows.dpss(n, nw, k, norm=2)
 
 
 def _power_tail(s: np.ndarray, end: int, k_min: int, freqs: np.ndarray, top: int) -> int:

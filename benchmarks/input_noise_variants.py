@@ -48,6 +48,9 @@ per level, both PMU classes), every noisy window is identified by the default (`
   of the rate (``input_weighting.BAND_AT_CUTOFF``);
 * ``lagrange`` (stop 50): the inputs inside a sample step from 4-point Lagrange cubics (``motor.SPLINE_INPUTS`` off),
   as before stop 50, instead of the not-a-knot spline;
+* ``multitaper`` (stop 55): the Wiener smoother's gain and cut-off read from Thomson's multitaper estimate of the
+  window's (V, θ) cross-spectrum (Slepian tapers of half-bandwidth 0.25 Hz, the same resolution as today's 0.5 Hz
+  average of the padded periodogram) instead (``noise.GAIN_SPECTRUM``);
 * ``widths``: the default run with the Wiener smoother's averaging width at 0.5 (today's), 0.25 and 1 Hz — every call of
   the smoother, the output-error stage's prefilter too — and each parameter's median of the three (``widths_median``) or
   the run nearest that median (``widths_medoid``, distance in units of each parameter's spread over the cell's windows).
@@ -117,7 +120,7 @@ from benchmarks.input_noise_bound import (  # noqa: E402
 VARIANTS = ("pq", "avg", "ptail", "wpl", "widths", "floor_outside", "no_floor", "em", "band5", "band3", "floor_sig2",
             "floor_sig1.5", "hist6", "hist6_fine_td", "hist6_guard1.3", "hist6_guard1.5", "own_td", "own_td_guard1.5",
             "own_td_fallback1.5", "hist6_checked", "gain49", "own_bin_out", "band4", "cap3.5", "cap4", "capinf",
-            "lagrange", "band_cut")
+            "lagrange", "band_cut", "multitaper")
 #: ``hist6``, ``hist6_fine_td`` (stop 46): end to end, the default given a minute of the bus's history (module docstring).
 #: Each history variant's form, set whatever the core's defaults: (``input_history.HISTORY_SMOOTH_HZ``,
 #: ``input_weighting.HISTORY_BAND_HZ``, ``input_weighting.HISTORY_CHI2_MAX``, ``input_history.HISTORY_STALE_MAX``).
@@ -182,8 +185,10 @@ BAND_VARIANTS = {"band5": 0.05, "band3": 0.03}
 #: ``gain49``, ``own_bin_out``, ``band4`` (stop 49): the smoother's gain without each bin's own periodogram in its
 #: average (``noise.GAIN_WITHOUT_OWN_BIN``), the refinement's band at least 4 Hz (``input_weighting.MIN_BAND_HZ``), or
 #: both (the candidate, not adopted): (GAIN_WITHOUT_OWN_BIN, MIN_BAND_HZ), None where the core's is kept.
-#: Stop 50's rows: a core module's switch set to a value within the row (:func:`core_switch`).
-CORE_SWITCHES = {"band_cut": (input_weighting, "BAND_AT_CUTOFF", True), "lagrange": (motor, "SPLINE_INPUTS", False)}
+#: Stop 50's rows (and stop 55's ``multitaper``): a core module's switch set to a value within the row
+#: (:func:`core_switch`).
+CORE_SWITCHES = {"band_cut": (input_weighting, "BAND_AT_CUTOFF", True), "lagrange": (motor, "SPLINE_INPUTS", False),
+                 "multitaper": (noise, "GAIN_SPECTRUM", "multitaper")}
 GAIN49_VARIANTS = {"gain49": (True, 4.0), "own_bin_out": (True, None), "band4": (None, 4.0)}
 FLOOR_VARIANTS = {"floor_outside": "outside", "no_floor": "none", "floor_sig2": "significant_2",
                   "floor_sig1.5": "significant_1.5"}

@@ -339,3 +339,15 @@ def test_the_tail_changes_noisy_windows_only(cases, noisy):
         np.testing.assert_array_equal(identify(c.window).d, identify(c.window, config=no_tail).d)
     moved = [not np.array_equal(identify(w).d, identify(w, config=no_tail).d) for w in noisy[:3]]
     assert all(moved), moved
+
+
+def test_multitaper_estimate_is_on_the_smoothers_grid_and_scale():
+    """noise._multitaper (stop 55's candidate spectrum for the gain): white noise of variance σ² reads ne·σ² on the
+    extended grid's bins, as the padded periodogram does; independent channels have a small cross-spectrum."""
+    rng = np.random.default_rng(3)
+    y = rng.standard_normal((2, 4000)) * np.array([[1e-3], [2e-3]])
+    s = noise._multitaper(y, 100.0, 5600, 0.25)
+    assert s.shape == (2, 2, 2801)
+    assert abs(s[0, 0].real.mean() / (5600 * 1e-6) - 1.0) < 0.05
+    assert abs(s[1, 1].real.mean() / (5600 * 4e-6) - 1.0) < 0.05
+    assert abs(s[0, 1].mean()) / (5600 * 2e-6) < 0.05
