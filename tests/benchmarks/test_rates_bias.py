@@ -29,3 +29,23 @@ def test_the_runs_default_rows_are_pooled_window_by_window():
     both = np.concatenate([a, b[1:]])
     np.testing.assert_allclose(c["2|0.1 % / 1e-3 rad"]["bias"], both.mean(axis=0) - 1.0)
     np.testing.assert_allclose(c["2|0.1 % / 1e-3 rad"]["se"], both.std(axis=0, ddof=1) / np.sqrt(499))
+
+
+def _cells(bias_a: float, se_a: float, level: str = "2") -> dict:
+    cls = "0.03 % / 3e-4 rad"
+    c = {"n": 1800, "bias": [bias_a, 0.0, 0.0, 0.0], "se": [se_a, 0.001, 0.001, 0.001]}
+    c["calls"] = [rb.call(b, s, rb.BIAS_TARGET[cls]) for b, s in zip(c["bias"], c["se"])]
+    return {"25": {f"{level}|{cls}": c}}
+
+
+def test_the_confirmation_rule_needs_every_point_inside_and_no_cell_missed():
+    met, notes = rb.verdict(_cells(0.004, 0.0015))
+    assert met and notes == []
+    met, notes = rb.verdict(_cells(0.008, 0.0015))  # inside, its interval reaching 1.09 %: open, reported
+    assert met and len(notes) == 1 and "(open)" in notes[0]
+    met, notes = rb.verdict(_cells(0.0105, 0.004))  # open, but the point estimate is outside
+    assert not met and "point estimate outside" in notes[0]
+    met, _ = rb.verdict(_cells(-0.02, 0.002))  # missed
+    assert not met
+    met, notes = rb.verdict(_cells(0.05, 0.002, level="1"))  # DL 1 is stated, not judged
+    assert met and notes == []
