@@ -35,19 +35,28 @@ CONFIRM_RUNS = tuple(f"{s}:confirm55" for s in range(65, 71))
 #: The rule :func:`verdict` applies to the DL 2–3 cells × parameters of the confirmation.
 CONFIRM_RULE = ("issue 11's bias targets at every reporting rate are met if, over the DL 2-3 cells x parameters of the "
                 "six rates, every point estimate is inside its target and no cell is 'missed'; 'open' cells are "
-                "reported, each with its interval")
+                "reported, each with its interval. Judged apart: the coverage target is met if in every noisy cell x "
+                "parameter of the six rates (DL 1-3) the share of windows within 1.96 SE is inside 90-97 %")
+#: Issue 11's coverage target of ±1.96 SE [share of windows].
+COVERAGE_TARGET = (0.90, 0.97)
 
 
 def pooled_cells(runs: list[dict]) -> dict[str, dict]:
-    """Per ``level|class`` key of the runs' ``default`` rows: n, μ − 1 and its standard error per parameter (windows
-    the identifier refused left out)."""
+    """Per ``level|class`` key of the runs' ``default`` rows: n, μ − 1, its standard error and σ per parameter (windows
+    the identifier refused left out), and where the runs hold the windows' standard errors the share of windows with
+    |D/D_real − 1| < 1.96·SE (``coverage_95``)."""
     out: dict[str, dict] = {}
     keys = [k for k in runs[0]["per_window"] if k.endswith("|default")]
     for key in keys:
         r = np.concatenate([np.array(run["per_window"][key]) for run in runs])
-        r = r[np.all(np.isfinite(r), axis=1)]
-        out[key.rsplit("|", 1)[0]] = {"n": int(r.shape[0]), "bias": (r.mean(axis=0) - 1.0).tolist(),
-                                     "se": (r.std(axis=0, ddof=1) / np.sqrt(r.shape[0])).tolist()}
+        ok = np.all(np.isfinite(r), axis=1)
+        cell = {"n": int(ok.sum()), "bias": (r[ok].mean(axis=0) - 1.0).tolist(),
+                "se": (r[ok].std(axis=0, ddof=1) / np.sqrt(ok.sum())).tolist(), "sigma": r[ok].std(axis=0, ddof=1).tolist()}
+        if all("per_window_se" in run for run in runs):
+            e = np.concatenate([np.array(run["per_window_se"][key]) for run in runs])
+            both = ok & np.all(np.isfinite(e), axis=1)
+            cell["coverage_95"] = np.mean(np.abs(r[both] - 1.0) < 1.96 * e[both], axis=0).tolist()
+        out[key.rsplit("|", 1)[0]] = cell
     return out
 
 
@@ -79,6 +88,18 @@ def verdict(rates: dict[str, dict]) -> tuple[bool, list[str]]:
     return ok, notes
 
 
+def coverage_verdict(rates: dict[str, dict]) -> tuple[bool, list[str]]:
+    """The coverage half of :data:`CONFIRM_RULE`: whether every cell × parameter (DL 1–3) is inside
+    :data:`COVERAGE_TARGET`, and each one outside, described."""
+    notes = []
+    for fs, cells in rates.items():
+        for key, c in cells.items():
+            for p, x in zip(common.PARAMS, c["coverage_95"], strict=True):
+                if not COVERAGE_TARGET[0] <= x <= COVERAGE_TARGET[1]:
+                    notes.append(f"{fs} frames/s DL {key.replace('|', ' ')} {p}: {100 * x:.1f} %")
+    return not notes, notes
+
+
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", nargs="+", default=list(DEFAULT_RUNS), metavar="SEED:TAG")
@@ -106,12 +127,24 @@ def main(argv=None) -> dict:
                   + " | " + " / ".join(calls) + " |")
         out["rates"][f"{fs:g}"] = cells
     out["dl23_calls"] = counts
+    print("\n| frames/s | DL | class | σ a / b / H2 / Tm | coverage of ±1.96 SE a / b / H2 / Tm [%] |\n|---|---|---|---|---|")
+    for fs, cells in out["rates"].items():
+        for key, c in sorted(cells.items()):
+            cover = " / ".join(f"{100 * x:.1f}" for x in c["coverage_95"]) if "coverage_95" in c else "-"
+            print(f"| {fs} | {key.replace('|', ' | ')} | " + " / ".join(f"{x:.4f}" for x in c["sigma"]) + f" | {cover} |")
     print(f"DL 2-3 cells x parameters: {counts['met']} met, {counts['open']} open, {counts['missed']} missed")
     if args.confirm:
         met, notes = verdict(out["rates"])
         out["verdict"] = {"rule": CONFIRM_RULE, "met": met, "notes": notes}
         print(f"rule: {CONFIRM_RULE}\nverdict: {'met' if met else 'not met'}")
         for line in notes:
+            print("  " + line)
+        cov_met, cov_notes = coverage_verdict(out["rates"])
+        out["verdict"].update(coverage_met=cov_met, coverage_notes=cov_notes)
+        shares = [x for cells in out["rates"].values() for c in cells.values() for x in c["coverage_95"]]
+        print(f"coverage of ±1.96 SE: {100 * min(shares):.1f}–{100 * max(shares):.1f} % over {len(shares)} cells x "
+              f"parameters; verdict: {'met' if cov_met else 'not met'}")
+        for line in cov_notes:
             print("  " + line)
     if args.json:
         common.write_json(args.json, out)

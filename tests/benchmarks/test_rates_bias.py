@@ -49,3 +49,20 @@ def test_the_confirmation_rule_needs_every_point_inside_and_no_cell_missed():
     assert not met
     met, notes = rb.verdict(_cells(0.05, 0.002, level="1"))  # DL 1 is stated, not judged
     assert met and notes == []
+
+
+def test_the_coverage_half_of_the_rule_reads_each_cells_share():
+    c = _cells(0.0, 0.001)
+    c["25"]["2|0.03 % / 3e-4 rad"]["coverage_95"] = [0.95, 0.90, 0.97, 0.93]
+    assert rb.coverage_verdict(c) == (True, [])
+    c["25"]["2|0.03 % / 3e-4 rad"]["coverage_95"] = [0.95, 0.899, 0.975, 0.93]
+    met, notes = rb.coverage_verdict(c)
+    assert not met and len(notes) == 2 and " b: 89.9 %" in notes[0]
+
+
+def test_pooled_coverage_counts_windows_within_196_se():
+    r = np.array([[1.0, 1.0, 1.0, 1.0], [1.1, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, np.nan]])
+    e = np.full((3, 4), 0.05)
+    runs = [{"per_window": {"2|c|default": r.tolist()}, "per_window_se": {"2|c|default": e.tolist()}}]
+    c = rb.pooled_cells(runs)["2|c"]
+    assert c["n"] == 2 and c["coverage_95"] == [0.5, 1.0, 1.0, 1.0]
