@@ -20,6 +20,9 @@ ingredient at a time swapped from the default's estimate to the oracle's:
   model's departure above; ``oracle_5hz_from_truth`` and ``default_5hz_from_truth`` descend from the true D;
   ``oracle_5hz_temporal``, ``default_5hz_temporal`` and the ``*_5hz_temporal`` swaps whiten in the time domain
   (stop 43's form), the ``pooled*_5hz_temporal`` rows with the pooled spectrum's smoother and its P_x;
+* ``inputs_px``, ``fd_true_px`` (stop 55): the oracle's inputs (the conditional mean over the window under the
+  Toeplitz prior), or the per-bin Wiener smoother's with the same true spectrum, each with the true P_x: the form of
+  the conditional mean alone;
 * candidate estimates of the inputs, each with its own smoother's P_x: the Wiener smoother with the true spectrum
   (:func:`wiener_given`, not runnable: the ceiling), ``smooth_hz`` 0.25 and 1 Hz, and the signal spectrum of a VAR
   model of the measured inputs (order by BIC or AIC; with or without today's cut-off rule);
@@ -87,6 +90,11 @@ VARIANTS = {
     "wiener_var_bic_cut": ("var_bic_cut", "own", "est", "oe", 1),
     "wiener_var_aic_cut": ("var_aic_cut", "own", "est", "oe", 1),
     "oracle_full_band": ("oracle", "true", "true", "truth", 1, 0.5),
+    # Stop 55: the conditional mean over the window (Toeplitz prior, the oracle's inputs) against the per-bin Wiener
+    # smoother with the same true spectrum, each with the true-spectrum smoother's P_x, the rest the default's: the
+    # form of the conditional mean alone.
+    "inputs_px": ("oracle", "true", "est", "oe", 1),
+    "fd_true_px": ("fd_true", "true", "est", "oe", 1),
     # Stop 46: the same swaps with the fit confined to the bins up to 5 Hz (a twentieth of the rate at 100 frames/s),
     # where the floor band's premise holds and the true S needs no residual floor to stand for the model's error above.
     "default_5hz": ("est", "est", "est", "oe", 1, 0.05),
