@@ -248,7 +248,7 @@ def identify(window: Window, *, warm_start: np.ndarray | Sequence[float] | None 
     config = config or IdentifyConfig()
     prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
                    lowpass_hz=config.lowpass_hz, floors=True, input_smoother=config.input_smoother,
-                   input_cutoff_hz=config.input_cutoff_hz)
+                   input_cutoff_hz=config.input_cutoff_hz, input_noise=config.input_noise)
     problem = Problem(prep, window.f0, config)
     rng = np.random.default_rng(config.seed)
     starts = []

@@ -569,7 +569,7 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
             input_spectrum = None
     prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
                    floors=True, input_smoother="wiener", input_spectrum=input_spectrum,
-                   input_tail=config.input_spectrum_tail, signal_cutoffs=BAND_AT_CUTOFF)
+                   input_tail=config.input_spectrum_tail, signal_cutoffs=BAND_AT_CUTOFF, input_noise=config.input_noise)
     if prep.input_error is None:
         return None
     used = input_spectrum is not None and all(white_floor(prep.noise, c) and prep.noise.get(f"noise_{c}", 0.0) > 0.0

@@ -25,6 +25,9 @@ WIENER_SMOOTH_HZ = 0.5
 MIN_CUTOFF_HZ = 0.5
 #: A channel's signal ends where its smoothed power sinks to this multiple of its noise floor [-].
 CUTOFF_FACTOR = 1.0
+#: Width of the floor band's lowest part, where a PMU's reporting filter is still flat: the noise of a measured input
+#: whose floor band falls is read there (``IdentifyConfig.input_noise="measured"``) [Hz].
+PLATEAU_HZ = 1.0
 #: Length of the local line whose value at a window's end is the centre of the point reflection [s].
 EDGE_FIT_S = 0.1
 #: Windows pooled into one input spectrum may differ in length (bin spacing) by this fraction: a window missing frames
@@ -170,6 +173,35 @@ def channel_floors(V: np.ndarray, theta: np.ndarray, P: np.ndarray, Q: np.ndarra
             "noise_p": math.sqrt(psd[2] * fs / 2), "noise_q": math.sqrt(psd[3] * fs / 2),
             "floor_tilt_v": float(tilt[0]), "floor_tilt_theta": float(tilt[1]),
             "floor_slope_v": float(slope[0]), "floor_slope_theta": float(slope[1]), "floor_slope_se": se}
+
+
+def floor_shape(x: np.ndarray, fs: float) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The floor band's shape per channel: its tilt and its lowest bins relative to its median.
+
+    Parameters
+    ----------
+    x : ndarray, shape (c, n)
+        Channels on a uniform grid (e.g. V [pu], θ [rad], P, Q [pu]).
+    fs : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    ndarray, shape (c,)
+        The median power of the band's lower half over its upper half (:func:`channel_floors`' ``floor_tilt_*``).
+    list of ndarray
+        Per channel, the periodogram bins in [:data:`FLOOR_FROM_HZ`, :data:`FLOOR_FROM_HZ` + :data:`PLATEAU_HZ`) over
+        the band's median [-]: their median is the band's lowest level over its median level.
+    """
+    x = np.atleast_2d(np.asarray(x, dtype=np.float64))
+    f, pxx = periodogram(x, fs)
+    bins = _floor_bins(x.shape[1], round(fs, 3), FLOOR_FROM_HZ)
+    vals = pxx[:, bins]
+    med = np.maximum(_median(vals), 1e-300)
+    h = vals.shape[1] // 2
+    tilt = _median(vals[:, :h]) / np.maximum(_median(vals[:, h:]), 1e-300)
+    low = f[bins] < FLOOR_FROM_HZ + PLATEAU_HZ
+    return tilt, [vals[i, low] / med[i] for i in range(x.shape[0])]
 
 
 @lru_cache(maxsize=32)

@@ -373,7 +373,7 @@ def identify_pooled(windows: Sequence[Window], *, start: np.ndarray | Sequence[f
     max_iter = max_iter or config.max_iter
     preps = [prepare(w, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
                      lowpass_hz=config.lowpass_hz, floors=True, input_smoother=config.input_smoother,
-                     input_cutoff_hz=config.input_cutoff_hz) for w in windows]
+                     input_cutoff_hz=config.input_cutoff_hz, input_noise=config.input_noise) for w in windows]
     if start is None:
         start = np.median([identify(w, config=config).d for w in windows], axis=0)
     d = np.asarray(start, dtype=np.float64)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -15,6 +16,8 @@ from aslm_core.window import SIGNALS, Window
 CHANNELS = SIGNALS  # V, θ, P, Q: put on one grid and filtered together
 #: Smoothers of the inputs V and θ (see :func:`prepare`).
 INPUT_SMOOTHERS = ("none", "wiener", "wiener_lowpass", "zero_phase")
+#: What the channels' noise is taken to be (see :func:`prepare`'s ``input_noise``).
+INPUT_NOISE = ("auto", "measured")
 #: ``wiener_lowpass``: cut-off of the low-pass as a fraction of the lower signal cut-off of V and θ [-].
 PREFILTER_FRACTION = 0.5
 #: An input whose floor band tilts by more than this (``floor_tilt_*``) holds its own falling spectrum there, not
@@ -100,13 +103,23 @@ def white_floor(floors: dict[str, float], channel: str) -> bool:
     Returns
     -------
     bool
-        False (an exact input) where the band falls (``floor_tilt_*`` above :data:`FLOOR_TILT_MAX`), or where V's
+        True for inputs declared measured (``inputs_measured`` in the floors: ``input_noise="measured"`` of
+        :func:`prepare`): a PMU's channel always carries noise.  Otherwise False (an exact input) where the band
+        falls (``floor_tilt_*`` above :data:`FLOOR_TILT_MAX`), or where V's
         and θ's bands both have a step-driven input's shape (``floor_slope_*`` at most :data:`STEP_SLOPE_MAX` and
         :data:`STEP_SLOPE_Z` standard errors below 0).  Both: a PMU's noise is on its magnitude and its angle
         alike, so one channel with a white floor says the other's step shape is its own content on top of the
         noise, not an exact input (ANDES at 0.03 % / 3e-4 rad: θ's band is step-shaped, slope −0.85 to −0.55, in
         every window while V's is white; taking θ as exact there biased a by −2.6 %, docs/numerics.md).
     """
+    if floors.get("inputs_measured"):
+        return True
+    return _white_shaped(floors, channel)
+
+
+def _white_shaped(floors: dict[str, float], channel: str) -> bool:
+    """Whether an input's floor band has white noise's shape (:func:`white_floor`'s rule for inputs not declared
+    measured)."""
     if floors[f"floor_tilt_{channel}"] > FLOOR_TILT_MAX:
         return False
     return not all(_step_shaped(floors, c) for c in ("v", "theta"))
@@ -118,10 +131,57 @@ def _step_shaped(floors: dict[str, float], channel: str) -> bool:
     return slope <= STEP_SLOPE_MAX and slope <= -STEP_SLOPE_Z * floors["floor_slope_se"]
 
 
+def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[str]:
+    """The floors of a PMU's channels, read where its reporting filter is flat; in place.
+
+    An M-class PMU low-passes its phasors before reporting them (C37.118.1's out-of-band rejection), so its noise
+    is white only up to the filter's passband and falls towards the Nyquist frequency: the median of the floor band
+    (:func:`aslm_core.noise.channel_floors`) then reads below the noise in the signal's band, and the band's fall
+    looks like an exact input's own spectrum.  Where V's or θ's band falls (not white-shaped by :func:`white_floor`'s
+    rule), the floor of each channel whose band falls (P, Q: tilt above :data:`FLOOR_TILT_MAX`) is raised to the
+    level of the band's lowest :data:`aslm_core.noise.PLATEAU_HZ`, the filter's shape read from the falling inputs'
+    bins pooled and taken as common to the channels (one filter behind all of a PMU's phasors; P's and Q's own
+    signal near 5 Hz, the larger part of them there, would read as a flatter filter).  Marks the floors ``inputs_measured`` (1.0), records the pooled
+    level over the band's median (``floor_plateau_ratio`` [-], 1 where no band falls).
+
+    Parameters
+    ----------
+    floors : dict
+        :func:`aslm_core.noise.channel_floors`' output for ``x``.
+    x : ndarray, shape (4, n)
+        V [pu], θ [rad], P, Q [pu] on the uniform grid.
+    fs : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    list of str
+        ``["input_noise_filtered"]`` where some channel's band falls, else empty.
+    """
+    tilt, low = noise.floor_shape(x, fs)
+    falling = [not _white_shaped(floors, "v"), not _white_shaped(floors, "theta"),
+               tilt[2] > FLOOR_TILT_MAX, tilt[3] > FLOOR_TILT_MAX]
+    floors["inputs_measured"] = 1.0
+    floors["floor_plateau_ratio"] = 1.0
+    if not (falling[0] or falling[1]):
+        # No filter on the inputs: a PMU's filter acts on all its phasors alike, so a falling P or Q band is their
+        # own signal's (P's and Q's noise is the smaller part of them near 5 Hz), and read as it is.
+        return []
+    # The falling inputs' bins pooled: one channel's ten bins (a 10 s window) scatter by a factor 4 between its
+    # 10th and 90th percentiles; θ's and V's own signal near 5 Hz reads as a flatter filter at low noise
+    # (docs/numerics.md, "Stop 55: a PMU's reporting filter").
+    ratio = max(1.0, float(np.median(np.concatenate([low[i] for i in (0, 1) if falling[i]]))))
+    for key, f in zip(("noise_v", "noise_theta", "noise_p", "noise_q"), falling, strict=True):
+        if f:
+            floors[key] *= math.sqrt(ratio)
+    floors["floor_plateau_ratio"] = ratio
+    return ["input_noise_filtered"]
+
+
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,
             lowpass_hz: float | None = None, floors: bool = False, input_smoother: str = "none",
             input_cutoff_hz: float = 3.0, input_spectrum: noise.InputSpectrum | None = None,
-            input_tail: bool = False, signal_cutoffs: bool = False) -> Prepared:
+            input_tail: bool = False, signal_cutoffs: bool = False, input_noise: str = "auto") -> Prepared:
     """Check a window and bring it onto a clean uniform grid.
 
     Parameters
@@ -158,6 +218,10 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     signal_cutoffs : bool
         With ``input_smoother="wiener"`` (the refinement's): also record the signal cut-offs of V and θ before any
         tail (``Prepared.signal_cutoffs``).
+    input_noise : {"auto", "measured"}
+        With the floors: ``auto`` takes an input whose floor band is not white noise's as exact (:func:`white_floor`);
+        ``measured`` declares the channels a PMU's, which always carry noise, and reads a falling band's noise
+        where a reporting filter is flat (:func:`measured_floors`).
 
     Returns
     -------
@@ -226,7 +290,11 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     if input_smoother not in INPUT_SMOOTHERS:
         raise ValueError(f"input_smoother must be one of {INPUT_SMOOTHERS}, got {input_smoother!r}")
     wiener = input_smoother in ("wiener", "wiener_lowpass")
+    if input_noise not in INPUT_NOISE:
+        raise ValueError(f"input_noise must be one of {INPUT_NOISE}, got {input_noise!r}")
     est = noise.channel_floors(V, theta, P, Q, 1.0 / dt) if floors or wiener else {}
+    if est and input_noise == "measured":
+        flags += measured_floors(est, np.stack([V, theta, P, Q]), 1.0 / dt)
     # The inputs' white noise: none where the floor band is not white (an exact input's own spectrum).
     white = {k: (est[k] if white_floor(est, k[6:]) else 0.0) for k in ("noise_v", "noise_theta") if k in est}
     if est:

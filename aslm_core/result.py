@@ -18,6 +18,7 @@ StderrMethod = Literal["spectral", "ar1"]
 IvEstimator = Literal["2sls", "liml"]
 IvWhitening = Literal["residual", "own"]
 InputWeighting = Literal["none", "spectral", "temporal"]
+InputNoise = Literal["auto", "measured"]
 
 
 @dataclass(frozen=True)
@@ -127,6 +128,14 @@ class IdentifyConfig:
         residual's autocovariance is exponential, as for many small loads switching;
         :func:`aslm_core.disturbance.own_whitener`).  The instruments see the own fluctuation through V, not the
         noise: whitening the sum leaves them correlated with the residual (docs/numerics.md, "Stop 37").
+    input_noise : {"auto", "measured"}
+        What the channels' noise is taken to be.  ``auto`` (the default): an input whose band above 5 Hz falls
+        instead of lying flat holds its own spectrum there and is taken as exact (simulated data, Table I).
+        ``measured``: the channels are a PMU's, which always carry noise; a band that falls is its reporting
+        filter's roll-off (an M-class PMU's), and each channel's noise is read where the filter is still flat, at the
+        band's lowest 1 Hz (:func:`aslm_core.preprocess.measured_floors`; flag ``input_noise_filtered``).  For
+        windows from a PMU: in ``auto`` an M-class PMU's inputs are taken as exact and the answer is biased as
+        without a smoother (docs/numerics.md, "Stop 55: a PMU's reporting filter").
     """
 
     integrator: Integrator = "rk4"
@@ -152,6 +161,7 @@ class IdentifyConfig:
     input_spectrum_tail: bool = True
     iv_estimator: IvEstimator = "2sls"
     iv_whitening: IvWhitening = "residual"
+    input_noise: InputNoise = "auto"
 
     def to_dict(self) -> dict:
         """The options as a plain dict (flat, so cheaper than ``dataclasses.asdict``)."""

@@ -116,7 +116,8 @@ class Service:
         self.scheduler = Scheduler(
             self.store, self.executor, rules, late_s=s.late_s, f0=s.f0, period_s=lambda: self.period_s,
             on_results=self.sinks.write_results, on_period=self._on_period, warm_starts=self.warm_starts,
-            options={"n_starts": s.n_starts, "lowpass_hz": s.lowpass_hz, "objective": s.objective}, n_starts_warm=s.n_starts_warm,
+            options={"n_starts": s.n_starts, "lowpass_hz": s.lowpass_hz, "objective": s.objective,
+                     "input_noise": s.identify_input_noise}, n_starts_warm=s.n_starts_warm,
             diagnose_every=s.diagnose_every, on_diagnosis=self._on_diagnosis, clock=self.clock,
             on_start=self._period_started, diagnose_in_flight=max(1, s.workers - 1),
             bus_idle_s=s.bus_idle_s, on_evicted=self.latest.forget_skipped,

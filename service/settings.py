@@ -32,6 +32,8 @@ from service.sources import SOURCES
 _KEY_CHUNK = re.compile(r"^[A-Za-z0-9_\-.]+(/[A-Za-z0-9_\-.]+)*$")
 
 PERIOD_MAX_S = 86400.0
+#: Sources whose frames come from PMUs over a grid protocol: their channels always carry a PMU's noise.
+GRID_PROTOCOL_SOURCES = ("c37118", "sttp")
 """Longest period T [s] the service accepts, at start and through ``PUT /config`` (one day)."""
 
 CONFIG_ENV = "ASLM_CONFIG"
@@ -82,6 +84,13 @@ class ServiceSettings(BaseSettings):
     objective: Literal["paper", "ml", "ssq"] = Field(
         "paper", description="Identifier objective: 'paper' (eq. 7, (‖r_P‖ + ‖r_Q‖)/l), 'ml' (Gaussian likelihood, "
                              "one noise variance per channel: efficient when P and Q differ in SNR), 'ssq'",
+    )
+    input_noise: Literal["auto", "measured"] | None = Field(
+        None, description="What the PMU channels' noise is taken to be (IdentifyConfig.input_noise): 'measured' reads "
+                          "a noise floor that falls towards the Nyquist frequency as a reporting filter's (an M-class "
+                          "PMU's) instead of taking V and θ as exact; 'auto' takes such inputs as exact (simulated "
+                          "data). Unset (default): 'measured' when a grid-protocol source ('c37118', 'sttp') is "
+                          "configured, else 'auto' (docs/numerics.md, \"Stop 55: a PMU's reporting filter\")",
     )
     input_history_windows: int = Field(
         0, description="Noisy V and θ: k > 0 has the identifier's refinement smooth them with their spectrum pooled "
@@ -204,6 +213,13 @@ class ServiceSettings(BaseSettings):
             raise ValueError(f"{info.field_name} must be a finite number >= {floor:g} (got {v})")
         return v
 
+    @property
+    def identify_input_noise(self) -> str:
+        """``input_noise`` as the identifier gets it: the setting, or derived from the sources when unset."""
+        if self.input_noise is not None:
+            return self.input_noise
+        return "measured" if any(name in GRID_PROTOCOL_SOURCES for name in self.sources) else "auto"
+
     @field_validator("lowpass_hz")
     @classmethod
     def _cutoff(cls, v: float | None) -> float | None:
@@ -282,7 +298,7 @@ class ServiceSettings(BaseSettings):
         check_period(self.period_s, self)
         if self.window_s * self.frame_rate < 10:
             raise ValueError("window_s * frame_rate gives fewer than 10 frames per window")
-        for name in ("c37118", "sttp"):
+        for name in GRID_PROTOCOL_SOURCES:
             if name in self.sources and self.pmu_mapping is None:
                 raise ValueError(f"sources has '{name}': pmu_mapping must name the mapping file (docs/protocols.md)")
         return self

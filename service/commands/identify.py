@@ -9,7 +9,7 @@ from typing import get_args
 
 from aslm_core import IdentifyConfig, WindowError, identify, warmup
 from aslm_core.preprocess import INPUT_SMOOTHERS
-from aslm_core.result import Disturbance, InputWeighting, IvEstimator, IvWhitening
+from aslm_core.result import Disturbance, InputNoise, InputWeighting, IvEstimator, IvWhitening
 from service.commands._common import add_mapping_flags
 from service.files import read_window
 
@@ -28,6 +28,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="fixed causal low-pass cut-off [Hz] (default: chosen from the inputs' noise floors)")
     p.add_argument("--input-smoother", choices=list(INPUT_SMOOTHERS), default=IdentifyConfig.input_smoother,
                    help="smoother of the noisy inputs V and θ (default %(default)s, docs/numerics.md)")
+    p.add_argument("--input-noise", choices=list(get_args(InputNoise)), default=IdentifyConfig.input_noise,
+                   help="auto (default): V and θ whose noise floor above 5 Hz falls are taken as exact (simulated data); "
+                        "measured: the file is a PMU's recording, whose channels always carry noise, and a falling "
+                        "floor is its reporting filter's (an M-class PMU's), read where the filter is flat "
+                        "(docs/numerics.md, \"Stop 55: a PMU's reporting filter\")")
     p.add_argument("--starts", type=int, default=3, help="random feasible starts")
     p.add_argument("--disturbance", choices=list(get_args(Disturbance)), default=IdentifyConfig.disturbance,
                    help="noise model of P and Q: none (white), ar (the load's own fluctuation, prediction error), "
@@ -62,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         lowpass_hz=args.lowpass, input_smoother=args.input_smoother, n_starts=args.starts,
         disturbance=args.disturbance, input_weighting=args.input_weighting, couple_channels=args.couple_channels,
         input_spectrum_tail=args.input_spectrum_tail,
-        iv_estimator=args.iv_estimator, iv_whitening=args.iv_whitening,
+        iv_estimator=args.iv_estimator, iv_whitening=args.iv_whitening, input_noise=args.input_noise,
     )
     warmup()  # load the compiled kernels first so elapsed_s measures the identification alone
     status = 0

@@ -91,3 +91,21 @@ def test_non_finite_period_from_the_environment_is_refused(monkeypatch):
     monkeypatch.setenv("ASLM_PERIOD_S", "inf")
     with pytest.raises(SettingsError, match="period_s"):
         load_settings()
+
+
+def test_input_noise_follows_the_sources_unless_set(tmp_path):
+    """PMU streams over a grid protocol always carry a PMU's noise: 'measured' unless set; the synthetic fleet's
+    Zenoh default 'auto' (its inputs are simulated); an explicit setting wins."""
+    assert load_settings().identify_input_noise == "auto"
+    mapping = tmp_path / "pdc.toml"
+    mapping.write_text("")
+    cfg = tmp_path / "aslm.toml"
+    cfg.write_text(f'sources = ["c37118"]\npmu_mapping = "{mapping}"\n')
+    assert load_settings(cfg).identify_input_noise == "measured"
+    cfg.write_text(f'sources = ["c37118"]\npmu_mapping = "{mapping}"\ninput_noise = "auto"\n')
+    assert load_settings(cfg).identify_input_noise == "auto"
+    cfg.write_text('input_noise = "measured"\n')
+    assert load_settings(cfg).identify_input_noise == "measured"
+    cfg.write_text('input_noise = "filtered"\n')
+    with pytest.raises(SettingsError, match="input_noise"):
+        load_settings(cfg)

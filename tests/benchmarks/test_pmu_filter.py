@@ -1,0 +1,115 @@
+"""benchmarks.pmu_filter's noise model and the core's reading of a PMU's filtered noise (input_noise="measured")."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import signal
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from aslm_core import noise, preprocess  # noqa: E402
+from benchmarks import pmu_filter as pf  # noqa: E402
+
+
+@pytest.mark.parametrize("fs", [25.0, 50.0, 100.0])
+def test_the_reporting_filter_meets_its_envelope(fs):
+    for shape in ("fs5", "5hz"):
+        edge = pf.SHAPES[shape](fs)
+        h = pf.reporting_filter(fs, edge)
+        w, resp = signal.freqz(h, worN=8192, fs=pf.UP * fs)
+        amp = np.abs(resp)
+        assert np.abs(amp[w <= edge] - 1.0).max() <= pf.RIPPLE
+        assert amp[w >= fs / 2].max() <= pf.STOP
+
+
+def test_filtered_noise_has_the_white_density_in_the_passband_and_falls_above():
+    fs, rng = 50.0, np.random.default_rng(4)
+    x = np.concatenate([pf.filtered_noise(500, 2e-3, fs, "fs5", rng) for _ in range(40)])
+    f, p = signal.welch(x, fs, nperseg=500)
+    white = 2 * (2e-3) ** 2 / fs  # one-sided density of white noise of that std
+    assert abs(np.mean(p[(f > 1) & (f < 9)]) / white - 1.0) < 0.1
+    assert np.mean(p[(f > 22) & (f < 25)]) < 0.05 * white
+
+
+def _floors(x4, fs, measured):
+    est = noise.channel_floors(*x4, fs)
+    flags = preprocess.measured_floors(est, np.stack(x4), fs) if measured else []
+    return est, flags
+
+
+@pytest.mark.parametrize("fs", [25.0, 30.0, 50.0, 100.0])
+def test_measured_floors_read_a_filtered_channel_at_its_in_band_level(fs):
+    """An M-class PMU's noise alone on all four channels: the band's median reads well below the in-band std and the
+    floor rule takes V as exact; declared measured, every channel's floor is within 25 % of the in-band std."""
+    rng = np.random.default_rng(int(fs))
+    n = int(10 * fs)
+    stds = (1e-3, 1e-3, 2e-3, 2e-3)
+    x4 = [1.0 + pf.filtered_noise(n, stds[0], fs, "fs5", rng)] + [pf.filtered_noise(n, s, fs, "fs5", rng)
+                                                                   for s in stds[1:]]
+    auto, _ = _floors(x4, fs, False)
+    assert auto["noise_v"] < 0.7 * stds[0] and not preprocess.white_floor(auto, "v")
+    est, flags = _floors(x4, fs, True)
+    assert flags == ["input_noise_filtered"] and preprocess.white_floor(est, "v") and est["inputs_measured"] == 1.0
+    for key, s in zip(("noise_v", "noise_theta", "noise_p", "noise_q"), stds, strict=True):
+        assert abs(est[key] / s - 1.0) < 0.25, (key, est[key] / s)
+
+
+def test_measured_floors_leave_white_noise_as_it_is():
+    fs, rng = 50.0, np.random.default_rng(9)
+    x4 = [1.0 + 1e-3 * rng.standard_normal(500)] + [s * rng.standard_normal(500) for s in (1e-3, 2e-3, 2e-3)]
+    auto, _ = _floors(x4, fs, False)
+    est, flags = _floors(x4, fs, True)
+    assert flags == [] and est["floor_plateau_ratio"] == 1.0
+    for key in ("noise_v", "noise_theta", "noise_p", "noise_q"):
+        assert est[key] == auto[key]
+
+
+def test_the_cli_reads_an_m_class_recording_declared_measured(tmp_path):
+    """`aslm identify --input-noise measured` on a recording whose noise an M-class filter shaped: the config says
+    so, the flag names the filtered floor, and V's noise is read near its in-band std, where the default reads it
+    low and takes V as exact.  (Accuracy over many windows: ``benchmarks.pmu_filter``.)"""
+    import json
+    import subprocess
+
+    from aslm_sim.cases import make_case
+    from service.files import write_window
+
+    case = make_case(21, level=3, input_noise=False, fs=50.0)
+    w = pf.noisy_window(case, 50.0, 1e-3, 1e-3, "fs5", np.random.default_rng(5))
+    path = tmp_path / "m_class.csv"
+    write_window(path, w)
+    out = {}
+    for mode in ("auto", "measured"):
+        proc = subprocess.run([sys.executable, "-m", "service.cli", "identify", "--json", "--input-noise", mode,
+                               str(path)], capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr
+        out[mode] = json.loads(proc.stdout)
+    assert out["measured"]["config"]["input_noise"] == "measured" and out["auto"]["config"]["input_noise"] == "auto"
+    assert "input_noise_filtered" in out["measured"]["flags"] and "input_noise_filtered" not in out["auto"]["flags"]
+    inband = 1e-3 * float(np.mean(case.clean.V))
+    assert not preprocess.white_floor(out["auto"]["quality"], "v") and out["auto"]["quality"]["noise_v"] < 0.7 * inband
+    assert preprocess.white_floor(out["measured"]["quality"], "v")
+    assert 0.8 < out["measured"]["quality"]["noise_v"] / inband < 1.6
+
+
+def test_the_confirmation_rule_fails_on_each_criterion():
+    def cell(bias=0.0, sigma=0.05, cover=0.94, n=300):
+        return {"n": n, "bias": [bias] * 4, "sigma": [sigma] * 4, "coverage_95": [cover] * 4,
+                "noise_v_over_inband": 1.0, "exact_by_floor": 1.0, "flagged": 0.5, "filtered_flag": 1.0}
+
+    def cells(**measured):
+        cls = "0.1 % / 1e-3 rad"
+        white = cell()
+        return {"50|2": {f"{cls}|white|auto": white, f"{cls}|white|measured": dict(white),
+                         f"{cls}|fs5|auto": cell(bias=-0.5), f"{cls}|fs5|measured": cell(**measured)}}
+
+    assert all(pf.verdict(cells())["met"].values())
+    assert not pf.verdict(cells(bias=0.03))["met"]["bias"]  # outside, and its interval too
+    assert not pf.verdict(cells(sigma=0.06))["met"]["sigma"]  # 1.2 × the white rows'
+    assert not pf.verdict(cells(cover=0.86))["met"]["coverage"]
+    c = cells()
+    c["50|2"]["0.1 % / 1e-3 rad|white|measured"]["bias"] = [0.001] * 4
+    assert not pf.verdict(c)["met"]["white_unchanged"]
