@@ -219,7 +219,9 @@ class IdentificationResult:
         ``iv_error_may_exceed_20pct`` (``ar_iv``, and ``gated`` where the IV answers: a standard error above 6 %
         of its parameter, so an error above 20 % is not a rare draw),
         ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
-        variation and D is not trustworthy), and since stop 28 (docs/numerics.md, "Flags that catch the tail"):
+        variation and D is not trustworthy), ``input_noise_filtered`` (``input_noise="measured"``: V's or θ's noise
+        floor falls towards the Nyquist frequency, a reporting filter's, and the channels' noise was read at the
+        band's lowest 1 Hz, ``floor_plateau_ratio`` [-] times the band's median power), and since stop 28 (docs/numerics.md, "Flags that catch the tail"):
         ``input_noise_correction_large`` (the S-weighted answer's ``weighted_shift_z`` above 2.5: the
         input-noise correction moved D far in its own standard errors, so D rests on the estimated input-noise
         spectrum), ``error_may_exceed_20pct`` (the rule of ``iv_error_may_exceed_20pct`` on every other answer,
