@@ -141,8 +141,9 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     rule), the floor of each channel whose band falls (P, Q: tilt above :data:`FLOOR_TILT_MAX`) is raised to the
     level of the band's lowest :data:`aslm_core.noise.PLATEAU_HZ`, the filter's shape read from the falling inputs'
     bins pooled and taken as common to the channels (one filter behind all of a PMU's phasors; P's and Q's own
-    signal near 5 Hz, the larger part of them there, would read as a flatter filter).  Marks the floors ``inputs_measured`` (1.0), records the pooled
-    level over the band's median (``floor_plateau_ratio`` [-], 1 where no band falls).
+    signal near 5 Hz, the larger part of them there, would read as a flatter filter).  Marks the floors
+    ``inputs_measured`` (1.0), records the pooled level over the band's median (``floor_plateau_ratio`` [-], 1 where
+    no band falls) and, where one falls, how many bins that level is the median of (``floor_plateau_bins``).
 
     Parameters
     ----------
@@ -170,11 +171,13 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     # The falling inputs' bins pooled: one channel's ten bins (a 10 s window) scatter by a factor 4 between its
     # 10th and 90th percentiles; θ's and V's own signal near 5 Hz reads as a flatter filter at low noise
     # (docs/numerics.md, "Stop 55: a PMU's reporting filter").
-    ratio = max(1.0, float(np.median(np.concatenate([low[i] for i in (0, 1) if falling[i]]))))
+    bins = np.concatenate([low[i] for i in (0, 1) if falling[i]])
+    ratio = max(1.0, float(np.median(bins)))
     for key, f in zip(("noise_v", "noise_theta", "noise_p", "noise_q"), falling, strict=True):
         if f:
             floors[key] *= math.sqrt(ratio)
     floors["floor_plateau_ratio"] = ratio
+    floors["floor_plateau_bins"] = float(bins.size)
     return ["input_noise_filtered"]
 
 

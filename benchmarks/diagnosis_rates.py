@@ -2,7 +2,7 @@
 at 100, and a concealed effect should still be named (issue 11: "every reporting rate ... with the same protocol").
 
     .venv/bin/python -m benchmarks.diagnosis_rates [--seed 71] [--n 20] [--rates 25 30 50 60 100 120] [--levels 1 2 3]
-        [--input-noise] [--effect NAME] [--workers 2] [--tag NAME] [--config NAME=VALUE ...]
+        [--input-noise] [--effect NAME] [--workers 2] [--tag NAME] [--config NAME=VALUE ...] [--pmu fs5:1e-3]
     .venv/bin/python -m benchmarks.diagnosis_rates --andes 1 2 3 4 5 6 7 8 9 10 [--snr 22]
 
 Per rate and level, ``n`` windows of the project's generator (``aslm_sim``, 1 ms steps; other records at each rate), plain ZIP + IM (the model
@@ -13,7 +13,9 @@ diagnosed with the default :class:`DiagnosisConfig` (``--config``: fields of it 
 ``--effect``, the named effect of :mod:`aslm_sim.effects` is added to each window (concealed, as in
 ``benchmarks.diagnosis``) and the count that names it is the power.  With ``--andes``, an independent simulator's
 model-true windows instead: ANDES's ``model`` scenario (``benchmarks.andes_rates``' records and decimation).  Written to
-``docs/results/diagnosis_rates_seed<seed>[_<tag>].json`` (``diagnosis_rates_andes[_<tag>].json``).
+``docs/results/diagnosis_rates_seed<seed>[_<tag>].json`` (``diagnosis_rates_andes[_<tag>].json``).  With ``--pmu
+SHAPE:CLASS``, every channel's noise a PMU's of that reporting-filter shape and class instead
+(:func:`pmu_window`; with ``--config input_noise=measured`` the diagnosis reads it as a PMU's, stop 55).
 
 The code before a change is measured by running this module with that commit's tree first on ``PYTHONPATH`` (the
 module imports only the public API).
@@ -43,7 +45,7 @@ def diagnosed(job: tuple) -> dict:
     D/D_real."""
     from aslm_sim import make_cases
 
-    fs, level, i, seed, input_noise, effect, config = job
+    fs, level, i, seed, input_noise, effect, config, *pmu = job
     case = make_cases(1, level=level, seed=seed * 100_000 + int(fs) * 100 + i, fs=fs, input_noise=input_noise)[0]
     window, model = case.window, None
     if effect:
@@ -51,7 +53,21 @@ def diagnosed(job: tuple) -> dict:
 
         ec = apply_effect(case, effect, seed=zlib.crc32(f"{effect}/{fs}/{level}/{i}".encode()))
         window, model = ec.window, ec.model
+    if pmu and pmu[0]:
+        window = pmu_window(case, window, fs, *pmu[0], np.random.default_rng([seed, int(fs), level, i, 13]))
     return _row(window, model, case.truth.d, config, fs=fs, level=level, i=i)
+
+
+def pmu_window(case, window, fs: float, shape: str, v_rel: float, rng: np.random.Generator):
+    """``window`` (the case's, or its effect's) with all four channels' noise replaced by a PMU's of ``shape`` and
+    class ``v_rel`` (:func:`benchmarks.pmu_filter.noisy_window`: V at v_rel, θ at v_rel rad, P and Q at the
+    generator's own noise std), the effect's own part of P and Q kept."""
+    from aslm_core import Window
+    from benchmarks.pmu_filter import noisy_window
+
+    w = noisy_window(case, fs, v_rel, v_rel, shape, rng)
+    return Window(t=w.t, V=w.V, theta=w.theta, P=w.P + (window.P - case.window.P), Q=w.Q + (window.Q - case.window.Q),
+                  f0=w.f0, bus=w.bus, meta=window.meta)
 
 
 def _row(window, model, truth: np.ndarray, config: dict, **key) -> dict:
@@ -115,6 +131,9 @@ def main() -> None:
                    help="instead: ANDES's model-scenario records of these ambient seeds (seven 10 s windows each, P and "
                         "Q at --snr, exact V and θ) at 100, 50 and 25 frames/s")
     p.add_argument("--snr", type=float, default=22.0, help="P/Q SNR of the ANDES windows [dB]")
+    p.add_argument("--pmu", default="", metavar="SHAPE:CLASS",
+                   help="every channel's noise a PMU's instead (benchmarks.pmu_filter): SHAPE white, fs5 or 5hz, CLASS "
+                        "V's std over its mean and θ's [rad], e.g. fs5:1e-3")
     p.add_argument("--tag", default="")
     p.add_argument("--config", action="append", default=[], metavar="NAME=VALUE",
                    help="a DiagnosisConfig field changed for every window (repeatable)")
@@ -134,7 +153,11 @@ def main() -> None:
             jobs = [(seed, j, fs, args.snr, config) for seed in args.andes for j in range(len(WINDOWS)) for fs in STEPS]
             rows = list(ex.map(andes_diagnosed, jobs, chunksize=3))
         else:
-            jobs = [(fs, level, i, args.seed, args.input_noise, args.effect or None, config)
+            pmu = None
+            if args.pmu:
+                shape, _, cls = args.pmu.partition(":")
+                pmu = (shape, float(cls))
+            jobs = [(fs, level, i, args.seed, args.input_noise, args.effect or None, config, pmu)
                     for fs in args.rates for level in args.levels for i in range(n)]
             rows = list(ex.map(diagnosed, jobs, chunksize=2))
     cells = summary(rows, args.effect or None)

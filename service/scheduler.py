@@ -414,7 +414,8 @@ class Scheduler:
         """Queue the discrepancy diagnosis of each bus identified this period (results come back async);
         diagnoses of an earlier period still waiting are shed."""
         self.diagnoses.enqueue(boundary, [
-            WindowTask(cut, fn="service.worker:diagnose_window", previous=value, background=True)
+            WindowTask(cut, fn="service.worker:diagnose_window", previous=value, background=True,
+                       options={"input_noise": self.options["input_noise"]} if "input_noise" in self.options else {})
             for cut, value in identified.values()])
 
     def _diagnosed(self, bus: str, boundary: float, outcome: TaskOutcome) -> None:

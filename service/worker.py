@@ -107,12 +107,14 @@ def diagnose_window(task: WindowTask) -> dict:
     -------
     dict
         The JSON-ready report of :func:`aslm_core.diagnosis.diagnose_dict`, warm-started from the
-        window's identification in ``task.previous``.
+        window's identification in ``task.previous``, with ``task.options``' ``input_noise`` (the service's).
     """
-    from aslm_core.diagnosis import diagnose_dict
+    from aslm_core.diagnosis import DiagnosisConfig, diagnose_dict
 
     window = task.window
-    return diagnose_dict(window, previous=task.previous)
+    # The channels' noise as the bus's identification took it (a PMU's reporting filter: ``input_noise``).
+    config = DiagnosisConfig(input_noise=(task.options or {}).get("input_noise", "auto"))
+    return diagnose_dict(window, previous=task.previous, config=config)
 
 
 def pooled_window(task: WindowTask) -> dict:

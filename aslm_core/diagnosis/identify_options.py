@@ -19,7 +19,7 @@ PINNED: dict = {
     "coarse_to_fine": True, "disturbance": "none", "ar_max_order": 30, "couple_channels": False,
     "stderr_method": "spectral",
     "input_weighting": "none", "input_spectrum_tail": False, "iv_estimator": "2sls",
-    "iv_whitening": "residual",
+    "iv_whitening": "residual", "input_noise": "auto",
 }
 
 

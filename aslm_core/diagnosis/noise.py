@@ -298,6 +298,19 @@ def draw_error(freqs: np.ndarray, px: np.ndarray, n: int, fs: float, k: int,
     return ev, et
 
 
+def _in_band(floor: dict, seg: Segment) -> dict:
+    """A floor read above 5 Hz brought to the in-band level of a PMU whose reporting filter rolls off there
+    (``seg.floor_scale``); its degrees of freedom combine the median's and the scale's, whose relative variances
+    add.  Unchanged where the segment has no such filter."""
+    if seg.floor_scale == 1.0 and math.isinf(seg.floor_scale_dof):
+        return floor
+    out = dict(floor)
+    out["psd"] = floor["psd"] * seg.floor_scale
+    out["sigma"] = floor["sigma"] * math.sqrt(seg.floor_scale)
+    out["dof"] = 1.0 / (1.0 / floor["dof"] + 1.0 / seg.floor_scale_dof)
+    return out
+
+
 def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndarray] | None], win: slice, *,
              n_probes: int = N_PROBES, band_hz: float = BAND_HZ, seed: int = 0,
              error_draws: bool = False, exact_quiet: bool = False) -> NoiseModel:
@@ -336,8 +349,8 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
     # With exact_quiet an input the identifier's rule takes as exact carries no noise: what lies above the floor's
     # edge is its own content (at 25 frames/s the band is 5–12.5 Hz, where ambient V and θ still have some).
     exact = seg.exact_inputs if exact_quiet else (False, False)
-    sv = 0.0 if exact[0] else noise_floor(seg.v_measured[win], fs)["sigma"]
-    st = 0.0 if exact[1] else noise_floor(seg.theta_measured[win], fs)["sigma"]
+    sv = 0.0 if exact[0] else _in_band(noise_floor(seg.v_measured[win], fs), seg)["sigma"]
+    st = 0.0 if exact[1] else _in_band(noise_floor(seg.theta_measured[win], fs), seg)["sigma"]
     base = output(seg)
     if base is None:
         raise ValueError("the model cannot be played back on this window")
@@ -347,8 +360,8 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
         fc = 0.8 * FLOOR_FROM_HZ
         lp = output(perturbed(seg, _lowpass(seg.V, fs, fc), _lowpass(seg.theta, fs, fc)))
         ref = lp if lp is not None else base
-    fp = noise_floor((seg.P - ref[0])[win], fs)
-    fq = noise_floor((seg.Q - ref[1])[win], fs)
+    fp = _in_band(noise_floor((seg.P - ref[0])[win], fs), seg)
+    fq = _in_band(noise_floor((seg.Q - ref[1])[win], fs), seg)
     nm = NoiseModel(max(fp["sigma"], 1e-12), max(fq["sigma"], 1e-12), fs, band_hz, sv, st, floors={"P": fp, "Q": fq},
                     conditional_mean=seg.conditional_mean)
     if n_probes <= 0 or (sv <= 0 and st <= 0):

@@ -144,6 +144,12 @@ class DiagnosisConfig:
         every input's floor above 5 Hz is taken as its noise and propagated.  At low reporting rates that band holds
         the inputs' own content, which the default reads as noise; an option, with its trade-off in
         docs/diagnosis.md, "Stop 52: the noise model at low rates".
+    input_noise : {"auto", "measured"}
+        What the channels' noise is taken to be, as the identifier's ``IdentifyConfig.input_noise``: ``measured`` for
+        a PMU's channels, whose floor band may fall above its reporting filter's passband (an M-class PMU's); the
+        noise model then reads every floor at the filter's flat level (``Segment.floor_scale``).  ``auto`` reads such
+        inputs as exact and the floors as the band's median: on simulated M-class streams every model-true window was
+        ``unexplained`` (docs/diagnosis.md, "Stop 55: a PMU's reporting filter").
     gain_metric : {"channels", "decorrelated"}
         The held-out log-likelihood gain (the penalty's and the ranking's) over P and Q as they are, or over P and
         Q given P, the noise model's P/Q covariance per coefficient taken out (:func:`engine.compare`; the default
@@ -185,6 +191,7 @@ class DiagnosisConfig:
     input_tail: bool = False
     exact_inputs_quiet: bool = False
     gain_metric: str = "decorrelated"
+    input_noise: str = "auto"
     cross_fit: bool = True
     mirror_gap_s: float = 1.0
 
@@ -217,13 +224,13 @@ def _plain_d(seg: Segment, previous, config: DiagnosisConfig) -> np.ndarray:
     # The diagnosis's own fits use its fixed skip; the plain D is their start, on the same samples.  The
     # identifier's other options are pinned (identify_options), not taken from its defaults.
     cfg = pinned_config(skip_s=config.skip_s, transient_tau=0.0, min_duration_s=2.0,
-                        n_starts=1 if warm is not None else 3)
+                        n_starts=1 if warm is not None else 3, input_noise=config.input_noise)
     return identify(w, warm_start=warm, config=cfg).d
 
 
 def _analyse(window: Window, model, previous, config: DiagnosisConfig) -> _WindowAnalysis:
     seg = make_segment(window, skip_s=config.skip_s, train_fraction=config.train_fraction,
-                       input_mean=config.input_mean, input_tail=config.input_tail)
+                       input_mean=config.input_mean, input_tail=config.input_tail, input_noise=config.input_noise)
     if model is None:
         ctx = Context("identified", _plain_d(seg, previous, config))
     else:

@@ -68,6 +68,11 @@ class Segment:
         Whether V and θ are exact by the identifier's rule (:func:`aslm_core.preprocess.white_floor`: the band above
         the floor's edge holds the input's own falling spectrum, not white PMU noise); with
         ``DiagnosisConfig.exact_inputs_quiet`` the noise model propagates no noise from them.
+    floor_scale, floor_scale_dof : float
+        A PMU's reporting filter (``DiagnosisConfig.input_noise="measured"`` and the identifier's
+        :func:`aslm_core.preprocess.measured_floors` finding V's or θ's floor band falling): the in-band noise power
+        over the floor band's median [-], by which every floor the noise model reads above 5 Hz is raised, and the χ²
+        degrees of freedom of that ratio (a median of ``floor_plateau_bins`` bins); 1 and ∞ otherwise.
     """
 
     t: np.ndarray
@@ -90,6 +95,8 @@ class Segment:
     held_out_first: bool = False
     mirror_gap: int = 0
     exact_inputs: tuple[bool, bool] = (False, False)
+    floor_scale: float = 1.0
+    floor_scale_dof: float = math.inf
 
     def __post_init__(self) -> None:
         self.omega0 = motor.omega0_of(self.f0)
@@ -187,7 +194,7 @@ def driver_noise(dv: np.ndarray, dtheta: np.ndarray, fs: float) -> tuple[np.ndar
             _lowpass(np.gradient(dtheta, dt) / (2.0 * math.pi), fs, FREQ_LOWPASS_HZ))
 
 
-def conditional_mean(window: Window, *, tail: bool = False) -> tuple[Prepared, Prepared | None]:
+def conditional_mean(window: Window, *, tail: bool = False, input_noise: str = "auto") -> tuple[Prepared, Prepared | None]:
     """The window prepared as measured and, where V or θ carries white PMU noise, with V and θ replaced by their
     conditional mean given the window.
 
@@ -197,6 +204,9 @@ def conditional_mean(window: Window, *, tail: bool = False) -> tuple[Prepared, P
     tail : bool
         Continue the smoother's estimate of the inputs' spectrum above its cut-off
         (:func:`aslm_core.noise.wiener_smooth`'s ``tail``, the identifier's ``input_spectrum_tail``).
+    input_noise : {"auto", "measured"}
+        :func:`aslm_core.preprocess.prepare`'s: ``measured`` for a PMU's channels (a falling floor band is its
+        reporting filter's, not an exact input's).
 
     Returns
     -------
@@ -213,10 +223,10 @@ def conditional_mean(window: Window, *, tail: bool = False) -> tuple[Prepared, P
     depend on the fitted parameters (regression calibration, as the identifier's ``input_smoother="wiener"``,
     docs/numerics.md).  Exact inputs are left as measured, so their segment is the one built without this step.
     """
-    raw = prepare(window, floors=True)
+    raw = prepare(window, floors=True, input_noise=input_noise)
     if not noisy_inputs(raw.noise):
         return raw, None
-    return raw, prepare(window, input_smoother="wiener", input_tail=tail)
+    return raw, prepare(window, input_smoother="wiener", input_tail=tail, input_noise=input_noise)
 
 
 def error_spectrum(raw: Prepared, smooth: Prepared) -> tuple[np.ndarray, np.ndarray]:
@@ -250,7 +260,8 @@ def error_spectrum(raw: Prepared, smooth: Prepared) -> tuple[np.ndarray, np.ndar
 
 
 def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float = 0.65,
-                 guard_s: float = 0.1, input_mean: bool = True, input_tail: bool = False) -> Segment:
+                 guard_s: float = 0.1, input_mean: bool = True, input_tail: bool = False,
+                 input_noise: str = "auto") -> Segment:
     """Prepare a window and split it in time.
 
     Parameters
@@ -268,6 +279,9 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
         False: the measured inputs always.
     input_tail : bool
         With ``input_mean``: the smoother's spectrum continued above its cut-off (:func:`conditional_mean`).
+    input_noise : {"auto", "measured"}
+        ``measured``: a PMU's channels (:func:`conditional_mean`); where their floor band falls, the noise model's
+        floors are raised to the filter's flat level (``Segment.floor_scale``).
 
     Returns
     -------
@@ -275,7 +289,12 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
         Where V or θ carries white noise, V and θ (and Δf, dV/dt built from them) are their conditional mean
         (:func:`conditional_mean`); a recorded f is used as measured.
     """
-    raw, smooth = conditional_mean(window, tail=input_tail) if input_mean else (prepare(window, floors=True), None)
+    raw, smooth = (conditional_mean(window, tail=input_tail, input_noise=input_noise) if input_mean
+                   else (prepare(window, floors=True, input_noise=input_noise), None))
+    scale = {}
+    if "floor_plateau_bins" in raw.noise:
+        scale = {"floor_scale": raw.noise["floor_plateau_ratio"],
+                 "floor_scale_dof": 2.0 * raw.noise["floor_plateau_bins"] * math.log(2.0) ** 2}
     prep = raw if smooth is None else smooth
     exact = tuple(not (white_floor(raw.noise, c) and raw.noise[f"noise_{c}"] > 0.0) for c in ("v", "theta"))
     n = prep.V.shape[0]
@@ -297,4 +316,4 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
         "V_raw": raw.V, "theta_raw": raw.theta, "input_error": error_spectrum(raw, smooth)}
     return Segment(t=prep.t, V=prep.V, theta=prep.theta, P=prep.P, Q=prep.Q, dfreq=df, dvdt=dvdt, dt=dt,
                    f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus, dfreq_from_theta=from_theta,
-                   exact_inputs=exact, **extra)
+                   exact_inputs=exact, **scale, **extra)

@@ -25,7 +25,8 @@ class WindowTask:
     warm_start : list of float or None
         Previous period's D = [a, b, H2, Tm] of the bus.
     options : dict
-        Keyword arguments of :class:`aslm_core.IdentifyConfig` (e.g. ``n_starts``).
+        Keyword arguments of :class:`aslm_core.IdentifyConfig` (e.g. ``n_starts``); the diagnosis's task carries only
+        ``input_noise``.
     fn : str or None
         ``module:function`` to run instead of the executor's (e.g. the diagnosis).
     previous : dict or None

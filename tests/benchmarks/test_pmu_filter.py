@@ -113,3 +113,23 @@ def test_the_confirmation_rule_fails_on_each_criterion():
     c = cells()
     c["50|2"]["0.1 % / 1e-3 rad|white|measured"]["bias"] = [0.001] * 4
     assert not pf.verdict(c)["met"]["white_unchanged"]
+
+
+def test_the_diagnosis_rule_reads_false_findings_and_power():
+    def run(consistent=None, named=None, n=120):
+        cell = {"n": n, "verdicts": {"consistent": consistent if consistent is not None else n}, "named_effect": named}
+        return {"cells": [cell]}
+
+    def reader(white_ff=2, measured_ff=4, white_named=50, measured_named=45):
+        runs = {}
+        for cls in ("1e-3", "3e-4"):
+            runs[f"diagnosis_rates_seed84_pmu_white_{cls}"] = run(120 - white_ff)
+            runs[f"diagnosis_rates_seed84_pmu_fs5_{cls}"] = run(0)
+            runs[f"diagnosis_rates_seed84_pmu_fs5_measured_{cls}"] = run(120 - measured_ff)
+        runs["diagnosis_rates_seed85_pmu_white_second_motor"] = run(named=white_named, n=60)
+        runs["diagnosis_rates_seed85_pmu_fs5_second_motor"] = run(named=measured_named, n=60)
+        return runs.__getitem__
+
+    assert pf.diagnosis_verdict(reader())["met"] == {"clean": True, "power": True}
+    assert not pf.diagnosis_verdict(reader(measured_ff=6))["met"]["clean"]
+    assert not pf.diagnosis_verdict(reader(measured_named=43))["met"]["power"]
