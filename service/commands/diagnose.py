@@ -27,6 +27,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="share of the window the time-ordered fold is fitted on (the rest held out)")
     p.add_argument("--one-fold", action="store_true",
                    help="judge on the time-ordered fold only (default: cross-fitted, a mirrored fold judged too)")
+    p.add_argument("--input-noise", choices=["auto", "measured"], default="auto",
+                   help="measured: the file is a PMU's recording, whose noise floor may fall above its reporting "
+                        "filter's passband (an M-class PMU's); auto (default): such inputs are taken as exact "
+                        "(docs/diagnosis.md, \"Stop 55: a PMU's reporting filter\")")
     p.set_defaults(func=run)
 
 
@@ -37,7 +41,8 @@ def run(args: argparse.Namespace) -> int:
         if args.model:
             model = json.loads(Path(args.model).read_text())
         warmup()
-        config = DiagnosisConfig(train_fraction=args.train_fraction, cross_fit=not args.one_fold)
+        config = DiagnosisConfig(train_fraction=args.train_fraction, cross_fit=not args.one_fold,
+                                 input_noise=args.input_noise)
         report = diagnose(window, model, config=config)
     except (OSError, ValueError, WindowError, KeyError) as exc:
         if args.json:
