@@ -157,7 +157,7 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     Returns
     -------
     list of str
-        ``["input_noise_filtered"]`` where some channel's band falls, else empty.
+        ``["input_noise_filtered"]`` where V's or θ's band falls, else empty.
     """
     tilt, low = noise.floor_shape(x, fs)
     falling = [not _white_shaped(floors, "v"), not _white_shaped(floors, "theta"),
