@@ -34,7 +34,7 @@ def test_the_runs_default_rows_are_pooled_window_by_window():
 def _cells(bias_a: float, se_a: float, level: str = "2") -> dict:
     cls = "0.03 % / 3e-4 rad"
     c = {"n": 1800, "bias": [bias_a, 0.0, 0.0, 0.0], "se": [se_a, 0.001, 0.001, 0.001]}
-    c["calls"] = [rb.call(b, s, rb.BIAS_TARGET[cls]) for b, s in zip(c["bias"], c["se"])]
+    c["calls"] = [rb.call(b, s, rb.BIAS_TARGET[cls]) for b, s in zip(c["bias"], c["se"], strict=True)]
     return {"25": {f"{level}|{cls}": c}}
 
 
