@@ -133,3 +133,20 @@ def test_the_diagnosis_rule_reads_false_findings_and_power():
     assert pf.diagnosis_verdict(reader())["met"] == {"clean": True, "power": True}
     assert not pf.diagnosis_verdict(reader(measured_ff=6))["met"]["clean"]
     assert not pf.diagnosis_verdict(reader(measured_named=43))["met"]["power"]
+
+
+def test_the_andes_check_compares_the_measured_rows_with_the_white_ones():
+    from benchmarks import andes_rates as ar
+
+    def run(bias, cover=0.94):
+        return {"cells": [{"class": c, "fs": fs, "bias": [bias] * 4, "cover": [cover] * 4}
+                          for c in ("exact", "pmu003", "pmu01") for fs in (100.0, 50.0, 25.0)]}
+
+    def reader(measured_bias=-0.012, cover=0.94):
+        runs = {"andes_rates_pmu_white_auto": run(-0.01), "andes_rates_pmu_fs5_auto": run(-0.5),
+                "andes_rates_pmu_fs5_measured": run(measured_bias, cover)}
+        return runs.__getitem__
+
+    assert ar.pmu_check(reader())["met"]
+    assert not ar.pmu_check(reader(measured_bias=-0.025))["met"]  # 1.5 points off the white rows' at 0.03 %
+    assert not ar.pmu_check(reader(cover=0.85))["met"]
