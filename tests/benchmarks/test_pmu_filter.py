@@ -150,3 +150,16 @@ def test_the_andes_check_compares_the_measured_rows_with_the_white_ones():
     assert ar.pmu_check(reader())["met"]
     assert not ar.pmu_check(reader(measured_bias=-0.025))["met"]  # 1.5 points off the white rows' at 0.03 %
     assert not ar.pmu_check(reader(cover=0.85))["met"]
+
+
+def test_the_diagnosis_reads_an_m_class_pmus_model_true_window_declared_measured():
+    """A model-true window whose four channels carry an M-class PMU's noise: the default holds the residual against a
+    floor read on the filter's roll-off and calls it unexplained; declared measured, consistent.  (Rates over many
+    windows: benchmarks.diagnosis_rates --pmu, DIAGNOSIS_RULE.)"""
+    from aslm_core.diagnosis import DiagnosisConfig, diagnose
+    from benchmarks import common
+
+    case = common.cases(1, level=2, seed=86, fs=50.0)[0]
+    w = pf.noisy_window(case, 50.0, 1e-3, 1e-3, "fs5", np.random.default_rng(86))
+    assert diagnose(w).verdict == "unexplained"
+    assert diagnose(w, config=DiagnosisConfig(input_noise="measured")).verdict == "consistent"
