@@ -28,6 +28,9 @@ CUTOFF_FACTOR = 1.0
 #: Width of the floor band's lowest part, where a PMU's reporting filter is still flat: the noise of a measured input
 #: whose floor band falls is read there (``IdentifyConfig.input_noise="measured"``) [Hz].
 PLATEAU_HZ = 1.0
+#: The band an input's noise is read in as the part of it the other channels do not explain (:func:`incoherent_level`):
+#: [FLOOR_FROM_HZ − 1, FLOOR_FROM_HZ + PLATEAU_HZ) [Hz], inside a reporting filter's flat band at 25 frames/s and up.
+INCOHERENT_BAND_HZ = (FLOOR_FROM_HZ - 1.0, FLOOR_FROM_HZ + PLATEAU_HZ)
 #: Length of the local line whose value at a window's end is the centre of the point reflection [s].
 EDGE_FIT_S = 0.1
 #: Windows pooled into one input spectrum may differ in length (bin spacing) by this fraction: a window missing frames
@@ -202,6 +205,48 @@ def floor_shape(x: np.ndarray, fs: float) -> tuple[np.ndarray, list[np.ndarray]]
     tilt = _median(vals[:, :h]) / np.maximum(_median(vals[:, h:]), 1e-300)
     low = f[bins] < FLOOR_FROM_HZ + PLATEAU_HZ
     return tilt, [vals[i, low] / med[i] for i in range(x.shape[0])]
+
+
+def incoherent_level(x: np.ndarray, fs: float, band_hz: tuple[float, float] = INCOHERENT_BAND_HZ) -> tuple[float, int]:
+    """The noise of the first row of ``x``, read as the part of it the other rows do not explain, per bin of a band.
+
+    A PMU's noise on one channel is independent of the other channels, while the ambient signal of an input is
+    coherent with theirs (P and Q respond to V and θ; the network couples V and θ), so the residual of the first
+    channel's tapered DFT regressed bin by bin on the others' over ``band_hz`` (one complex coefficient per regressor
+    for the band) is its noise, where the signal alone would be mistaken for it (docs/numerics.md, "Stop 55: a PMU's
+    reporting filter").
+
+    Parameters
+    ----------
+    x : ndarray, shape (c, n)
+        The channel first (e.g. V [pu]), then the others (θ [rad], P, Q [pu]), on a uniform grid.
+    fs : float
+        Sample rate [Hz].
+    band_hz : (float, float)
+        The band [Hz].
+
+    Returns
+    -------
+    float
+        The noise's one-sided PSD in the band, as :func:`periodogram` gives it [unit²/Hz]; NaN where the band has no
+        more bins than regressors.
+    int
+        The residual's degrees of freedom: twice the bins less the regressors (its χ² over that number is the PSD's
+        relative error).
+    """
+    x = np.atleast_2d(np.asarray(x, dtype=np.float64))
+    c, n = x.shape
+    w, ww = _taper(n)
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    sel = (f >= band_hz[0]) & (f < band_hz[1]) & (f < 0.5 * fs)
+    spec = np.fft.rfft(_detrend(x) * w, axis=-1)[:, sel]
+    m, k = int(sel.sum()), c - 1
+    if m <= k:
+        return math.nan, 0
+    y, z = spec[0], spec[1:].T
+    beta = np.linalg.lstsq(z, y, rcond=None)[0]
+    res = y - z @ beta
+    return 2.0 * float(np.sum(np.abs(res) ** 2)) / (m - k) / (fs * ww), 2 * (m - k)
 
 
 @lru_cache(maxsize=32)

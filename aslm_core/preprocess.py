@@ -138,12 +138,13 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     is white only up to the filter's passband and falls towards the Nyquist frequency: the median of the floor band
     (:func:`aslm_core.noise.channel_floors`) then reads below the noise in the signal's band, and the band's fall
     looks like an exact input's own spectrum.  Where V's or θ's band falls (not white-shaped by :func:`white_floor`'s
-    rule), the floor of each channel whose band falls (P, Q: tilt above :data:`FLOOR_TILT_MAX`) is raised to the
-    level of the band's lowest :data:`aslm_core.noise.PLATEAU_HZ`, the filter's shape read from the falling inputs'
-    bins pooled and taken as common to the channels (one filter behind all of a PMU's phasors; P's and Q's own
-    signal near 5 Hz, the larger part of them there, would read as a flatter filter).  Marks the floors
-    ``inputs_measured`` (1.0), records the pooled level over the band's median (``floor_plateau_ratio`` [-], 1 where
-    no band falls) and, where one falls, how many bins that level is the median of (``floor_plateau_bins``).
+    rule), the floor of each channel whose band falls (P, Q: tilt above :data:`FLOOR_TILT_MAX`) is raised by the
+    filter's ratio: V's noise where the filter is flat, read as the part of V at 4–6 Hz that θ, P and Q do not explain
+    (:func:`aslm_core.noise.incoherent_level`), over the band's median; taken as common to the channels, one filter
+    being behind all of a PMU's phasors (θ's where V's band is white; the median of the band's lowest
+    :data:`aslm_core.noise.PLATEAU_HZ` if the regression cannot be formed).  Marks the floors ``inputs_measured``
+    (1.0), records the ratio (``floor_plateau_ratio`` [-], 1 where no band falls) and, where one falls, its χ² degrees
+    of freedom (``floor_plateau_dof``).
 
     Parameters
     ----------
@@ -168,16 +169,22 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
         # No filter on the inputs: a PMU's filter acts on all its phasors alike, so a falling P or Q band is their
         # own signal's (P's and Q's noise is the smaller part of them near 5 Hz), and read as it is.
         return []
-    # The falling inputs' bins pooled: one channel's ten bins (a 10 s window) scatter by a factor 4 between its
-    # 10th and 90th percentiles; θ's and V's own signal near 5 Hz reads as a flatter filter at low noise
-    # (docs/numerics.md, "Stop 55: a PMU's reporting filter").
-    bins = np.concatenate([low[i] for i in (0, 1) if falling[i]])
-    ratio = max(1.0, float(np.median(bins)))
+    # The filter's ratio from V (θ where V's band is white): its noise at 4–6 Hz as the part of it θ, P and Q do not
+    # explain, over the band's median.  The band's lowest bins alone read the ambient signal there as noise (2.5–5.6 ×
+    # the noise on ANDES's records at 0.03 %); θ's own signal is the less explained by the others (docs/numerics.md,
+    # "Stop 55: a PMU's reporting filter").
+    i = 0 if falling[0] else 1
+    order = [i, 1 - i, 2, 3]
+    level, dof = noise.incoherent_level(x[order], fs)
+    median = floors[("noise_v", "noise_theta")[i]] ** 2 * 2.0 / fs  # the band median's PSD (σ² = PSD·fs/2)
+    if not (math.isfinite(level) and level > 0.0):
+        level, dof = float(np.median(low[i])) * median, int(round(2 * low[i].size * math.log(2.0) ** 2))
+    ratio = max(1.0, level / median)
     for key, f in zip(("noise_v", "noise_theta", "noise_p", "noise_q"), falling, strict=True):
         if f:
             floors[key] *= math.sqrt(ratio)
     floors["floor_plateau_ratio"] = ratio
-    floors["floor_plateau_bins"] = float(bins.size)
+    floors["floor_plateau_dof"] = float(dof)
     return ["input_noise_filtered"]
 
 

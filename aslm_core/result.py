@@ -132,8 +132,9 @@ class IdentifyConfig:
         What the channels' noise is taken to be.  ``auto`` (the default): an input whose band above 5 Hz falls
         instead of lying flat holds its own spectrum there and is taken as exact (simulated data, Table I).
         ``measured``: the channels are a PMU's, which always carry noise; a band that falls is its reporting
-        filter's roll-off (an M-class PMU's), and each channel's noise is read where the filter is still flat, at the
-        band's lowest 1 Hz (:func:`aslm_core.preprocess.measured_floors`; flag ``input_noise_filtered``).  For
+        filter's roll-off (an M-class PMU's), and each channel's noise is read where the filter is still flat, from V's
+        part at 4–6 Hz that θ, P and Q do not explain (:func:`aslm_core.preprocess.measured_floors`; flag
+        ``input_noise_filtered``).  For
         windows from a PMU: in ``auto`` an M-class PMU's inputs are taken as exact and the answer is biased as
         without a smoother (docs/numerics.md, "Stop 55: a PMU's reporting filter").
     """
@@ -220,8 +221,9 @@ class IdentificationResult:
         of its parameter, so an error above 20 % is not a rare draw),
         ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
         variation and D is not trustworthy), ``input_noise_filtered`` (``input_noise="measured"``: V's or θ's noise
-        floor falls towards the Nyquist frequency, a reporting filter's, and the channels' noise was read at the
-        band's lowest 1 Hz, ``floor_plateau_ratio`` [-] times the band's median power), and since stop 28 (docs/numerics.md, "Flags that catch the tail"):
+        floor falls towards the Nyquist frequency, a reporting filter's, and the falling channels' noise was raised to
+        the level where the filter is flat, ``floor_plateau_ratio`` [-] times the band's median power, read from V at
+        4–6 Hz as the part θ, P and Q do not explain), and since stop 28 (docs/numerics.md, "Flags that catch the tail"):
         ``input_noise_correction_large`` (the S-weighted answer's ``weighted_shift_z`` above 2.5: the
         input-noise correction moved D far in its own standard errors, so D rests on the estimated input-noise
         spectrum), ``error_may_exceed_20pct`` (the rule of ``iv_error_may_exceed_20pct`` on every other answer,

@@ -39,9 +39,9 @@ class Identified(BaseModel):
                     "pooled from this many of the bus's previous windows; absent: from this window alone) [-]; "
                     "input_history_staleness (how far the window's V and θ depart from that history's spectrum, ~1 for "
                     "the same process; above 3 the window is identified alone and flagged input_history_stale) [-]; "
-                    "with input_noise='measured' (a PMU's channels), inputs_measured (1) and floor_plateau_ratio "
-                    "(the floors read at the band's lowest 1 Hz over its median, where a reporting filter makes the "
-                    "band fall; flag input_noise_filtered) [-]")
+                    "with input_noise='measured' (a PMU's channels), inputs_measured (1), floor_plateau_ratio (where a "
+                    "reporting filter makes the floor band fall, the noise where the filter is flat over the band's "
+                    "median; flag input_noise_filtered) [-] and floor_plateau_dof (that ratio's degrees of freedom) [-]")
     flags: list[str] = Field(default_factory=list,
                              description="Quality flags, e.g. at_bound:H2, static_split_unidentifiable")
     static_stderr: dict[str, float | None] = Field(

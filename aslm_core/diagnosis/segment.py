@@ -72,7 +72,7 @@ class Segment:
         A PMU's reporting filter (``DiagnosisConfig.input_noise="measured"`` and the identifier's
         :func:`aslm_core.preprocess.measured_floors` finding V's or θ's floor band falling): the in-band noise power
         over the floor band's median [-], by which every floor the noise model reads above 5 Hz is raised, and the χ²
-        degrees of freedom of that ratio (a median of ``floor_plateau_bins`` bins); 1 and ∞ otherwise.
+        degrees of freedom of that ratio (``floor_plateau_dof``); 1 and ∞ otherwise.
     """
 
     t: np.ndarray
@@ -292,9 +292,8 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
     raw, smooth = (conditional_mean(window, tail=input_tail, input_noise=input_noise) if input_mean
                    else (prepare(window, floors=True, input_noise=input_noise), None))
     scale = {}
-    if "floor_plateau_bins" in raw.noise:
-        scale = {"floor_scale": raw.noise["floor_plateau_ratio"],
-                 "floor_scale_dof": 2.0 * raw.noise["floor_plateau_bins"] * math.log(2.0) ** 2}
+    if "floor_plateau_dof" in raw.noise:
+        scale = {"floor_scale": raw.noise["floor_plateau_ratio"], "floor_scale_dof": raw.noise["floor_plateau_dof"]}
     prep = raw if smooth is None else smooth
     exact = tuple(not (white_floor(raw.noise, c) and raw.noise[f"noise_{c}"] > 0.0) for c in ("v", "theta"))
     n = prep.V.shape[0]

@@ -43,18 +43,24 @@ def _floors(x4, fs, measured):
 @pytest.mark.parametrize("fs", [25.0, 30.0, 50.0, 100.0])
 def test_measured_floors_read_a_filtered_channel_at_its_in_band_level(fs):
     """An M-class PMU's noise alone on all four channels: the band's median reads well below the in-band std and the
-    floor rule takes V as exact; declared measured, every channel's floor is within 25 % of the in-band std."""
+    floor rule takes V as exact; declared measured, every channel's floor is, in the median over 16 windows, within
+    15 % of the in-band std (one window's ratio scatters by ~0.25 in power: ~34 degrees of freedom)."""
     rng = np.random.default_rng(int(fs))
     n = int(10 * fs)
     stds = (1e-3, 1e-3, 2e-3, 2e-3)
-    x4 = [1.0 + pf.filtered_noise(n, stds[0], fs, "fs5", rng)] + [pf.filtered_noise(n, s, fs, "fs5", rng)
-                                                                   for s in stds[1:]]
-    auto, _ = _floors(x4, fs, False)
-    assert auto["noise_v"] < 0.7 * stds[0] and not preprocess.white_floor(auto, "v")
-    est, flags = _floors(x4, fs, True)
-    assert flags == ["input_noise_filtered"] and preprocess.white_floor(est, "v") and est["inputs_measured"] == 1.0
-    for key, s in zip(("noise_v", "noise_theta", "noise_p", "noise_q"), stds, strict=True):
-        assert abs(est[key] / s - 1.0) < 0.25, (key, est[key] / s)
+    keys = ("noise_v", "noise_theta", "noise_p", "noise_q")
+    ratios = []
+    for _ in range(16):
+        x4 = [1.0 + pf.filtered_noise(n, stds[0], fs, "fs5", rng)] + [pf.filtered_noise(n, s, fs, "fs5", rng)
+                                                                       for s in stds[1:]]
+        auto, _ = _floors(x4, fs, False)
+        assert auto["noise_v"] < 0.7 * stds[0] and not preprocess.white_floor(auto, "v")
+        est, flags = _floors(x4, fs, True)
+        assert flags == ["input_noise_filtered"] and preprocess.white_floor(est, "v") and est["inputs_measured"] == 1.0
+        assert est["floor_plateau_dof"] == 2 * (20 - 3)  # 20 bins at 4–6 Hz in 10 s, three regressors
+        ratios.append([est[k] / s for k, s in zip(keys, stds, strict=True)])
+    med = np.median(ratios, axis=0)
+    assert np.all(np.abs(med - 1.0) < 0.15), med
 
 
 def test_measured_floors_leave_white_noise_as_it_is():
@@ -163,3 +169,21 @@ def test_the_diagnosis_reads_an_m_class_pmus_model_true_window_declared_measured
     w = pf.noisy_window(case, 50.0, 1e-3, 1e-3, "fs5", np.random.default_rng(86))
     assert diagnose(w).verdict == "unexplained"
     assert diagnose(w, config=DiagnosisConfig(input_noise="measured")).verdict == "consistent"
+
+
+def test_the_incoherent_level_reads_the_noise_under_a_coherent_signal():
+    """V carrying a signal 10 × its noise at 3–7 Hz that θ, P and Q also carry: V's periodogram at 4–6 Hz is two
+    orders above the noise, the part the others do not explain is the noise (median over 20 windows within 10 %)."""
+    fs, n, rng = 50.0, 500, np.random.default_rng(11)
+    sos = signal.butter(4, [3.0, 7.0], btype="band", fs=fs, output="sos")
+    got, plain = [], []
+    for _ in range(20):
+        s = signal.sosfilt(sos, rng.standard_normal(n + 200))[200:]
+        s *= 10.0 / np.std(s)
+        x = np.stack([s, 0.5 * s, -2.0 * s, s]) + rng.standard_normal((4, n))
+        level, dof = noise.incoherent_level(x, fs)
+        got.append(level / (2.0 / fs))
+        f, p = noise.periodogram(x[0], fs)
+        plain.append(np.median(p[(f >= 4) & (f < 6)]) / (2.0 / fs))
+        assert dof == 2 * (20 - 3)
+    assert abs(np.median(got) - 1.0) < 0.1 and np.median(plain) > 30.0
