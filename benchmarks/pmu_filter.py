@@ -42,6 +42,14 @@ The diagnosis on the same noise (``benchmarks.diagnosis_rates --pmu``; :data:`DI
           --levels 2 3 --effect second_motor --pmu $pmu --tag pmu_${pmu%%:*}_second_motor \
           $([ ${pmu%%:*} = fs5 ] && echo --config input_noise=measured); done
     .venv/bin/python -m benchmarks.pmu_filter --diagnosis-report
+
+The second confirmation (:data:`SECOND`), after the measured mode read its level from V's incoherent part (a89aef5)
+instead of the band's lowest 1 Hz, which the ANDES cross-check had failed: the same rules on fresh seeds, fixed
+before the runs:
+
+    .venv/bin/python -m benchmarks.pmu_filter --n 300 --seed 87 --tag confirm55b
+    # the diagnosis's commands above with --seed 88 (clean) and --seed 89 (second motor), each --tag ending in _b
+    .venv/bin/python -m benchmarks.pmu_filter --diagnosis-report --second
 """
 
 from __future__ import annotations
@@ -76,6 +84,9 @@ DIAGNOSIS_RULE = ("(1) on model-true windows (seed 84, 120 a class), the verdict
                   "filter and input_noise='measured' at most the white PMU's (default) + 3, per class; (2) a concealed "
                   "second motor (seed 85, 60 windows at 0.03 %) named with fs5 and 'measured' in at least the white "
                   "PMU's count - 6")
+#: Stop 55's second confirmation: the seeds of the identifier's rule, the diagnosis's clean and power runs, and the
+#: tags' suffix.
+SECOND = {"identify": 87, "clean": 88, "power": 89, "suffix": "_b"}
 #: Issue 11's bias targets per PMU class (|μ − 1| at most).
 BIAS_TARGET = {"0.03 % / 3e-4 rad": 0.01, "0.1 % / 1e-3 rad": 0.02}
 #: Stop 55's confirmation (seed 81, 300 windows a cell, DL 2–3, the six rates), fixed before its run: on the M-class
@@ -208,8 +219,9 @@ def verdict(cells_by_rate: dict[str, dict]) -> dict:
     return out
 
 
-def diagnosis_verdict(read=common.read_json) -> dict:
-    """:data:`DIAGNOSIS_RULE` on the stored ``diagnosis_rates`` runs of the docstring's commands."""
+def diagnosis_verdict(read=common.read_json, seeds: tuple[int, int] = (84, 85), suffix: str = "") -> dict:
+    """:data:`DIAGNOSIS_RULE` on the stored ``diagnosis_rates`` runs of the docstring's commands (``seeds``: the
+    clean runs' and the power runs'; ``suffix``: their tags', as :data:`SECOND`'s)."""
     def counts(name: str, effect: str | None = None) -> tuple[int, int]:
         cells = read(name)["cells"]
         n = sum(c["n"] for c in cells)
@@ -222,12 +234,13 @@ def diagnosis_verdict(read=common.read_json) -> dict:
         row = {}
         for key, tag in (("white", f"pmu_white_{cls}"), ("fs5_auto", f"pmu_fs5_{cls}"),
                          ("fs5_measured", f"pmu_fs5_measured_{cls}")):
-            n, consistent = counts(f"diagnosis_rates_seed84_{tag}")
+            n, consistent = counts(f"diagnosis_rates_seed{seeds[0]}_{tag}{suffix}")
             row[key] = {"n": n, "false_findings": n - consistent}
         out["clean"][cls] = row
         ok &= row["fs5_measured"]["false_findings"] <= row["white"]["false_findings"] + 3
     out["met"]["clean"] = bool(ok)
-    (nw, hw), (nm, hm) = (counts(f"diagnosis_rates_seed85_pmu_{s}_second_motor", "second_motor") for s in ("white", "fs5"))
+    (nw, hw), (nm, hm) = (counts(f"diagnosis_rates_seed{seeds[1]}_pmu_{s}_second_motor{suffix}", "second_motor")
+                          for s in ("white", "fs5"))
     out["power"] = {"white": {"n": nw, "named": hw}, "fs5_measured": {"n": nm, "named": hm}}
     out["met"]["power"] = hm >= hw - 6
     return out
@@ -254,9 +267,11 @@ def main(argv=None) -> dict:
     ap.add_argument("--tag", default="")
     ap.add_argument("--report", default=None, metavar="NAME", help="judge a stored run by RULE without running")
     ap.add_argument("--diagnosis-report", action="store_true", help="judge the diagnosis's runs by DIAGNOSIS_RULE")
+    ap.add_argument("--second", action="store_true", help="with --diagnosis-report: the second confirmation's runs")
     args = ap.parse_args(argv)
     if args.diagnosis_report:
-        v = diagnosis_verdict()
+        v = (diagnosis_verdict(seeds=(SECOND["clean"], SECOND["power"]), suffix=SECOND["suffix"]) if args.second
+             else diagnosis_verdict())
         print(f"rule: {v['rule']}")
         for cls, row in v["clean"].items():
             print(f"  {cls}: false findings of {row['white']['n']}: white {row['white']['false_findings']}, fs5 default "
