@@ -133,7 +133,8 @@ def add_dashboard(app: FastAPI, service) -> None:
         s = service.settings
         newest = buf.newest
         window = buf.cut(newest - s.window_s, newest, f0=s.f0, bus=bus)
-        task = WindowTask(window, options={"lowpass_hz": s.lowpass_hz}, fn="service.playback:playback_window",
+        task = WindowTask(window, options={"lowpass_hz": s.lowpass_hz, "input_noise": s.identify_input_noise},
+                          fn="service.playback:playback_window",
                           previous={"dynamic": ok.parameters.dynamic, "static": ok.parameters.static})
         try:
             future = executor.submit(task)

@@ -34,8 +34,8 @@ def playback_window(task: WindowTask) -> dict:
     task : WindowTask
         ``window``: the bus's newest frames; ``previous``: an identification (``dynamic`` D = {a [1/s],
         b [1/s], H2 [s], Tm [pu]} and ``static``); ``options["lowpass_hz"]``: the fixed low-pass the identifier
-        applies [Hz] (None: the identifier's default conditioning), so that the model is compared with what it
-        was fitted to.
+        applies [Hz] (None: the identifier's default conditioning), and ``options["input_noise"]`` the service's
+        (``auto`` when absent), so that the model is compared with what it was fitted to.
 
     Returns
     -------
@@ -54,7 +54,8 @@ def playback_window(task: WindowTask) -> dict:
     from aslm_core.preprocess import prepare
 
     smoother = IdentifyConfig.input_smoother  # the identifier's default input conditioning
-    prep = prepare(task.window, lowpass_hz=task.options.get("lowpass_hz"), input_smoother=smoother)
+    prep = prepare(task.window, lowpass_hz=task.options.get("lowpass_hz"), input_smoother=smoother,
+                   input_noise=task.options.get("input_noise", "auto"))
     p_model, q_model = model_power(prep.V, prep.theta, task.previous, prep.dt, task.window.f0)
     step = max(1, math.ceil(prep.t.size / MAX_POINTS))
     return {
