@@ -195,7 +195,8 @@ def build(ctx: Context) -> TrackingSink:
     joint = None
     if s.track_joint_fit and s.track_joint_fit_buses > 0 and ctx.executor is not None:
         joint = JointFits(ctx.executor, max_buses=s.track_joint_fit_buses, in_flight=max(1, s.workers - 1),
-                          options={"lowpass_hz": s.lowpass_hz}, idle_s=s.bus_idle_s)
+                          options={"lowpass_hz": s.lowpass_hz, "input_noise": s.identify_input_noise},
+                          idle_s=s.bus_idle_s)
     def on_tracked(bus: str) -> None:
         for listener in list(ctx.tracked_listeners):
             listener(bus)
