@@ -25,12 +25,9 @@ WIENER_SMOOTH_HZ = 0.5
 MIN_CUTOFF_HZ = 0.5
 #: A channel's signal ends where its smoothed power sinks to this multiple of its noise floor [-].
 CUTOFF_FACTOR = 1.0
-#: Width of the floor band's lowest part, where a PMU's reporting filter is still flat: the noise of a measured input
-#: whose floor band falls is read there (``IdentifyConfig.input_noise="measured"``) [Hz].
-PLATEAU_HZ = 1.0
-#: The band an input's noise is read in as the part of it the other channels do not explain (:func:`incoherent_level`):
-#: [FLOOR_FROM_HZ − 1, FLOOR_FROM_HZ + PLATEAU_HZ) [Hz], inside a reporting filter's flat band at 25 frames/s and up.
-INCOHERENT_BAND_HZ = (FLOOR_FROM_HZ - 1.0, FLOOR_FROM_HZ + PLATEAU_HZ)
+#: The band an input's noise is read in as the part of it the other channels do not explain (:func:`incoherent_level`,
+#: ``IdentifyConfig.input_noise="measured"``): inside a reporting filter's flat band at 25 frames/s and up [Hz].
+INCOHERENT_BAND_HZ = (FLOOR_FROM_HZ - 1.0, FLOOR_FROM_HZ + 1.0)
 #: Length of the local line whose value at a window's end is the centre of the point reflection [s].
 EDGE_FIT_S = 0.1
 #: Windows pooled into one input spectrum may differ in length (bin spacing) by this fraction: a window missing frames
@@ -156,8 +153,9 @@ def channel_floors(V: np.ndarray, theta: np.ndarray, P: np.ndarray, Q: np.ndarra
     -------
     dict
         ``noise_v`` [pu], ``noise_theta`` [rad], ``noise_p``, ``noise_q`` [pu], ``floor_tilt_v``,
-        ``floor_tilt_theta`` [-]: the median power of the floor band's lower half over its upper half's
-        (~1 for white noise; well above where the band holds the input's own falling spectrum: exact inputs),
+        ``floor_tilt_theta``, ``floor_tilt_p``, ``floor_tilt_q`` [-]: the median power of the floor band's lower half
+        over its upper half's (~1 for white noise; well above where the band holds the input's own falling spectrum:
+        exact inputs, or a reporting filter's roll-off),
         and ``floor_slope_v``, ``floor_slope_theta`` [-] with their standard error ``floor_slope_se`` [-]: the
         slope of the band's log-periodogram on log(4·sin²(π·f/fs)) (:func:`_slope_design`), 0 for white noise,
         −1 for an input driven by steps (a sampled random walk: white increments).
@@ -169,42 +167,14 @@ def channel_floors(V: np.ndarray, theta: np.ndarray, P: np.ndarray, Q: np.ndarra
     vals = pxx[:, bins]
     psd = _median(vals) / math.log(2.0)
     h = vals.shape[1] // 2
-    tilt = _median(vals[:2, :h]) / np.maximum(_median(vals[:2, h:]), 1e-300)
+    tilt = _median(vals[:, :h]) / np.maximum(_median(vals[:, h:]), 1e-300)
     xc, se = _slope_design(x.shape[1], round(fs, 3), FLOOR_FROM_HZ)
     slope = np.log(np.maximum(vals[:2], 1e-300)) @ xc
     return {"noise_v": math.sqrt(psd[0] * fs / 2), "noise_theta": math.sqrt(psd[1] * fs / 2),
             "noise_p": math.sqrt(psd[2] * fs / 2), "noise_q": math.sqrt(psd[3] * fs / 2),
-            "floor_tilt_v": float(tilt[0]), "floor_tilt_theta": float(tilt[1]),
+            "floor_tilt_v": float(tilt[0]), "floor_tilt_theta": float(tilt[1]), "floor_tilt_p": float(tilt[2]),
+            "floor_tilt_q": float(tilt[3]),
             "floor_slope_v": float(slope[0]), "floor_slope_theta": float(slope[1]), "floor_slope_se": se}
-
-
-def floor_shape(x: np.ndarray, fs: float) -> tuple[np.ndarray, list[np.ndarray]]:
-    """The floor band's shape per channel: its tilt and its lowest bins relative to its median.
-
-    Parameters
-    ----------
-    x : ndarray, shape (c, n)
-        Channels on a uniform grid (e.g. V [pu], θ [rad], P, Q [pu]).
-    fs : float
-        Sample rate [Hz].
-
-    Returns
-    -------
-    ndarray, shape (c,)
-        The median power of the band's lower half over its upper half (:func:`channel_floors`' ``floor_tilt_*``).
-    list of ndarray
-        Per channel, the periodogram bins in [:data:`FLOOR_FROM_HZ`, :data:`FLOOR_FROM_HZ` + :data:`PLATEAU_HZ`) over
-        the band's median [-]: their median is the band's lowest level over its median level.
-    """
-    x = np.atleast_2d(np.asarray(x, dtype=np.float64))
-    f, pxx = periodogram(x, fs)
-    bins = _floor_bins(x.shape[1], round(fs, 3), FLOOR_FROM_HZ)
-    vals = pxx[:, bins]
-    med = np.maximum(_median(vals), 1e-300)
-    h = vals.shape[1] // 2
-    tilt = _median(vals[:, :h]) / np.maximum(_median(vals[:, h:]), 1e-300)
-    low = f[bins] < FLOOR_FROM_HZ + PLATEAU_HZ
-    return tilt, [vals[i, low] / med[i] for i in range(x.shape[0])]
 
 
 def incoherent_level(x: np.ndarray, fs: float, band_hz: tuple[float, float] = INCOHERENT_BAND_HZ) -> tuple[float, int]:

@@ -138,13 +138,12 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     is white only up to the filter's passband and falls towards the Nyquist frequency: the median of the floor band
     (:func:`aslm_core.noise.channel_floors`) then reads below the noise in the signal's band, and the band's fall
     looks like an exact input's own spectrum.  Where V's or θ's band falls (not white-shaped by :func:`white_floor`'s
-    rule), the floor of each channel whose band falls (P, Q: tilt above :data:`FLOOR_TILT_MAX`) is raised by the
-    filter's ratio: V's noise where the filter is flat, read as the part of V at 4–6 Hz that θ, P and Q do not explain
-    (:func:`aslm_core.noise.incoherent_level`), over the band's median; taken as common to the channels, one filter
-    being behind all of a PMU's phasors (θ's where V's band is white; the median of the band's lowest
-    :data:`aslm_core.noise.PLATEAU_HZ` if the regression cannot be formed).  Marks the floors ``inputs_measured``
-    (1.0), records the ratio (``floor_plateau_ratio`` [-], 1 where no band falls) and, where one falls, its χ² degrees
-    of freedom (``floor_plateau_dof``).
+    rule), the floor of each channel whose band falls (P, Q: ``floor_tilt_*`` above :data:`FLOOR_TILT_MAX`) is raised
+    by the filter's ratio: V's noise where the filter is flat, read as the part of V at 4–6 Hz that θ, P and Q do not
+    explain (:func:`aslm_core.noise.incoherent_level`; θ's on the others where V's band is white), over the band's
+    median, taken as common to the channels, one filter being behind all of a PMU's phasors.  Marks the floors
+    ``inputs_measured`` (1.0) and records the ratio (``floor_plateau_ratio`` [-], 1 where no band falls or the band has
+    too few bins for the regression) and, where it applies, its χ² degrees of freedom (``floor_plateau_dof``).
 
     Parameters
     ----------
@@ -158,11 +157,10 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     Returns
     -------
     list of str
-        ``["input_noise_filtered"]`` where V's or θ's band falls, else empty.
+        ``["input_noise_filtered"]`` where V's or θ's floor was raised, else empty.
     """
-    tilt, low = noise.floor_shape(x, fs)
     falling = [not _white_shaped(floors, "v"), not _white_shaped(floors, "theta"),
-               tilt[2] > FLOOR_TILT_MAX, tilt[3] > FLOOR_TILT_MAX]
+               floors["floor_tilt_p"] > FLOOR_TILT_MAX, floors["floor_tilt_q"] > FLOOR_TILT_MAX]
     floors["inputs_measured"] = 1.0
     floors["floor_plateau_ratio"] = 1.0
     if not (falling[0] or falling[1]):
@@ -174,11 +172,10 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     # the noise on ANDES's records at 0.03 %); θ's own signal is the less explained by the others (docs/numerics.md,
     # "Stop 55: a PMU's reporting filter").
     i = 0 if falling[0] else 1
-    order = [i, 1 - i, 2, 3]
-    level, dof = noise.incoherent_level(x[order], fs)
-    median = floors[("noise_v", "noise_theta")[i]] ** 2 * 2.0 / fs  # the band median's PSD (σ² = PSD·fs/2)
+    level, dof = noise.incoherent_level(x[[i, 1 - i, 2, 3]], fs)
     if not (math.isfinite(level) and level > 0.0):
-        level, dof = float(np.median(low[i])) * median, int(round(2 * low[i].size * math.log(2.0) ** 2))
+        return []  # a window too short for the regression (under ~2 s): the band's median, as measured
+    median = floors[("noise_v", "noise_theta")[i]] ** 2 * 2.0 / fs  # the band median's PSD (σ² = PSD·fs/2)
     ratio = max(1.0, level / median)
     for key, f in zip(("noise_v", "noise_theta", "noise_p", "noise_q"), falling, strict=True):
         if f:

@@ -187,3 +187,18 @@ def test_the_incoherent_level_reads_the_noise_under_a_coherent_signal():
         plain.append(np.median(p[(f >= 4) & (f < 6)]) / (2.0 / fs))
         assert dof == 2 * (20 - 3)
     assert abs(np.median(got) - 1.0) < 0.1 and np.median(plain) > 30.0
+
+
+def test_measured_floors_leave_a_window_too_short_for_the_regression_as_read():
+    """Fewer bins at 4–6 Hz than regressors (a 1.5 s window): the floors stay the band's medians, no flag, ratio 1."""
+    fs, rng = 50.0, np.random.default_rng(2)
+    n = 75
+    x4 = [1.0 + pf.filtered_noise(n, 1e-3, fs, "fs5", rng)] + [pf.filtered_noise(n, s, fs, "fs5", rng)
+                                                               for s in (1e-3, 2e-3, 2e-3)]
+    auto, _ = _floors(x4, fs, False)
+    assert not preprocess.white_floor(auto, "v")  # the band falls: the regression would be asked for
+    est, flags = _floors(x4, fs, True)
+    assert np.isnan(noise.incoherent_level(np.stack(x4), fs)[0])
+    assert flags == [] and est["floor_plateau_ratio"] == 1.0 and "floor_plateau_dof" not in est
+    assert all(est[k] == auto[k] for k in ("noise_v", "noise_theta", "noise_p", "noise_q"))
+    assert preprocess.white_floor(est, "v")  # declared measured: never exact
