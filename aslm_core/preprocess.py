@@ -138,12 +138,19 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     is white only up to the filter's passband and falls towards the Nyquist frequency: the median of the floor band
     (:func:`aslm_core.noise.channel_floors`) then reads below the noise in the signal's band, and the band's fall
     looks like an exact input's own spectrum.  Where V's or θ's band falls (not white-shaped by :func:`white_floor`'s
-    rule), the floor of each channel whose band falls (P, Q: ``floor_tilt_*`` above :data:`FLOOR_TILT_MAX`) is raised
-    by the filter's ratio: V's noise where the filter is flat, read as the part of V at 4–6 Hz that θ, P and Q do not
-    explain (:func:`aslm_core.noise.incoherent_level`; θ's on the others where V's band is white), over the band's
-    median, taken as common to the channels, one filter being behind all of a PMU's phasors.  Marks the floors
-    ``inputs_measured`` (1.0) and records the ratio (``floor_plateau_ratio`` [-], 1 where no band falls or the band has
-    too few bins for the regression) and, where it applies, its χ² degrees of freedom (``floor_plateau_dof``).
+    rule), the floor of each channel whose band falls is raised to its level where the filter is flat:
+
+    * V and θ each to its own noise, read as the part of it at 4–6 Hz that the other three channels do not explain
+      (:func:`incoherent_ratio`);
+    * P and Q (``floor_tilt_*`` above :data:`FLOOR_TILT_MAX`) by V's ratio (θ's where V's band is white), one filter
+      being behind all of a PMU's phasors: their own incoherent part holds the load's own fluctuation, which the
+      identifier models apart from the white floor (read alone it worsened σ and coverage, docs/numerics.md,
+      "Stop 56").
+
+    Marks the floors ``inputs_measured`` (1.0) and records ``floor_plateau_ratio`` [-] (V's ratio, θ's where V's
+    band is white; 1 where no band falls or the band has too few bins for the regression) with its χ² degrees of
+    freedom ``floor_plateau_dof``, and the power factor each channel's floor was raised by, ``floor_ratio_v|theta|p|q``
+    [-] (1 where its band is white), with θ's own degrees of freedom ``floor_dof_theta``.
 
     Parameters
     ----------
@@ -159,30 +166,70 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     list of str
         ``["input_noise_filtered"]`` where V's or θ's floor was raised, else empty.
     """
-    falling = [not _white_shaped(floors, "v"), not _white_shaped(floors, "theta"),
-               floors["floor_tilt_p"] > FLOOR_TILT_MAX, floors["floor_tilt_q"] > FLOOR_TILT_MAX]
+    falling = falling_floors(floors)
     floors["inputs_measured"] = 1.0
     floors["floor_plateau_ratio"] = 1.0
     if not (falling[0] or falling[1]):
         # No filter on the inputs: a PMU's filter acts on all its phasors alike, so a falling P or Q band is their
         # own signal's (P's and Q's noise is the smaller part of them near 5 Hz), and read as it is.
         return []
-    # The filter's ratio from V (θ where V's band is white): its noise at 4–6 Hz as the part of it θ, P and Q do not
-    # explain, over the band's median.  The band's lowest bins alone read the ambient signal there as noise (2.5–5.6 ×
-    # the noise on ANDES's records at 0.03 %); θ's own signal is the less explained by the others (docs/numerics.md,
-    # "Stop 55: a PMU's reporting filter").
+    # The band's lowest bins alone read the ambient signal there as noise (2.5–5.6 × the noise on ANDES's records at
+    # 0.03 %), and V's ratio applied to θ misreads θ wherever the two bands hold different shares of their own signal
+    # above 5 Hz (docs/numerics.md, "Stop 55" and "Stop 56").
+    ratios = [incoherent_ratio(floors, x, fs, c) if falling[c] else (1.0, math.inf) for c in (0, 1)]
     i = 0 if falling[0] else 1
-    level, dof = noise.incoherent_level(x[[i, 1 - i, 2, 3]], fs)
-    if not (math.isfinite(level) and level > 0.0):
+    if not math.isfinite(ratios[i][1]):
         return []  # a window too short for the regression (under ~2 s): the band's median, as measured
-    median = floors[("noise_v", "noise_theta")[i]] ** 2 * 2.0 / fs  # the band median's PSD (σ² = PSD·fs/2)
-    ratio = max(1.0, level / median)
-    for key, f in zip(("noise_v", "noise_theta", "noise_p", "noise_q"), falling, strict=True):
-        if f:
-            floors[key] *= math.sqrt(ratio)
-    floors["floor_plateau_ratio"] = ratio
-    floors["floor_plateau_dof"] = float(dof)
+    if falling[1 - i] and not math.isfinite(ratios[1 - i][1]):
+        ratios[1 - i] = ratios[i]
+    ratios += [ratios[i] if f else (1.0, math.inf) for f in falling[2:]]
+    for name, (ratio, _) in zip(FLOOR_CHANNELS, ratios, strict=True):
+        floors[f"noise_{name}"] *= math.sqrt(ratio)
+        floors[f"floor_ratio_{name}"] = ratio
+    floors["floor_plateau_ratio"], floors["floor_plateau_dof"] = ratios[i][0], float(ratios[i][1])
+    if falling[1]:
+        floors["floor_dof_theta"] = float(ratios[1][1])
     return ["input_noise_filtered"]
+
+
+#: The channels of :func:`aslm_core.noise.channel_floors`' ``noise_*`` keys, in the order of the stacked window.
+FLOOR_CHANNELS = ("v", "theta", "p", "q")
+
+
+def falling_floors(floors: dict[str, float]) -> tuple[bool, bool, bool, bool]:
+    """Whether each channel's floor band (V, θ, P, Q) falls as a reporting filter makes it: V and θ not white-shaped
+    by :func:`white_floor`'s rule for undeclared inputs, P and Q tilted above :data:`FLOOR_TILT_MAX`."""
+    return (not _white_shaped(floors, "v"), not _white_shaped(floors, "theta"),
+            floors["floor_tilt_p"] > FLOOR_TILT_MAX, floors["floor_tilt_q"] > FLOOR_TILT_MAX)
+
+
+def incoherent_ratio(floors: dict[str, float], x: np.ndarray, fs: float, channel: int) -> tuple[float, float]:
+    """A channel's noise where a reporting filter is flat over its floor band's median, and that ratio's χ² degrees
+    of freedom (:func:`aslm_core.noise.incoherent_level`: its part at 4–6 Hz the other channels do not explain).
+
+    Parameters
+    ----------
+    floors : dict
+        :func:`aslm_core.noise.channel_floors`' output for ``x``, not yet raised.
+    x : ndarray, shape (4, n)
+        V [pu], θ [rad], P, Q [pu] on the uniform grid.
+    fs : float
+        Sample rate [Hz].
+    channel : int
+        The row of ``x`` (0 V, 1 θ, 2 P, 3 Q).
+
+    Returns
+    -------
+    float
+        The power ratio [-], at least 1 (a filter does not raise a band).
+    float
+        Its degrees of freedom; ∞ (and the ratio 1) where the band has too few bins for the regression.
+    """
+    level, dof = noise.incoherent_level(x[[channel] + [k for k in range(4) if k != channel]], fs)
+    if not (math.isfinite(level) and level > 0.0):
+        return 1.0, math.inf
+    median = floors[f"noise_{FLOOR_CHANNELS[channel]}"] ** 2 * 2.0 / fs  # the band median's PSD (σ² = PSD·fs/2)
+    return max(1.0, level / median), float(dof)
 
 
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,

@@ -132,9 +132,9 @@ class IdentifyConfig:
         What the channels' noise is taken to be.  ``auto`` (the default): an input whose band above 5 Hz falls
         instead of lying flat holds its own spectrum there and is taken as exact (simulated data, Table I).
         ``measured``: the channels are a PMU's, which always carry noise; a band that falls is its reporting
-        filter's roll-off (an M-class PMU's), and each channel's noise is read where the filter is still flat, from V's
-        part at 4–6 Hz that θ, P and Q do not explain (:func:`aslm_core.preprocess.measured_floors`; flag
-        ``input_noise_filtered``).  For
+        filter's roll-off (an M-class PMU's), and each channel's noise is read where the filter is still flat: V's
+        and θ's each from its own part at 4–6 Hz that the other channels do not explain, P's and Q's by V's ratio
+        (:func:`aslm_core.preprocess.measured_floors`; flag ``input_noise_filtered``).  For
         windows from a PMU: in ``auto`` an M-class PMU's inputs are taken as exact and the answer is biased as
         without a smoother (docs/numerics.md, "Stop 55: a PMU's reporting filter").
     """
@@ -222,8 +222,9 @@ class IdentificationResult:
         ``input_noise_too_large`` (``input_ratio_v`` below 2: V's PMU noise swamps its ambient
         variation and D is not trustworthy), ``input_noise_filtered`` (``input_noise="measured"``: V's or θ's noise
         floor falls towards the Nyquist frequency, a reporting filter's, and the falling channels' noise was raised to
-        the level where the filter is flat, ``floor_plateau_ratio`` [-] times the band's median power, read from V at
-        4–6 Hz as the part θ, P and Q do not explain), and since stop 28 (docs/numerics.md, "Flags that catch the tail"):
+        the level where the filter is flat: each channel's power by ``floor_ratio_v|theta|p|q`` [-], V's and θ's read
+        at 4–6 Hz as the part of each the other channels do not explain, P and Q by V's, ``floor_plateau_ratio``),
+        and since stop 28 (docs/numerics.md, "Flags that catch the tail"):
         ``input_noise_correction_large`` (the S-weighted answer's ``weighted_shift_z`` above 2.5: the
         input-noise correction moved D far in its own standard errors, so D rests on the estimated input-noise
         spectrum), ``error_may_exceed_20pct`` (the rule of ``iv_error_may_exceed_20pct`` on every other answer,

@@ -30,6 +30,10 @@ on fresh ambient seeds (:data:`PMU_CHECK_SEEDS`):
       .venv/bin/python -m benchmarks.andes_rates --seeds 11 12 13 14 15 16 17 18 19 20 --pmu $1 --input-noise $2 \
           --tag pmu_$1_$2_b; done
     .venv/bin/python -m benchmarks.andes_rates --pmu-check --suffix _b
+
+Stop 56 read V and θ each at its own noise (docs/numerics.md, "Stop 56"); the same expectation, fixed before the
+runs, on fresh ambient seeds (:data:`PMU_CHECK_THIRD_SEEDS`), the same commands with ``--seeds 21 … 30`` and tags
+ending in ``_c``, then ``--pmu-check --suffix _c``.
 """
 
 from __future__ import annotations
@@ -57,6 +61,8 @@ STEPS = {100.0: 1, 50.0: 2, 25.0: 4}
 CLASSES = ("exact", "pmu003", "pmu01")
 #: The fresh ambient seeds of the cross-check's second run (after a89aef5).
 PMU_CHECK_SEEDS = tuple(range(11, 21))
+#: The fresh ambient seeds of the third run (stop 56).
+PMU_CHECK_THIRD_SEEDS = tuple(range(21, 31))
 #: Stop 55's expectation of the ANDES cross-check of ``input_noise="measured"``, fixed before its runs.
 PMU_CHECK = ("with the fs5 filter and input_noise='measured', every rate's and noisy class's bias within the white PMU "
              "rows' (default) +- issue 11's target (0.01 at 0.03 %, 0.02 at 0.1 %) per parameter, and coverage inside "

@@ -41,7 +41,11 @@ class Identified(BaseModel):
                     "the same process; above 3 the window is identified alone and flagged input_history_stale) [-]; "
                     "with input_noise='measured' (a PMU's channels), inputs_measured (1), floor_plateau_ratio (where a "
                     "reporting filter makes the floor band fall, the noise where the filter is flat over the band's "
-                    "median; flag input_noise_filtered) [-] and floor_plateau_dof (that ratio's degrees of freedom) [-]")
+                    "median, read on V, on θ where V's band is white; flag input_noise_filtered) [-], "
+                    "floor_plateau_dof (that ratio's degrees of freedom) [-], floor_ratio_v|theta|p|q (the factor "
+                    "each channel's noise power was raised by, 1 where its band is white: V and θ each by its own "
+                    "reading, P and Q by floor_plateau_ratio) [-] and floor_dof_theta (θ's reading's degrees of "
+                    "freedom) [-]")
     flags: list[str] = Field(default_factory=list,
                              description="Quality flags, e.g. at_bound:H2, static_split_unidentifiable")
     static_stderr: dict[str, float | None] = Field(

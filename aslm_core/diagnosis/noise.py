@@ -298,16 +298,17 @@ def draw_error(freqs: np.ndarray, px: np.ndarray, n: int, fs: float, k: int,
     return ev, et
 
 
-def _in_band(floor: dict, seg: Segment) -> dict:
-    """A floor read above 5 Hz brought to the in-band level of a PMU whose reporting filter rolls off there
-    (``seg.floor_scale``); its degrees of freedom combine the median's and the scale's, whose relative variances
-    add.  Unchanged where the segment has no such filter."""
-    if seg.floor_scale == 1.0 and math.isinf(seg.floor_scale_dof):
+def _in_band(floor: dict, seg: Segment, channel: str) -> dict:
+    """A floor read above 5 Hz on ``channel`` (``v``, ``theta``, ``p``, ``q``) brought to the in-band level of a PMU
+    whose reporting filter rolls off there (``seg.floor_scale``); its degrees of freedom combine the median's and the
+    scale's, whose relative variances add.  Unchanged where the segment has no such filter."""
+    ratio, dof = seg.floor_scale.get(channel, (1.0, math.inf))
+    if ratio == 1.0 and math.isinf(dof):
         return floor
     out = dict(floor)
-    out["psd"] = floor["psd"] * seg.floor_scale
-    out["sigma"] = floor["sigma"] * math.sqrt(seg.floor_scale)
-    out["dof"] = 1.0 / (1.0 / floor["dof"] + 1.0 / seg.floor_scale_dof)
+    out["psd"] = floor["psd"] * ratio
+    out["sigma"] = floor["sigma"] * math.sqrt(ratio)
+    out["dof"] = 1.0 / (1.0 / floor["dof"] + 1.0 / dof)
     return out
 
 
@@ -349,8 +350,8 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
     # With exact_quiet an input the identifier's rule takes as exact carries no noise: what lies above the floor's
     # edge is its own content (at 25 frames/s the band is 5–12.5 Hz, where ambient V and θ still have some).
     exact = seg.exact_inputs if exact_quiet else (False, False)
-    sv = 0.0 if exact[0] else _in_band(noise_floor(seg.v_measured[win], fs), seg)["sigma"]
-    st = 0.0 if exact[1] else _in_band(noise_floor(seg.theta_measured[win], fs), seg)["sigma"]
+    sv = 0.0 if exact[0] else _in_band(noise_floor(seg.v_measured[win], fs), seg, "v")["sigma"]
+    st = 0.0 if exact[1] else _in_band(noise_floor(seg.theta_measured[win], fs), seg, "theta")["sigma"]
     base = output(seg)
     if base is None:
         raise ValueError("the model cannot be played back on this window")
@@ -360,8 +361,8 @@ def estimate(seg: Segment, output: Callable[[Segment], tuple[np.ndarray, np.ndar
         fc = 0.8 * FLOOR_FROM_HZ
         lp = output(perturbed(seg, _lowpass(seg.V, fs, fc), _lowpass(seg.theta, fs, fc)))
         ref = lp if lp is not None else base
-    fp = _in_band(noise_floor((seg.P - ref[0])[win], fs), seg)
-    fq = _in_band(noise_floor((seg.Q - ref[1])[win], fs), seg)
+    fp = _in_band(noise_floor((seg.P - ref[0])[win], fs), seg, "p")
+    fq = _in_band(noise_floor((seg.Q - ref[1])[win], fs), seg, "q")
     nm = NoiseModel(max(fp["sigma"], 1e-12), max(fq["sigma"], 1e-12), fs, band_hz, sv, st, floors={"P": fp, "Q": fq},
                     conditional_mean=seg.conditional_mean)
     if n_probes <= 0 or (sv <= 0 and st <= 0):

@@ -8,7 +8,7 @@ only ever see the training samples.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -16,7 +16,14 @@ from scipy import signal
 
 from aslm_core import motor
 from aslm_core.input_weighting import noisy_inputs
-from aslm_core.preprocess import Prepared, prepare, white_floor
+from aslm_core.preprocess import (
+    FLOOR_CHANNELS,
+    Prepared,
+    falling_floors,
+    incoherent_ratio,
+    prepare,
+    white_floor,
+)
 from aslm_core.window import Window
 
 #: Cut-off of the zero-phase low-pass applied to the bus-frequency deviation [Hz] (passes the ambient
@@ -68,11 +75,12 @@ class Segment:
         Whether V and θ are exact by the identifier's rule (:func:`aslm_core.preprocess.white_floor`: the band above
         the floor's edge holds the input's own falling spectrum, not white PMU noise); with
         ``DiagnosisConfig.exact_inputs_quiet`` the noise model propagates no noise from them.
-    floor_scale, floor_scale_dof : float
+    floor_scale : dict
         A PMU's reporting filter (``DiagnosisConfig.input_noise="measured"`` and the identifier's
-        :func:`aslm_core.preprocess.measured_floors` finding V's or θ's floor band falling): the in-band noise power
-        over the floor band's median [-], by which every floor the noise model reads above 5 Hz is raised, and the χ²
-        degrees of freedom of that ratio (``floor_plateau_dof``); 1 and ∞ otherwise.
+        :func:`aslm_core.preprocess.measured_floors` finding V's or θ's floor band falling): per channel (``v``,
+        ``theta``, ``p``, ``q``) the in-band noise power over the floor band's median and that ratio's χ² degrees of
+        freedom, (ratio [-], dof), by which the floor the noise model reads above 5 Hz on that channel (on P's and Q's
+        residuals for ``p`` and ``q``) is raised (:func:`filter_scales`); empty otherwise.
     """
 
     t: np.ndarray
@@ -95,8 +103,7 @@ class Segment:
     held_out_first: bool = False
     mirror_gap: int = 0
     exact_inputs: tuple[bool, bool] = (False, False)
-    floor_scale: float = 1.0
-    floor_scale_dof: float = math.inf
+    floor_scale: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.omega0 = motor.omega0_of(self.f0)
@@ -291,9 +298,7 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
     """
     raw, smooth = (conditional_mean(window, tail=input_tail, input_noise=input_noise) if input_mean
                    else (prepare(window, floors=True, input_noise=input_noise), None))
-    scale = {}
-    if "floor_plateau_dof" in raw.noise:
-        scale = {"floor_scale": raw.noise["floor_plateau_ratio"], "floor_scale_dof": raw.noise["floor_plateau_dof"]}
+    scale = filter_scales(raw)
     prep = raw if smooth is None else smooth
     exact = tuple(not (white_floor(raw.noise, c) and raw.noise[f"noise_{c}"] > 0.0) for c in ("v", "theta"))
     n = prep.V.shape[0]
@@ -315,4 +320,34 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
         "V_raw": raw.V, "theta_raw": raw.theta, "input_error": error_spectrum(raw, smooth)}
     return Segment(t=prep.t, V=prep.V, theta=prep.theta, P=prep.P, Q=prep.Q, dfreq=df, dvdt=dvdt, dt=dt,
                    f0=window.f0, k0=k0, ks=ks, ke=ke, bus=window.bus, dfreq_from_theta=from_theta,
-                   exact_inputs=exact, **scale, **extra)
+                   exact_inputs=exact, floor_scale=scale, **extra)
+
+
+def filter_scales(raw: Prepared) -> dict[str, tuple[float, float]]:
+    """Per channel, the factor a PMU's reporting filter asks the noise model's floor to be raised by, and its χ²
+    degrees of freedom (:attr:`Segment.floor_scale`); empty where :func:`aslm_core.preprocess.measured_floors` found
+    no filter.
+
+    V and θ take the identifier's own raises (``floor_ratio_v|theta``).  P and Q take their own noise where the filter
+    is flat, the part of each at 4–6 Hz that the other channels do not explain (:func:`incoherent_ratio`), whatever
+    their band's tilt: the diagnosis's noise model holds all of P's and Q's residual that the plain model driven by
+    V and θ cannot explain, the load's own fluctuation with the PMU's noise, where the identifier models the first
+    apart (with V's ratio on P and Q the model-true windows' score statistics had E[z²] 1.6 on development seed 88,
+    1.0 with these; docs/diagnosis.md, "Stop 56").
+    """
+    if "floor_plateau_dof" not in raw.noise:
+        return {}
+    est = raw.noise
+    falling = falling_floors(est)
+    out = {}
+    if falling[0]:
+        out["v"] = (est["floor_ratio_v"], est["floor_plateau_dof"])
+    if falling[1]:
+        out["theta"] = (est["floor_ratio_theta"], est["floor_dof_theta"])
+    # incoherent_ratio reads the band's median from the floors: undo the identifier's raise of P and Q.
+    unraised = {f"noise_{c}": est[f"noise_{c}"] / math.sqrt(est[f"floor_ratio_{c}"]) for c in FLOOR_CHANNELS}
+    x = np.stack([raw.V, raw.theta, raw.P, raw.Q])
+    for k, c in ((2, "p"), (3, "q")):
+        out[c] = incoherent_ratio(unraised, x, 1.0 / raw.dt, k)
+    return out
+

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -140,6 +141,20 @@ def test_the_diagnosis_rule_reads_false_findings_and_power():
     assert not pf.diagnosis_verdict(reader(measured_ff=6))["met"]["clean"]
     assert not pf.diagnosis_verdict(reader(measured_named=43))["met"]["power"]
 
+    def both(ff_5hz=4, named_5hz=45):  # the third confirmation's two shapes, the 5hz one judged as the fs5 one
+        fs5 = reader()
+        runs = {}
+        for cls in ("1e-3", "3e-4"):
+            runs[f"diagnosis_rates_seed84_pmu_5hz_{cls}"] = run(0)
+            runs[f"diagnosis_rates_seed84_pmu_5hz_measured_{cls}"] = run(120 - ff_5hz)
+        runs["diagnosis_rates_seed85_pmu_5hz_second_motor"] = run(named=named_5hz, n=60)
+        return lambda name: runs[name] if name in runs else fs5(name)
+
+    shapes = ("fs5", "5hz")
+    assert pf.diagnosis_verdict(both(), shapes=shapes)["met"] == {"clean": True, "power": True}
+    assert pf.diagnosis_verdict(both(ff_5hz=6), shapes=shapes)["met"] == {"clean": False, "power": True}
+    assert pf.diagnosis_verdict(both(named_5hz=43), shapes=shapes)["met"] == {"clean": True, "power": False}
+
 
 def test_the_andes_check_compares_the_measured_rows_with_the_white_ones():
     from benchmarks import andes_rates as ar
@@ -202,3 +217,54 @@ def test_measured_floors_leave_a_window_too_short_for_the_regression_as_read():
     assert flags == [] and est["floor_plateau_ratio"] == 1.0 and "floor_plateau_dof" not in est
     assert all(est[k] == auto[k] for k in ("noise_v", "noise_theta", "noise_p", "noise_q"))
     assert preprocess.white_floor(est, "v")  # declared measured: never exact
+
+
+def test_measured_floors_read_theta_at_its_own_level_where_v_holds_more_signal_above_5_hz():
+    """V carries, besides its filtered noise, content at 12–24 Hz the filter did not make (coherent with P), which
+    lifts V's band median: V's ratio applied to θ reads θ low (stop 55), θ's own incoherent part reads it right."""
+    fs, n = 50.0, 500
+    rng = np.random.default_rng(56)
+    b = signal.firwin(101, [12.0, 24.0], pass_zero=False, fs=fs)
+    own, borrowed = [], []
+    for _ in range(16):
+        x4 = [1.0 + pf.filtered_noise(n, 1e-3, fs, "fs5", rng)] + [pf.filtered_noise(n, s, fs, "fs5", rng)
+                                                                   for s in (1e-3, 2e-3, 2e-3)]
+        s = signal.lfilter(b, 1.0, rng.standard_normal(n + 100))[100:] * 2e-3
+        x4[0] = x4[0] + s
+        x4[2] = x4[2] + 0.5 * s
+        est, flags = _floors(x4, fs, True)
+        assert flags == ["input_noise_filtered"] and est["floor_ratio_theta"] > 1.0
+        own.append(est["noise_theta"] / 1e-3)
+        borrowed.append(est["noise_theta"] / math.sqrt(est["floor_ratio_theta"]) * math.sqrt(est["floor_ratio_v"]) / 1e-3)
+    assert abs(np.median(own) - 1.0) < 0.15, np.median(own)
+    assert np.median(borrowed) < 0.75, np.median(borrowed)
+
+
+def test_the_diagnosis_reads_p_and_q_at_their_own_in_band_levels():
+    """A PMU's filtered noise alone on all four channels, declared measured: the diagnosis's scales bring each
+    channel's band median to its in-band level (in the median over 16 windows within 15 %), P and Q by their own
+    incoherent parts; white noise gets no scale."""
+    from aslm_core import Window
+    from aslm_core.diagnosis.segment import filter_scales
+
+    fs, n = 50.0, 500
+    rng = np.random.default_rng(7)
+    stds = (1e-3, 1e-3, 2e-3, 3e-3)
+    t = np.arange(n) / fs
+    got = []
+    for _ in range(16):
+        x4 = [1.0 + pf.filtered_noise(n, stds[0], fs, "fs5", rng)] + [pf.filtered_noise(n, s, fs, "fs5", rng)
+                                                                       for s in stds[1:]]
+        raw = preprocess.prepare(Window(t=t, V=x4[0], theta=x4[1], P=0.5 + x4[2], Q=0.2 + x4[3], f0=50.0),
+                                 floors=True, input_noise="measured")
+        scales = filter_scales(raw)
+        assert set(scales) == {"v", "theta", "p", "q"} and all(d == 2 * (20 - 3) for _, d in scales.values())
+        auto = noise.channel_floors(*x4, fs)
+        got.append([auto[f"noise_{c}"] * math.sqrt(scales[c][0]) / s
+                    for c, s in zip(("v", "theta", "p", "q"), stds, strict=True)])
+    med = np.median(got, axis=0)
+    assert np.all(np.abs(med - 1.0) < 0.15), med
+    white = [1.0 + 1e-3 * rng.standard_normal(n)] + [s * rng.standard_normal(n) for s in stds[1:]]
+    raw = preprocess.prepare(Window(t=t, V=white[0], theta=white[1], P=0.5 + white[2], Q=0.2 + white[3], f0=50.0),
+                             floors=True, input_noise="measured")
+    assert filter_scales(raw) == {}
