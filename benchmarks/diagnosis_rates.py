@@ -17,6 +17,14 @@ model-true windows instead: ANDES's ``model`` scenario (``benchmarks.andes_rates
 SHAPE:CLASS``, every channel's noise a PMU's of that reporting-filter shape and class instead
 (:func:`pmu_window`; with ``--config input_noise=measured`` the diagnosis reads it as a PMU's, stop 55).
 
+With ``--andes`` and ``--pmu``, ANDES's records with a PMU's noise on every channel (stop 56; the rule
+:data:`ANDES_PMU_RULE` fixed before its runs):
+
+    for c in 1e-3 3e-4; do for a in "white auto" "fs5 measured" "fs5 auto"; do set -- $a
+      .venv/bin/python -m benchmarks.diagnosis_rates --andes 31 32 33 34 35 36 37 38 39 40 --pmu $1:$c \
+          --config input_noise=$2 --tag pmu_$1_$2_${c}_c; done; done
+    .venv/bin/python -m benchmarks.diagnosis_rates --andes-pmu-report
+
 The code before a change is measured by running this module with that commit's tree first on ``PYTHONPATH`` (the
 module imports only the public API).
 """
@@ -38,6 +46,29 @@ import numpy as np  # noqa: E402
 from benchmarks import common  # noqa: E402
 
 RATES = (25.0, 30.0, 50.0, 60.0, 100.0, 120.0)
+#: Stop 56: the diagnosis on an independent simulator's model-true records with an M-class PMU's noise, fixed before
+#: its runs on fresh ambient seeds (development: seeds 1–5, tags ending ``_dev56``; commands in the module docstring).
+ANDES_PMU_RULE = ("on ANDES's model records (ambient seeds 31-40, seven windows each at 100, 50 and 25 frames/s: 210 a "
+                  "class, P and Q at 22 dB), the verdicts other than 'consistent' with the fs5 filter and "
+                  "input_noise='measured' at most the white PMU's (default) + 3, per class (1e-3, 3e-4)")
+ANDES_PMU_SEEDS = tuple(range(31, 41))
+
+
+def andes_pmu_verdict(read=common.read_json, suffix: str = "_c") -> dict:
+    """:data:`ANDES_PMU_RULE` on the stored runs ``diagnosis_rates_andes_pmu_{white_auto,fs5_measured,fs5_auto}_<class>``
+    (+ ``suffix``): per class the false findings of each, and whether the rule is met."""
+    out = {"rule": ANDES_PMU_RULE, "classes": {}}
+    ok = True
+    for cls in ("1e-3", "3e-4"):
+        row = {}
+        for key in ("white_auto", "fs5_measured", "fs5_auto"):
+            cells = read(f"diagnosis_rates_andes_pmu_{key}_{cls}{suffix}")["cells"]
+            n = sum(c["n"] for c in cells)
+            row[key] = {"n": n, "false_findings": n - sum(c["verdicts"].get("consistent", 0) for c in cells)}
+        out["classes"][cls] = row
+        ok &= row["fs5_measured"]["false_findings"] <= row["white_auto"]["false_findings"] + 3
+    out["met"] = bool(ok)
+    return out
 
 
 def diagnosed(job: tuple) -> dict:
@@ -90,13 +121,21 @@ def andes_record(seed: int) -> tuple[dict, np.ndarray]:
 
 
 def andes_diagnosed(job: tuple) -> dict:
-    """One ANDES window's diagnosis: (ambient seed, window, rate, P/Q SNR [dB], config); P and Q noisy, V and θ exact,
-    the lower rates every second or fourth sample of the 100 frames/s window (``benchmarks.andes_rates``'s protocol)."""
+    """One ANDES window's diagnosis: (ambient seed, window, rate, P/Q SNR [dB], config[, (shape, class)]); P and Q
+    noisy, V and θ exact, the lower rates every second or fourth sample of the 100 frames/s window
+    (``benchmarks.andes_rates``'s protocol).  With a PMU (shape, class): every channel's noise a PMU's of that
+    reporting-filter shape drawn at the rate after the decimation, V at the class × its mean, θ at the class [rad], P
+    and Q at the SNR (:func:`benchmarks.andes_rates.pmu_noisy`)."""
     from benchmarks.andes_crosscheck import noisy_window
-    from benchmarks.andes_rates import STEPS, WINDOWS, decimated
+    from benchmarks.andes_rates import STEPS, WINDOWS, decimated, pmu_noisy
 
-    seed, j, fs, snr, config = job
+    seed, j, fs, snr, config, *pmu = job
     rec, truth = andes_record(seed)
+    if pmu and pmu[0]:
+        shape, cls = pmu[0]
+        base = decimated(noisy_window(rec, *WINDOWS[j], None, None), STEPS[fs])
+        w = pmu_noisy(base, fs, cls, cls, snr, shape, np.random.default_rng([seed, j, int(fs), 17]))
+        return _row(w, None, truth, config, fs=fs, level=f"andes {snr:g} dB", i=seed * 100 + j)
     w = noisy_window(rec, *WINDOWS[j], snr, np.random.default_rng([seed, j, int(round(snr * 10))]))
     return _row(decimated(w, STEPS[fs]), None, truth, config, fs=fs, level=f"andes {snr:g} dB", i=seed * 100 + j)
 
@@ -137,7 +176,16 @@ def main() -> None:
     p.add_argument("--tag", default="")
     p.add_argument("--config", action="append", default=[], metavar="NAME=VALUE",
                    help="a DiagnosisConfig field changed for every window (repeatable)")
+    p.add_argument("--andes-pmu-report", action="store_true", help="judge the stored ANDES --pmu runs by ANDES_PMU_RULE")
     args = p.parse_args()
+    if args.andes_pmu_report:
+        v = andes_pmu_verdict()
+        print(f"rule: {v['rule']}")
+        for cls, row in v["classes"].items():
+            print(f"  {cls}: false findings of {row['white_auto']['n']}: " + ", ".join(
+                f"{k.replace('_', ' ')} {r['false_findings']}" for k, r in row.items()))
+        print(f"verdict: {'met' if v['met'] else 'not met'}")
+        return
     from benchmarks.diagnosis import config_overrides
 
     config = config_overrides(args.config)
@@ -145,18 +193,19 @@ def main() -> None:
     if n >= 100:  # window i of rate fs is seeded seed·100000 + fs·100 + i: more would reuse another rate's windows
         raise SystemExit("--n: at most 99 windows per rate and level")
     t0 = time.perf_counter()
+    pmu = None
+    if args.pmu:
+        shape, _, cls = args.pmu.partition(":")
+        pmu = (shape, float(cls))
     with ProcessPoolExecutor(args.workers) as ex:
         if args.andes is not None:
             from benchmarks.andes_rates import STEPS, WINDOWS
 
             list(ex.map(andes_record, args.andes))  # simulated once per seed (cached) before the windows share it
-            jobs = [(seed, j, fs, args.snr, config) for seed in args.andes for j in range(len(WINDOWS)) for fs in STEPS]
+            jobs = [(seed, j, fs, args.snr, config, pmu) for seed in args.andes for j in range(len(WINDOWS))
+                    for fs in STEPS]
             rows = list(ex.map(andes_diagnosed, jobs, chunksize=3))
         else:
-            pmu = None
-            if args.pmu:
-                shape, _, cls = args.pmu.partition(":")
-                pmu = (shape, float(cls))
             jobs = [(fs, level, i, args.seed, args.input_noise, args.effect or None, config, pmu)
                     for fs in args.rates for level in args.levels for i in range(n)]
             rows = list(ex.map(diagnosed, jobs, chunksize=2))

@@ -268,3 +268,17 @@ def test_the_diagnosis_reads_p_and_q_at_their_own_in_band_levels():
     raw = preprocess.prepare(Window(t=t, V=white[0], theta=white[1], P=0.5 + white[2], Q=0.2 + white[3], f0=50.0),
                              floors=True, input_noise="measured")
     assert filter_scales(raw) == {}
+
+
+def test_the_andes_diagnosis_rule_compares_the_measured_runs_with_the_white_ones():
+    from benchmarks import diagnosis_rates as dr
+
+    def reader(measured_ff=3, white_ff=1):
+        ff = {"white_auto": white_ff, "fs5_measured": measured_ff, "fs5_auto": 200}
+        return lambda name: {"cells": [{"n": 210, "verdicts": {"consistent": 210 - ff[k]}}
+                                       for k in ff if f"_pmu_{k}_" in name]}
+
+    assert dr.andes_pmu_verdict(reader())["met"]
+    assert dr.andes_pmu_verdict(reader(measured_ff=4, white_ff=1))["met"] is True
+    assert not dr.andes_pmu_verdict(reader(measured_ff=5, white_ff=1))["met"]
+    assert dr.andes_pmu_verdict(reader())["classes"]["1e-3"]["fs5_auto"]["false_findings"] == 200
