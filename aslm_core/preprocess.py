@@ -181,7 +181,7 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     if not math.isfinite(ratios[i][1]):
         return []  # a window too short for the regression (under ~2 s): the band's median, as measured
     if falling[1 - i] and not math.isfinite(ratios[1 - i][1]):
-        ratios[1 - i] = ratios[i]
+        ratios[1 - i] = ratios[i]  # the other input's regression left nothing (a degenerate channel): the filter's
     ratios += [ratios[i] if f else (1.0, math.inf) for f in falling[2:]]
     for name, (ratio, _) in zip(FLOOR_CHANNELS, ratios, strict=True):
         floors[f"noise_{name}"] *= math.sqrt(ratio)

@@ -332,8 +332,8 @@ def filter_scales(raw: Prepared) -> dict[str, tuple[float, float]]:
     is flat, the part of each at 4–6 Hz that the other channels do not explain (:func:`incoherent_ratio`), whatever
     their band's tilt: the diagnosis's noise model holds all of P's and Q's residual that the plain model driven by
     V and θ cannot explain, the load's own fluctuation with the PMU's noise, where the identifier models the first
-    apart (with V's ratio on P and Q the model-true windows' score statistics had E[z²] 1.6 on development seed 88,
-    1.0 with these; docs/diagnosis.md, "Stop 56").
+    apart; V's ratio misstates them wherever their bands above 5 Hz hold another share of signal than V's
+    (docs/diagnosis.md, "Stop 56").
     """
     if "floor_plateau_dof" not in raw.noise:
         return {}
