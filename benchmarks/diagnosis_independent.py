@@ -119,6 +119,9 @@ SETS: dict[str, dict[str, tuple[int, ...]]] = {
     # simulated or diagnosed, its seeds disjoint from every seed above.  For the band test's floor counted as a
     # median's degrees of freedom (docs/diagnosis.md, "Stop 54"), run once before and after that change.
     "confirm21": {"clean": tuple(range(11001, 11011)), "effect": tuple(range(11001, 11005))},
+    # Twenty-second round (stop 56): fixed here and committed before it was simulated or diagnosed, its seeds disjoint
+    # from every seed above.  For the diagnosis on an M-class PMU's noise (``--pmu``; docs/diagnosis.md, "Stop 56").
+    "confirm22": {"clean": tuple(range(11101, 11111)), "effect": tuple(range(11101, 11105))},
 }
 WINDOWS = ((2.0, 12.0), (12.0, 22.0))
 TF, TSTEP = 22.0, 0.01
@@ -148,14 +151,27 @@ def noise_draw(key: str, level: int, t0: float) -> tuple[np.random.Generator, fl
     return rng, float(NOISE_LEVELS[level] + rng.uniform(-SNR_SPREAD_DB, SNR_SPREAD_DB))
 
 
-def _window(rec: dict, t0: float, t1: float, level: int, input_noise: bool, key: str, step: int = 1):
+def _window(rec: dict, t0: float, t1: float, level: int, input_noise: bool, key: str, step: int = 1,
+            pmu: str | None = None):
     """One noisy window of a recording: P/Q noise at the level's SNR, V/θ noise when asked; with ``step`` > 1 every
-    step-th sample of it (a PMU reporting at 100/step frames/s, the same noise values at its instants)."""
+    step-th sample of it (a PMU reporting at 100/step frames/s, the same noise values at its instants).  With ``pmu``
+    (a shape of :data:`benchmarks.pmu_filter.SHAPES`) and ``input_noise``, every channel's noise a PMU's of that
+    reporting-filter shape instead, at the same stds, drawn at the reporting rate after the decimation (stop 56)."""
     from aslm_core import Window
 
     rng, snr = noise_draw(key, level, t0)
     sl = (rec["t"] >= t0 - 1e-9) & (rec["t"] <= t1 + 1e-9)
     ch = {k: rec[k][sl].copy() for k in ("V", "theta", "P", "Q")}
+    if pmu is not None and input_noise:
+        from benchmarks.pmu_filter import filtered_noise
+
+        ch = {k: x[::step] for k, x in ch.items()}
+        fs = 100.0 / step
+        std = {"V": INPUT_NOISE["V"] * np.mean(ch["V"]), "theta": INPUT_NOISE["theta"],
+               **{k: np.std(ch[k]) * 10 ** (-snr / 20) for k in ("P", "Q")}}
+        for k in ("V", "theta", "P", "Q"):
+            ch[k] = ch[k] + filtered_noise(ch[k].size, float(std[k]), fs, pmu, rng)
+        return Window(rec["t"][sl][::step], ch["V"], ch["theta"], ch["P"], ch["Q"], f0=60.0, bus="andes-bus9"), float(snr)
     for k in ("P", "Q"):
         ch[k] += rng.standard_normal(ch[k].size) * np.std(ch[k]) * 10 ** (-snr / 20)
     vth = rng.standard_normal((2, ch["V"].size))  # drawn in both modes: the P/Q noise is the same in both
@@ -183,6 +199,7 @@ def run_job(job: tuple) -> list[dict]:
 
     kind, seed, modes, *rest = job
     step = rest[0] if rest else 1
+    pmu = rest[1] if len(rest) > 1 else None
     t_sim, c_sim = time.perf_counter(), time.process_time()
     try:
         rec = recording(kind, seed, tf=TF, tstep=TSTEP)
@@ -194,7 +211,7 @@ def run_job(job: tuple) -> list[dict]:
     for input_noise in modes:
         for t0, t1 in WINDOWS:
             for level in LEVELS:
-                w, snr = _window(rec, t0, t1, level, input_noise, f"{kind}/{seed}", step)
+                w, snr = _window(rec, t0, t1, level, input_noise, f"{kind}/{seed}", step, pmu)
                 c0, w0 = time.process_time(), time.perf_counter()
                 try:
                     rep = diagnose(w, config=diagnosis_config())
@@ -334,7 +351,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fs", type=float, default=100.0, choices=(100.0, 50.0, 25.0),
                    help="reporting rate [frames/s]: every second or fourth sample of the 100 frames/s windows (written "
                         "with _fs<rate> in the name unless 100)")
+    p.add_argument("--pmu", default=None, choices=("fs5", "5hz"),
+                   help="with --noise input: every channel's noise an M-class PMU's of this reporting-filter shape "
+                        "(benchmarks.pmu_filter) at the same stds; pair with --config input_noise=measured")
     args = p.parse_args(argv)
+    if args.pmu and args.noise != "input":
+        p.error("--pmu replaces the input mode's noise: use it with --noise input")
     overrides = config_overrides(args.config)
     step = int(round(100.0 / args.fs))
     name = args.set + (f"_fs{args.fs:g}" if step > 1 else "") + (f"_{args.tag}" if args.tag else "")
@@ -346,7 +368,7 @@ def main(argv: list[str] | None = None) -> int:
     from aslm_core.diagnosis.candidates import MODULES
 
     modes = {"pq": (False,), "input": (True,), "both": (False, True)}[args.noise]
-    todo = [(k, s, modes, step) for k, s in todo_jobs
+    todo = [(k, s, modes, step, args.pmu) for k, s in todo_jobs
             if not args.cached_only or any(cache_dir().glob(f"v*-{k}-{s}-*.npz"))]
     partial = cache_dir() / f"diagnosis_independent_{name}.partial.jsonl"
     partial.parent.mkdir(parents=True, exist_ok=True)
@@ -363,13 +385,13 @@ def main(argv: list[str] | None = None) -> int:
             recs += rows
             fh.writelines(json.dumps(r, default=float) + "\n" for r in rows)
             fh.flush()
-            k, s, _, _ = futs[f]
+            k, s, *_ = futs[f]
             print(f"{k}/{s}: " + ", ".join(outcome(r) for r in rows)
                   + (f" (sim {rows[0]['sim_s']:.0f} s)" if rows else " FAILED"), flush=True)
     wall = time.perf_counter() - t0
     out_path = RESULTS / f"diagnosis_independent_{name}.json"
     if out_path.exists():  # a run of the other noise mode: keep its records, this run replaces its own mode's
-        ran = {k for k, _, _, _ in todo}
+        ran = {k for k, *_ in todo}
         kept = [r for r in json.loads(out_path.read_text())["records"]
                 if r["input_noise"] not in modes or r["kind"] not in ran]
         recs = kept + recs
