@@ -7,6 +7,14 @@
     .venv/bin/python -m benchmarks.diagnosis_independent --set confirm4   # the fourth, once (and so on to confirm14)
     .venv/bin/python -m benchmarks.diagnosis_independent --set dev --fs 25   # the same windows at 25 frames/s
 
+With an M-class PMU's noise (stop 56; :data:`PMU_RULE`, fixed before the run):
+
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm22 --noise input --tag white
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm22 --noise input --pmu fs5 \
+        --config input_noise=measured --tag pmu_fs5_measured
+    .venv/bin/python -m benchmarks.diagnosis_independent --set confirm22 --noise input --pmu fs5 --tag pmu_fs5_auto
+    .venv/bin/python -m benchmarks.diagnosis_independent --pmu-report
+
 Each scenario of :mod:`aslm_sim.andes.effects` (a kind and a seed: the motor data, the effect's magnitude,
 the ambient noise) is simulated by ANDES for 22 s (10 ms step) and cut into two 10 s windows (2–12 s,
 12–22 s); each window is diagnosed at the three noise levels of the synthetic cases (white noise on P and
@@ -279,6 +287,31 @@ def summarise(recs: list[dict], known_causes: tuple[str, ...]) -> dict:
     }
 
 
+#: Stop 56: the diagnosis on ANDES's concealed effects with an M-class PMU's noise, fixed before its run on confirm22
+#: (development: the dev set, tags white56, pmu_fs5_measured_q).
+PMU_RULE = ("on confirm22, the input mode with the fs5 filter on every channel and input_noise='measured' against the "
+            "white input mode (default config) on the same cases: (1) clean 'consistent' at least the white's - 3 "
+            "cases; (2) a cause named that is absent at most the white's + 3; (3) the right cause named, over the "
+            "three levels, at least the white's - 8 cases")
+
+
+def pmu_verdict(read=lambda name: json.loads((RESULTS / f"{name}.json").read_text()), set_name: str = "confirm22",
+                ) -> dict:
+    """:data:`PMU_RULE` on the stored runs ``diagnosis_independent_<set>_white`` and ``…_pmu_fs5_measured`` (and
+    ``…_pmu_fs5_auto`` for contrast): each run's counts and whether each criterion is met."""
+    counts = {}
+    for tag in ("white", "pmu_fs5_measured", "pmu_fs5_auto"):
+        s = read(f"diagnosis_independent_{set_name}_{tag}")["summary"]["input"]
+        right = sum(round(v["share"] * v["n"]) for v in s["right_named"].values() if v["share"] is not None)
+        counts[tag] = {"clean_consistent": round(s["clean_consistent"] * s["n_clean"]), "n_clean": s["n_clean"],
+                       "wrong_named": len(s["wrong_named"]), "n_cases": s["n_cases"], "right_named": right,
+                       "n_inside": sum(v["n"] for v in s["right_named"].values())}
+    w, m = counts["white"], counts["pmu_fs5_measured"]
+    met = {"clean": m["clean_consistent"] >= w["clean_consistent"] - 3, "wrong": m["wrong_named"] <= w["wrong_named"] + 3,
+           "power": m["right_named"] >= w["right_named"] - 8}
+    return {"rule": PMU_RULE, "counts": counts, "met": met}
+
+
 def _share(x: list[bool]) -> float | None:
     return float(np.mean(x)) if x else None
 
@@ -333,7 +366,8 @@ def simulate_only(todo: list[tuple[str, int]], workers: int) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--set", choices=list(SETS), required=True)
+    p.add_argument("--set", choices=list(SETS), required="--pmu-report" not in (argv or sys.argv))
+    p.add_argument("--pmu-report", action="store_true", help="judge the stored confirm22 --pmu runs by PMU_RULE")
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     p.add_argument("--kinds", default="", help="comma-separated kinds (default: all)")
     p.add_argument("--seeds", default="", help="comma-separated seeds of the set to run (default: all)")
@@ -355,6 +389,14 @@ def main(argv: list[str] | None = None) -> int:
                    help="with --noise input: every channel's noise an M-class PMU's of this reporting-filter shape "
                         "(benchmarks.pmu_filter) at the same stds; pair with --config input_noise=measured")
     args = p.parse_args(argv)
+    if args.pmu_report:
+        v = pmu_verdict()
+        print(f"rule: {v['rule']}")
+        for tag, c in v["counts"].items():
+            print(f"  {tag}: clean consistent {c['clean_consistent']} of {c['n_clean']}, a cause named that is absent "
+                  f"{c['wrong_named']} of {c['n_cases']}, the right cause {c['right_named']} of {c['n_inside']}")
+        print("verdict: " + ", ".join(f"{k} {'met' if ok else 'not met'}" for k, ok in v["met"].items()))
+        return 0
     if args.pmu and args.noise != "input":
         p.error("--pmu replaces the input mode's noise: use it with --noise input")
     overrides = config_overrides(args.config)

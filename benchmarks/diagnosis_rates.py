@@ -25,6 +25,9 @@ With ``--andes`` and ``--pmu``, ANDES's records with a PMU's noise on every chan
           --config input_noise=$2 --tag pmu_$1_$2_${c}_c; done; done
     .venv/bin/python -m benchmarks.diagnosis_rates --andes-pmu-report
 
+and its second run (:data:`ANDES_PMU_SEEDS_SECOND`): the same with ``--andes 41 … 50``, tags ending ``_d``, then
+``--andes-pmu-report --suffix _d``.
+
 The code before a change is measured by running this module with that commit's tree first on ``PYTHONPATH`` (the
 module imports only the public API).
 """
@@ -52,6 +55,9 @@ ANDES_PMU_RULE = ("on ANDES's model records (ambient seeds 31-40, seven windows 
                   "class, P and Q at 22 dB), the verdicts other than 'consistent' with the fs5 filter and "
                   "input_noise='measured' at most the white PMU's (default) + 3, per class (1e-3, 3e-4)")
 ANDES_PMU_SEEDS = tuple(range(31, 41))
+#: The same rule's second run, after the diagnosis went back to the identifier's raises for P and Q (stop 56), on fresh
+#: ambient seeds, tags ending ``_d``; fixed before the runs.
+ANDES_PMU_SEEDS_SECOND = tuple(range(41, 51))
 
 
 def andes_pmu_verdict(read=common.read_json, suffix: str = "_c") -> dict:
@@ -177,9 +183,10 @@ def main() -> None:
     p.add_argument("--config", action="append", default=[], metavar="NAME=VALUE",
                    help="a DiagnosisConfig field changed for every window (repeatable)")
     p.add_argument("--andes-pmu-report", action="store_true", help="judge the stored ANDES --pmu runs by ANDES_PMU_RULE")
+    p.add_argument("--suffix", default="_c", help="with --andes-pmu-report: the runs' tags end in this (_d: the second)")
     args = p.parse_args()
     if args.andes_pmu_report:
-        v = andes_pmu_verdict()
+        v = andes_pmu_verdict(suffix=args.suffix)
         print(f"rule: {v['rule']}")
         for cls, row in v["classes"].items():
             print(f"  {cls}: false findings of {row['white_auto']['n']}: " + ", ".join(

@@ -66,6 +66,10 @@ the diagnosis too:
           --rates 50 100 --levels 2 3 --effect second_motor --pmu $pmu --tag pmu_${pmu%%:*}_second_motor_c \
           $([ ${pmu%%:*} = white ] || echo --config input_noise=measured); done
     .venv/bin/python -m benchmarks.pmu_filter --diagnosis-report --third
+
+The fourth (:data:`FOURTH`), of the diagnosis after it went back to the identifier's raises for P and Q: the third's
+diagnosis commands with ``--seed 93`` (clean) and ``--seed 94`` (power), tags ending in ``_d``, then
+``--diagnosis-report --fourth``.
 """
 
 from __future__ import annotations
@@ -109,6 +113,10 @@ SECOND = {"identify": 87, "clean": 88, "power": 89, "suffix": "_b"}
 #: clean and power runs judged as the ``fs5`` one's, and ``benchmarks.andes_rates.PMU_CHECK`` on ANDES's fresh ambient
 #: seeds ``benchmarks.andes_rates.PMU_CHECK_THIRD_SEEDS``; fixed before the runs.
 THIRD = {"identify": 90, "clean": 91, "power": 92, "suffix": "_c", "shapes": ("fs5", "5hz")}
+#: Stop 56's fourth confirmation, of the diagnosis only, after it went back to the identifier's raises for P's and Q's
+#: floors (their own incoherent levels hid a speed-dependent torque on ANDES's records): :data:`DIAGNOSIS_RULE` on
+#: seeds 93 (clean) and 94 (power), both shapes; fixed before the runs.  The identifier is unchanged since THIRD.
+FOURTH = {"clean": 93, "power": 94, "suffix": "_d", "shapes": ("fs5", "5hz")}
 #: Issue 11's bias targets per PMU class (|μ − 1| at most).
 BIAS_TARGET = {"0.03 % / 3e-4 rad": 0.01, "0.1 % / 1e-3 rad": 0.02}
 #: Stop 55's confirmation (seed 81, 300 windows a cell, DL 2–3, the six rates), fixed before its run: on the M-class
@@ -299,9 +307,10 @@ def main(argv=None) -> dict:
     ap.add_argument("--diagnosis-report", action="store_true", help="judge the diagnosis's runs by DIAGNOSIS_RULE")
     ap.add_argument("--second", action="store_true", help="with --diagnosis-report: the second confirmation's runs")
     ap.add_argument("--third", action="store_true", help="with --diagnosis-report: the third confirmation's runs")
+    ap.add_argument("--fourth", action="store_true", help="with --diagnosis-report: the fourth confirmation's runs")
     args = ap.parse_args(argv)
     if args.diagnosis_report:
-        conf = SECOND if args.second else THIRD if args.third else None
+        conf = SECOND if args.second else THIRD if args.third else FOURTH if args.fourth else None
         v = (diagnosis_verdict(seeds=(conf["clean"], conf["power"]), suffix=conf["suffix"],
                                shapes=conf.get("shapes", ("fs5",))) if conf else diagnosis_verdict())
         print(f"rule: {v['rule']}")

@@ -20,7 +20,6 @@ from aslm_core.preprocess import (
     FLOOR_CHANNELS,
     Prepared,
     falling_floors,
-    incoherent_ratio,
     prepare,
     white_floor,
 )
@@ -328,26 +327,15 @@ def filter_scales(raw: Prepared) -> dict[str, tuple[float, float]]:
     degrees of freedom (:attr:`Segment.floor_scale`); empty where :func:`aslm_core.preprocess.measured_floors` found
     no filter.
 
-    V and θ take the identifier's own raises (``floor_ratio_v|theta``).  P and Q take their own noise where the filter
-    is flat, the part of each at 4–6 Hz that the other channels do not explain (:func:`incoherent_ratio`), whatever
-    their band's tilt: the diagnosis's noise model holds all of P's and Q's residual that the plain model driven by
-    V and θ cannot explain, the load's own fluctuation with the PMU's noise, where the identifier models the first
-    apart; V's ratio misstates them wherever their bands above 5 Hz hold another share of signal than V's
-    (docs/diagnosis.md, "Stop 56").
+    The identifier's own raises (``floor_ratio_v|theta|p|q``), each where that channel's band falls: V and θ by their
+    own incoherent levels, P's and Q's residual floors by the filter's ratio read on V (θ where V's band is white).
+    Their own incoherent levels, tried for P and Q at stop 56, also read the part of an unmodelled motor response
+    that one coefficient a regressor does not follow across 4–6 Hz, and hid a speed-dependent torque on ANDES's
+    records (docs/diagnosis.md, "Stop 56").
     """
-    if "floor_plateau_dof" not in raw.noise:
-        return {}
     est = raw.noise
-    falling = falling_floors(est)
-    out = {}
-    if falling[0]:
-        out["v"] = (est["floor_ratio_v"], est["floor_plateau_dof"])
-    if falling[1]:
-        out["theta"] = (est["floor_ratio_theta"], est["floor_dof_theta"])
-    # incoherent_ratio reads the band's median from the floors: undo the identifier's raise of P and Q.
-    unraised = {f"noise_{c}": est[f"noise_{c}"] / math.sqrt(est[f"floor_ratio_{c}"]) for c in FLOOR_CHANNELS}
-    x = np.stack([raw.V, raw.theta, raw.P, raw.Q])
-    for k, c in ((2, "p"), (3, "q")):
-        out[c] = incoherent_ratio(unraised, x, 1.0 / raw.dt, k)
-    return out
-
+    if "floor_plateau_dof" not in est:
+        return {}
+    dof = {"v": est["floor_plateau_dof"], "theta": est["floor_dof_theta"] if "floor_dof_theta" in est else math.inf,
+           "p": est["floor_plateau_dof"], "q": est["floor_plateau_dof"]}
+    return {c: (est[f"floor_ratio_{c}"], dof[c]) for c, f in zip(FLOOR_CHANNELS, falling_floors(est), strict=True) if f}

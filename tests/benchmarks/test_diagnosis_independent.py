@@ -106,3 +106,20 @@ def test_a_window_at_a_lower_rate_is_every_step_th_sample_of_the_same_noisy_wind
     assert snr4 == snr and quarter.V.size == 251 and full.V.size == 1001
     for ch in ("t", "V", "theta", "P", "Q"):
         np.testing.assert_array_equal(getattr(quarter, ch), getattr(full, ch)[::4])
+
+
+def test_the_pmu_rule_compares_the_measured_run_with_the_white_one():
+    def summary(clean=60, wrong=2, right=(30, 30, 30)):
+        return {"summary": {"input": {
+            "clean_consistent": clean / 60, "n_clean": 60, "wrong_named": [None] * wrong, "n_cases": 300,
+            "right_named": {lvl: {"share": r / 56, "n": 56} for lvl, r in zip((1, 2, 3), right, strict=True)}}}}
+
+    def reader(**measured):
+        runs = {"white": summary(), "pmu_fs5_measured": summary(**measured), "pmu_fs5_auto": summary(clean=0)}
+        return lambda name: runs[name.split("confirm22_")[1]]
+
+    assert di.pmu_verdict(reader())["met"] == {"clean": True, "wrong": True, "power": True}
+    assert di.pmu_verdict(reader(clean=56))["met"]["clean"] is False
+    assert di.pmu_verdict(reader(wrong=6))["met"]["wrong"] is False
+    assert di.pmu_verdict(reader(right=(28, 27, 26)))["met"]["power"] is False
+    assert di.pmu_verdict(reader(right=(28, 27, 27)))["met"]["power"] is True

@@ -240,10 +240,10 @@ def test_measured_floors_read_theta_at_its_own_level_where_v_holds_more_signal_a
     assert np.median(borrowed) < 0.75, np.median(borrowed)
 
 
-def test_the_diagnosis_reads_p_and_q_at_their_own_in_band_levels():
-    """A PMU's filtered noise alone on all four channels, declared measured: the diagnosis's scales bring each
-    channel's band median to its in-band level (in the median over 16 windows within 15 %), P and Q by their own
-    incoherent parts; white noise gets no scale."""
+def test_the_diagnosis_brings_each_floor_to_its_in_band_level():
+    """A PMU's filtered noise alone on all four channels, declared measured: the diagnosis's scales (the identifier's
+    raises) bring each channel's band median to its in-band level (in the median over 16 windows within 15 %), with
+    the raises' degrees of freedom; white noise gets no scale."""
     from aslm_core import Window
     from aslm_core.diagnosis.segment import filter_scales
 
@@ -259,6 +259,7 @@ def test_the_diagnosis_reads_p_and_q_at_their_own_in_band_levels():
                                  floors=True, input_noise="measured")
         scales = filter_scales(raw)
         assert set(scales) == {"v", "theta", "p", "q"} and all(d == 2 * (20 - 3) for _, d in scales.values())
+        assert all(scales[c][0] == raw.noise[f"floor_ratio_{c}"] for c in scales)
         auto = noise.channel_floors(*x4, fs)
         got.append([auto[f"noise_{c}"] * math.sqrt(scales[c][0]) / s
                     for c, s in zip(("v", "theta", "p", "q"), stds, strict=True)])
