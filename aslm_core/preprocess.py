@@ -180,14 +180,12 @@ def measured_floors(floors: dict[str, float], x: np.ndarray, fs: float) -> list[
     i = 0 if falling[0] else 1
     if not math.isfinite(ratios[i][1]):
         return []  # a window too short for the regression (under ~2 s): the band's median, as measured
-    if falling[1 - i] and not math.isfinite(ratios[1 - i][1]):
-        ratios[1 - i] = ratios[i]  # the other input's regression left nothing (a degenerate channel): the filter's
     ratios += [ratios[i] if f else (1.0, math.inf) for f in falling[2:]]
     for name, (ratio, _) in zip(FLOOR_CHANNELS, ratios, strict=True):
         floors[f"noise_{name}"] *= math.sqrt(ratio)
         floors[f"floor_ratio_{name}"] = ratio
     floors["floor_plateau_ratio"], floors["floor_plateau_dof"] = ratios[i][0], float(ratios[i][1])
-    if falling[1]:
+    if falling[1] and math.isfinite(ratios[1][1]):
         floors["floor_dof_theta"] = float(ratios[1][1])
     return ["input_noise_filtered"]
 

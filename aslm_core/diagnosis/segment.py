@@ -336,6 +336,6 @@ def filter_scales(raw: Prepared) -> dict[str, tuple[float, float]]:
     est = raw.noise
     if "floor_plateau_dof" not in est:
         return {}
-    dof = {"v": est["floor_plateau_dof"], "theta": est["floor_dof_theta"] if "floor_dof_theta" in est else math.inf,
+    dof = {"v": est["floor_plateau_dof"], "theta": est.get("floor_dof_theta", math.inf),
            "p": est["floor_plateau_dof"], "q": est["floor_plateau_dof"]}
     return {c: (est[f"floor_ratio_{c}"], dof[c]) for c, f in zip(FLOOR_CHANNELS, falling_floors(est), strict=True) if f}

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy import signal
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from benchmarks import diagnosis_independent as di  # noqa: E402
@@ -123,3 +124,23 @@ def test_the_pmu_rule_compares_the_measured_run_with_the_white_one():
     assert di.pmu_verdict(reader(wrong=6))["met"]["wrong"] is False
     assert di.pmu_verdict(reader(right=(28, 27, 26)))["met"]["power"] is False
     assert di.pmu_verdict(reader(right=(28, 27, 27)))["met"]["power"] is True
+
+
+def test_a_pmu_window_carries_the_input_modes_stds_through_the_filter_at_the_reporting_rate():
+    """``--pmu fs5``: a clean record (a slow sine, nothing above 1 Hz) gets noise whose density in the passband is the
+    white input mode's on every channel, drawn at the decimated rate, and whose band near Nyquist falls."""
+
+    t = np.arange(0.0, 22.0 + 1e-9, 0.01)
+    s = np.sin(2 * np.pi * 0.3 * t)
+    rec = {"t": t, "V": 1.0 + 0.01 * s, "theta": 0.02 * s, "P": 0.5 + 0.05 * s, "Q": 0.2 + 0.02 * s}
+    w, snr = di._window(rec, 2.0, 12.0, 2, True, "clean/1", step=2, pmu="fs5")
+    assert w.V.size == 501 and np.allclose(np.diff(w.t), 0.02)
+    clean = {k: rec[k][(t >= 2.0 - 1e-9) & (t <= 12.0 + 1e-9)][::2] for k in ("V", "theta", "P", "Q")}
+    std = {"V": di.INPUT_NOISE["V"] * np.mean(clean["V"]), "theta": di.INPUT_NOISE["theta"],
+           **{k: np.std(clean[k]) * 10 ** (-snr / 20) for k in ("P", "Q")}}
+    fs = 50.0
+    for k in ("V", "theta", "P", "Q"):
+        f, p = signal.welch(getattr(w, k) - clean[k], fs, nperseg=250)
+        white = 2 * std[k] ** 2 / fs
+        assert 0.6 < np.mean(p[(f > 2) & (f < 8)]) / white < 1.5, k
+        assert np.mean(p[f > 22]) < 0.1 * white, k

@@ -283,3 +283,10 @@ def test_the_andes_diagnosis_rule_compares_the_measured_runs_with_the_white_ones
     assert dr.andes_pmu_verdict(reader(measured_ff=4, white_ff=1))["met"] is True
     assert not dr.andes_pmu_verdict(reader(measured_ff=5, white_ff=1))["met"]
     assert dr.andes_pmu_verdict(reader())["classes"]["1e-3"]["fs5_auto"]["false_findings"] == 200
+
+
+def test_the_score_width_is_the_mean_square_over_windows_and_candidates():
+    from benchmarks.diagnosis_score_width import CANDIDATES, width
+
+    rows = [{"z": {n: 1.0 for n in CANDIDATES}}, {"z": {CANDIDATES[0]: 2.0, "exponential_static": 9.0}}]
+    assert width(rows) == pytest.approx((6 * 1.0 + 4.0) / 12)
