@@ -33,7 +33,7 @@ import numpy as np
 from scipy import signal
 
 from aslm_core import input_history, levinson, motor, optimize, static
-from aslm_core.noise import FLOOR_FROM_HZ, InputSpectrum, input_periodogram, reflected_mean
+from aslm_core.noise import FLOOR_FROM_HZ, InputSpectrum, input_periodogram, reflected_mean, white_level
 from aslm_core.preprocess import Prepared, prepare, white_floor
 from aslm_core.problem import Problem
 from aslm_core.window import Window
@@ -79,6 +79,11 @@ HISTORY_BAND_HZ: float | None = FLOOR_FROM_HZ
 #: window's residual (the history misses input error the window has) and the fit is redone with the floor.  About
 #: 5 standard deviations of χ² at 100 frames/s; it refits ~8 % of noisy windows [-].  None: no guard.
 HISTORY_CHI2_MAX: float | None = 1.5
+#: S's white P and Q levels separate the floor band's own falling content from the noise
+#: (:func:`aslm_core.noise.white_level`) where that fit's likelihood ratio against a white band exceeds this [-]: the
+#: ratio is about χ² with 2 degrees of freedom on a white band (at most 8.1 in 600 draws of white noise), 91–1,900 on
+#: ANDES's records at 25–100 frames/s (docs/numerics.md, "Stop 57").  inf: the floor band's median, as before stop 57.
+WHITE_LEVEL_LR_MIN = 20.0
 #: ``temporal`` form: S above the band is multiplied by this, so the whitened fit all but ignores those frequencies
 #: (the spectral form gives them weight zero, which a covariance cannot) [-].
 BAND_DOWNWEIGHT = 1e4
@@ -494,7 +499,7 @@ def _weighted_descent(pb: Problem, prep: Prepared, d0: np.ndarray, margin: float
                       floor: bool) -> dict | None:
     """:func:`refine`'s fit in one form (:func:`build_weighting`'s ``band_hz``, ``form``, ``residual_floor``) from d0;
     its dict, or None."""
-    white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
+    white = tuple(prep.noise.get(f"noise_{c}_white", prep.noise[f"noise_{c}"]) ** 2 for c in ("p", "q"))
     d = np.array(d0, dtype=np.float64)
     iters = 0
     out = None
@@ -515,6 +520,26 @@ def _weighted_descent(pb: Problem, prep: Prepared, d0: np.ndarray, margin: float
     except np.linalg.LinAlgError:
         return None
     return {"d": d, "cost": out["cost"], "iterations": iters, "cov": cov, "chi2": chi2, "problem": pb}
+
+
+def separate_own_content(prep: Prepared) -> None:
+    """P's and Q's white levels for S with the floor band's own falling content separated, in place.
+
+    At 25–50 frames/s the floor band (5 Hz to the Nyquist frequency) of P and Q still holds the motor's fast response,
+    and its median (``noise_p``, ``noise_q``) reads it as noise: 6–14 × the injected variance on ANDES's records at 25
+    frames/s, 1.3–2.4 × on the project's generator.  An S that large weighs P's bins as if white noise swamped them,
+    and the standard errors took the wrong shape (H2's intervals covered 98 % there).  Where
+    :func:`aslm_core.noise.white_level` finds such content (:data:`WHITE_LEVEL_LR_MIN`) and a lower white level,
+    that level is recorded as ``noise_p_white`` / ``noise_q_white`` [pu] and S uses it.  Not where a reporting
+    filter's roll-off was found on the inputs (``floor_ratio_*`` above 1): the band's fall is then the filter's.
+    """
+    if any(prep.noise.get(f"floor_ratio_{c}", 1.0) != 1.0 for c in ("v", "theta", "p", "q")):
+        return
+    fs = 1.0 / prep.dt
+    for c, x in (("p", prep.P), ("q", prep.Q)):
+        sd, lr = white_level(x, fs)
+        if lr > WHITE_LEVEL_LR_MIN and sd < prep.noise[f"noise_{c}"]:
+            prep.noise[f"noise_{c}_white"] = sd
 
 
 def noisy_inputs(floors: dict[str, float]) -> bool:
@@ -572,6 +597,7 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
                    input_tail=config.input_spectrum_tail, signal_cutoffs=BAND_AT_CUTOFF, input_noise=config.input_noise)
     if prep.input_error is None:
         return None
+    separate_own_content(prep)
     used = input_spectrum is not None and all(white_floor(prep.noise, c) and prep.noise.get(f"noise_{c}", 0.0) > 0.0
                                               for c in ("v", "theta"))
     out = refine(prep, window.f0, config, d0, skip_s, margin, history=used)

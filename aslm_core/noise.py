@@ -28,6 +28,12 @@ CUTOFF_FACTOR = 1.0
 #: The band an input's noise is read in as the part of it the other channels do not explain (:func:`incoherent_level`,
 #: ``IdentifyConfig.input_noise="measured"``): inside a reporting filter's flat band at 25 frames/s and up [Hz].
 INCOHERENT_BAND_HZ = (FLOOR_FROM_HZ - 1.0, FLOOR_FROM_HZ + 1.0)
+#: The exponents k of the falling content :func:`white_level` separates from the white floor (PSD ∝ f^−k) [-].
+WHITE_LEVEL_EXPONENTS = tuple(float(k) for k in range(1, 11))
+#: :func:`white_level`'s iterations of reweighted least squares at most, and their stop: every exponent's w moved by
+#: less than this fraction [-].
+WHITE_LEVEL_ITER = 40
+WHITE_LEVEL_RTOL = 1e-4
 #: Length of the local line whose value at a window's end is the centre of the point reflection [s].
 EDGE_FIT_S = 0.1
 #: Windows pooled into one input spectrum may differ in length (bin spacing) by this fraction: a window missing frames
@@ -217,6 +223,66 @@ def incoherent_level(x: np.ndarray, fs: float, band_hz: tuple[float, float] = IN
     beta = np.linalg.lstsq(z, y, rcond=None)[0]
     res = y - z @ beta
     return 2.0 * float(np.sum(np.abs(res) ** 2)) / (m - k) / (fs * ww), 2 * (m - k)
+
+
+def white_level(x: np.ndarray, fs: float, from_hz: float = FLOOR_FROM_HZ) -> tuple[float, float]:
+    """A channel's white-noise std with its own falling content in the floor band separated, and the evidence for it.
+
+    :func:`channel_floors` reads the floor band's median as white noise.  Where the channel's own spectrum still falls
+    through the band (a motor's fast response in P and Q at 25–50 frames/s, whose band starts at 5 Hz and ends at
+    12.5–25 Hz) that median is the signal's, several times the noise (docs/numerics.md, "Stop 57").  The band's
+    periodogram is fitted by the Whittle likelihood of S(f) = w + A·(f / from_hz)^−k, w, A ≥ 0, for each k of
+    :data:`WHITE_LEVEL_EXPONENTS` (reweighted least squares: S is linear in w and A), and the best k's w returned.
+
+    Parameters
+    ----------
+    x : ndarray
+        The channel on a uniform grid [pu].
+    fs : float
+        Sample rate [Hz].
+    from_hz : float
+        Lower edge of the band [Hz].
+
+    Returns
+    -------
+    float
+        The white noise's std [pu] (as ``channel_floors``' ``noise_*``); NaN where the band has fewer than 8 bins.
+    float
+        Twice the log-likelihood ratio of that fit against a white band at its mean level [-]: about χ² with 2 degrees
+        of freedom where the band is white, large where it holds falling content.
+    """
+    f, p = periodogram(np.asarray(x, dtype=np.float64), fs)
+    sel = (f >= from_hz) & (f < 0.5 * fs)
+    f, p = f[sel], p[sel]
+    if p.size < 8:
+        return math.nan, 0.0
+    scale = float(np.mean(p))
+    if not scale > 0.0:
+        return 0.0, 0.0
+    y = p / scale
+    g = (f[None, :] / from_hz) ** -np.asarray(WHITE_LEVEL_EXPONENTS)[:, None]  # (K, m)
+    lo = 1e-9
+    w = np.full(g.shape[0], 0.5 * float(np.median(y)))
+    a = np.maximum(float(np.mean(y[:4])) - w, lo)
+    for _ in range(WHITE_LEVEL_ITER):
+        s = w[:, None] + a[:, None] * g
+        v = 1.0 / (s * s)
+        vg = v * g
+        # The normal equations of the weighted fit of y on [1, g], per exponent (2×2, solved in closed form).
+        s00, s01, s11 = v.sum(1), vg.sum(1), (vg * g).sum(1)
+        b0, b1 = v @ y, vg @ y
+        det = np.maximum(s00 * s11 - s01 * s01, 1e-300)
+        w_new = np.maximum((s11 * b0 - s01 * b1) / det, lo)
+        a = np.maximum((s00 * b1 - s01 * b0) / det, 0.0)
+        done = np.max(np.abs(w_new - w) / w_new) < WHITE_LEVEL_RTOL
+        w = w_new
+        if done:
+            break
+    s = w[:, None] + a[:, None] * g
+    nll = np.sum(np.log(s) + y / s, axis=1)
+    best = int(np.argmin(nll))
+    lr = 2.0 * (float(y.size) - float(nll[best]))  # a white band at the mean: Σ log 1 + y = m
+    return math.sqrt(float(w[best]) * scale * fs / 2.0), max(lr, 0.0)
 
 
 @lru_cache(maxsize=32)
