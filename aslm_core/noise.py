@@ -30,6 +30,12 @@ CUTOFF_FACTOR = 1.0
 INCOHERENT_BAND_HZ = (FLOOR_FROM_HZ - 1.0, FLOOR_FROM_HZ + 1.0)
 #: The exponents k of the falling content :func:`white_level` separates from the white floor (PSD ∝ f^−k) [-].
 WHITE_LEVEL_EXPONENTS = tuple(float(k) for k in range(1, 11))
+#: :func:`white_level`'s fit has failed where its level is below this fraction of the white std the top third of the band
+#: reads (its median), and that reading is returned instead: a band whose own content peaks inside it (a mode at 7–9 Hz
+#: at 30 frames/s) rather than falling lets the power law take the top bins too and the fitted level fall to nothing:
+#: below 0.01 of the top's level in 2.7 % of development seed 45's P and Q bands at 25 frames/s and 4.8 % of ANDES's
+#: (seeds 21–25), none between 0.01 and 0.1, the rest above (docs/numerics.md, "Stop 57") [-].
+WHITE_LEVEL_TOP_FRACTION = 0.1
 #: :func:`white_level`'s iterations of reweighted least squares at most, and their stop: every exponent's w moved by
 #: less than this fraction [-].
 WHITE_LEVEL_ITER = 40
@@ -246,7 +252,9 @@ def white_level(x: np.ndarray, fs: float, from_hz: float = FLOOR_FROM_HZ) -> tup
     Returns
     -------
     float
-        The white noise's std [pu] (as ``channel_floors``' ``noise_*``); NaN where the band has fewer than 8 bins.
+        The white noise's std [pu] (as ``channel_floors``' ``noise_*``): the fit's, or the level the band's top third
+        reads where the fit's is below :data:`WHITE_LEVEL_TOP_FRACTION` of it; NaN where the band has fewer than 8
+        bins.
     float
         Twice the log-likelihood ratio of that fit against a white band at its mean level [-]: about χ² with 2 degrees
         of freedom where the band is white, large where it holds falling content.
@@ -282,7 +290,9 @@ def white_level(x: np.ndarray, fs: float, from_hz: float = FLOOR_FROM_HZ) -> tup
     nll = np.sum(np.log(s) + y / s, axis=1)
     best = int(np.argmin(nll))
     lr = 2.0 * (float(y.size) - float(nll[best]))  # a white band at the mean: Σ log 1 + y = m
-    return math.sqrt(float(w[best]) * scale * fs / 2.0), max(lr, 0.0)
+    top = float(np.median(y[-(y.size // 3):])) / math.log(2.0)  # a median of χ²₂ ordinates is ln 2 × their mean
+    level = float(w[best]) if w[best] >= WHITE_LEVEL_TOP_FRACTION**2 * top else top
+    return math.sqrt(level * scale * fs / 2.0), max(lr, 0.0)
 
 
 @lru_cache(maxsize=32)
