@@ -161,13 +161,14 @@ def test_default_on_other_seeds_uses_the_draws_of_the_other_benchmarks():
 def test_efficiency_scores_the_stored_default_against_the_stored_bounds(monkeypatch):
     """``--efficiency`` re-runs the default on the stored run's windows and draws: its z on seed 53's first windows is
     the stored default's error over the stored reference bound, window by window (the default as the run was made,
-    before stop 49's 4 Hz cap on the band)."""
+    before stop 49's 4 Hz cap on the band and stop 57's white level of P and Q)."""
     import json
 
     from aslm_core import input_weighting
     from benchmarks.input_noise_bound_spectrum import REFERENCE, efficiency
 
     monkeypatch.setattr(input_weighting, "MAX_BAND_HZ", float("inf"))
+    monkeypatch.setattr(input_weighting, "WHITE_LEVEL_LR_MIN", float("inf"))
 
     stored = json.loads((common.RESULTS / "input_noise_bound_spectrum_seed53.json").read_text())
     n = 3
