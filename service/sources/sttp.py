@@ -48,6 +48,10 @@ BADDATA, SUSPECTDATA, BADTIME, SUSPECTTIME = 0x1, 0x2, 0x10000, 0x20000
 STAT_PMU_ERROR = 0x4000  # bits 15-14 = 01: "PMU error, no information about data" (validation rejects it)
 STAT_NOT_SYNC = 0x2000  # bit 13: time not synchronised
 CLOSED_KEEP = 4096
+#: :meth:`SttpClient.close` waits this long for sttpapi's subscriber to dispose [s].  Its disconnect and auto-reconnect
+#: threads can join each other for ever when a close meets a reconnect (seen in CI, stop 57); the close goes on
+#: without it then, counted as ``disconnects["dispose_stuck"]``.
+DISPOSE_WAIT_S = 10.0
 """Timestamps remembered per bus as handed on or dropped (80 s at 50 frames/s): a measurement of one of
 them is ``late``."""
 
@@ -365,7 +369,7 @@ class SttpClient:
         self.assembler: FrameAssembler | None = None
         self._retired: list[dict] = []  # counters of the assemblers of earlier metadata
         self.connects = 0
-        self.disconnects: dict[str, int] = {}  # reason → count: "terminated" (by the socket), "silent"
+        self.disconnects: dict[str, int] = {}  # reason → count: "terminated" (by the socket), "silent", "dispose_stuck"
         self.configs = 0
         self.config_errors: list[str] = []
         self.no_config = 0  # measurements received while the mapping did not resolve against the metadata
@@ -447,7 +451,13 @@ class SttpClient:
         """Disconnect, drop the frames still incomplete (counted) and hand on what is held (idempotent)."""
         self._stop.set()
         if self._sub is not None:
-            self._sub.dispose()
+            disposing = threading.Thread(target=self._sub.dispose, name="sttp-dispose", daemon=True)
+            disposing.start()
+            disposing.join(DISPOSE_WAIT_S)
+            if disposing.is_alive():
+                log.warning("STTP %s:%d: the subscriber did not dispose in %.0f s (sttpapi's reconnect); closing without it",
+                            self.settings.host, self.settings.port, DISPOSE_WAIT_S)
+                self.disconnects["dispose_stuck"] = self.disconnects.get("dispose_stuck", 0) + 1
         for thread in self._threads:
             if thread is not threading.current_thread():
                 thread.join(5.0)

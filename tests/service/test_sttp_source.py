@@ -211,3 +211,29 @@ def test_the_source_of_aslm_serve_fills_the_bus_buffers(peer):
     buf = store.buffer("f7", create=False)
     w = buf.cut(buf.newest - 1.9, buf.newest + 0.01, f0=50.0, bus="f7")
     assert np.all(np.abs(w.V - 1) < 0.05) and np.all(np.abs(w.f - 50) < 0.1) and store.counts("f7").rejected == {}
+
+
+def test_a_subscriber_that_never_disposes_does_not_hold_the_close(monkeypatch):
+    """sttpapi's disconnect and auto-reconnect threads can join each other for ever when a close meets a reconnect
+    (CI hung in ``test_a_dropped_publisher_is_reconnected`` at stop 57): ``close`` waits ``DISPOSE_WAIT_S`` for the
+    subscriber, then goes on, counted."""
+    import threading
+
+    from service.sources import sttp as sttp_source
+
+    release = threading.Event()
+
+    class Deadlocked:
+        """A subscriber whose dispose blocks as sttpapi's did (its two threads in Thread.join)."""
+
+        def dispose(self) -> None:
+            release.wait(60.0)
+
+    monkeypatch.setattr(sttp_source, "DISPOSE_WAIT_S", 0.5)
+    client = SttpClient(SttpSettings(port=1), parse_mapping({"buses": BUSES}, power=True), lambda bus, batch: None)
+    client._sub = Deadlocked()
+    t0 = time.monotonic()
+    client.close()
+    assert time.monotonic() - t0 < 5.0
+    assert client.counts()["disconnects"] == {"dispose_stuck": 1}
+    release.set()
