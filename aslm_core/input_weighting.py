@@ -526,13 +526,14 @@ def separate_own_content(prep: Prepared) -> None:
     """P's and Q's white levels for S with the floor band's own falling content separated, in place.
 
     At 25–50 frames/s the floor band (5 Hz to the Nyquist frequency) of P and Q still holds the motor's fast response,
-    and its median (``noise_p``, ``noise_q``) reads it as noise: 6–14 × the injected variance on ANDES's records at 25
-    frames/s, 1.3–2.4 × on the project's generator.  An S that large weighs P's bins as if white noise swamped them,
-    and the standard errors took the wrong shape (H2's intervals covered 98 % there).  Where
+    and its median (``noise_p``, ``noise_q``) reads it as noise: S then weighs P's bins as if white noise swamped them,
+    and the standard errors take the wrong shape (docs/numerics.md, "Stop 57").  Where
     :func:`aslm_core.noise.white_level` finds such content (:data:`WHITE_LEVEL_LR_MIN`) and a lower white level,
     that level is recorded as ``noise_p_white`` / ``noise_q_white`` [pu] and S uses it.  Not where a reporting
     filter's roll-off was found on the inputs (``floor_ratio_*`` above 1): the band's fall is then the filter's.
     """
+    if not math.isfinite(WHITE_LEVEL_LR_MIN):
+        return  # switched off: no fit to pay for
     if any(prep.noise.get(f"floor_ratio_{c}", 1.0) != 1.0 for c in ("v", "theta", "p", "q")):
         return
     fs = 1.0 / prep.dt

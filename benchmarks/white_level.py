@@ -23,8 +23,8 @@ reading where its fit falls below a tenth of it (``WHITE_LEVEL_TOP_FRACTION``). 
 run, on fresh seeds (:data:`ANDES_SEEDS_SECOND`, :data:`SEED_SECOND`; tags ``white57b``, ``confirm57b`` and their
 ``_before``; ``--second``).
 
-``--timing``: the refinement's cost, one process, the same noisy windows (40 at 25 and at 100 frames/s) identified with
-the separation and without it (``WHITE_LEVEL_LR_MIN`` = inf), interleaved, 3 repetitions each, median ms.
+``--timing``: the separation's cost, one process, the same noisy windows (40 at 25 and at 100 frames/s) identified with
+it and without it (``WHITE_LEVEL_LR_MIN`` = inf: no fit), interleaved, 3 repetitions each, median ms.
 """
 
 from __future__ import annotations
@@ -42,6 +42,8 @@ import numpy as np  # noqa: E402
 from aslm_core import IdentifyConfig, identify, input_weighting  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise_gain import BIAS_TARGET, RATES, run_name  # noqa: E402
+from benchmarks.rates_bias import COVERAGE_TARGET as COVERAGE  # noqa: E402
+from benchmarks.rates_bias import pooled_cells  # noqa: E402
 
 #: The fresh ambient seeds of ANDES's records and the generator's fresh seed.
 ANDES_SEEDS = tuple(range(51, 61))
@@ -59,8 +61,6 @@ def tags(second: bool = False) -> tuple[str, str, str, str, int]:
     if second:
         return "white57b", "white57b_before", "confirm57b", "confirm57b_before", SEED_SECOND
     return ANDES_TAG, ANDES_BEFORE, TAG, BEFORE, SEED
-#: Issue 11's coverage target of ±1.96 SE [share of windows].
-COVERAGE = (0.90, 0.97)
 RULE = ("(A) ANDES, ambient seeds 51-60, white PMU noise (andes_rates --pmu white): (A1) in every noisy cell (0.03 % "
         "and 0.1 %, 25/50/100 frames/s) x parameter the coverage of +-1.96 SE is inside 90-97 %; (A2) every "
         "parameter's sigma at most 1.02 x the tree before's at 25 frames/s and 1.03 x at 50 and 100; (A3) every noisy "
@@ -94,19 +94,9 @@ def andes_verdict(read=common.read_json, second: bool = False) -> dict:
 
 
 def _cells(tag: str, read, seed: int = SEED) -> dict[tuple[float, str], dict]:
-    """Per (rate, 'level|class') of the generator's run ``tag``: n, bias, σ and coverage of the default's rows."""
-    out = {}
-    for fs in RATES:
-        run = read(run_name(seed, tag, fs))
-        for key, rows in run["per_window"].items():
-            if not key.endswith("|default"):
-                continue
-            r, e = np.array(rows, dtype=float), np.array(run["per_window_se"][key], dtype=float)
-            ok = np.all(np.isfinite(r), axis=1) & np.all(np.isfinite(e), axis=1)
-            out[fs, key.rsplit("|", 1)[0]] = {"n": int(ok.sum()), "bias": (r[ok].mean(axis=0) - 1.0).tolist(),
-                                              "sigma": r[ok].std(axis=0, ddof=1).tolist(),
-                                              "cover": np.mean(np.abs(r[ok] - 1.0) < 1.96 * e[ok], axis=0).tolist()}
-    return out
+    """Per (rate, 'level|class') of the generator's run ``tag``: :func:`benchmarks.rates_bias.pooled_cells` of the
+    default's rows (bias, σ, ``coverage_95``)."""
+    return {(fs, key): cell for fs in RATES for key, cell in pooled_cells([read(run_name(seed, tag, fs))]).items()}
 
 
 def generator_verdict(read=common.read_json, second: bool = False) -> dict:
@@ -115,7 +105,7 @@ def generator_verdict(read=common.read_json, second: bool = False) -> dict:
     new, old = _cells(tag, read, seed), _cells(before, read, seed)
 
     def outside(cells: dict) -> int:
-        return sum(not COVERAGE[0] <= x <= COVERAGE[1] for c in cells.values() for x in c["cover"])
+        return sum(not COVERAGE[0] <= x <= COVERAGE[1] for c in cells.values() for x in c["coverage_95"])
 
     def off_target(cells: dict) -> int:
         return sum(abs(b) > BIAS_TARGET[key.split("|")[1]] for (_, key), c in cells.items() if key[0] in "23"
