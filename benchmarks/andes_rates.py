@@ -64,6 +64,14 @@ PMU_CHECK_SEEDS = tuple(range(11, 21))
 #: The fresh ambient seeds of the third run (stop 56).
 PMU_CHECK_THIRD_SEEDS = tuple(range(21, 31))
 #: Stop 55's expectation of the ANDES cross-check of ``input_noise="measured"``, fixed before its runs.
+#: Stop 58's check of the standard errors on fresh ambient seeds, fixed before their run (:func:`coverage_check`).
+COVERAGE_CHECK_SEEDS = tuple(range(71, 81))
+COVERAGE_CHECK = ("today's default (white PMU noise, input_noise='auto'; andes_rates --seeds 71 ... 80 --pmu white --tag "
+                  "cover58) on ANDES ambient seeds 71-80, never used before: in every noisy cell (0.03 % and 0.1 %, "
+                  "25/50/100 frames/s) x parameter the coverage of +-1.96 SE is inside 90-97 %")
+#: The same estimator's white-PMU runs on the earlier, used seeds (21-30 and 51-60 rerun at stop 58; 61-70 stop 57's
+#: second confirmation, at its guard), pooled with the check's run (the seeds are disjoint).
+COVERAGE_POOL = ("white58_21", "white58_51", "white57b", "cover58")
 PMU_CHECK = ("with the fs5 filter and input_noise='measured', every rate's and noisy class's bias within the white PMU "
              "rows' (default) +- issue 11's target (0.01 at 0.03 %, 0.02 at 0.1 %) per parameter, and coverage inside "
              "88-97 % wherever the white rows' is")
@@ -170,6 +178,41 @@ def pmu_check(read=common.read_json, suffix: str = "") -> dict:
     return {"rule": PMU_CHECK, "cells": out, "met": bool(ok)}
 
 
+def coverage_intervals(rows: list[dict], truths: dict, n_boot: int = 2000) -> list[dict]:
+    """Per noisy class and rate, each parameter's coverage of ±1.96 SE with a 95 % bootstrap interval over clusters
+    (seed × window: a window's draws share its clean record, so they are not independent answers)."""
+    out = []
+    for cls in CLASSES[1:]:
+        for fs in STEPS:
+            sel = [r for r in rows if r["class"] == cls and r["fs"] == fs and "d" in r]
+            truth = np.array([truths[r["seed"]] for r in sel])
+            hit = np.abs(np.array([r["d"] for r in sel]) - truth) < 1.96 * np.array([r["stderr"] for r in sel])
+            cl = np.array([f"{r['seed']}/{r['window']}" for r in sel])
+            groups = [np.flatnonzero(cl == c) for c in np.unique(cl)]
+            sums = np.array([hit[g].sum(axis=0) for g in groups])
+            sizes = np.array([g.size for g in groups])
+            pick = np.random.default_rng(0).integers(0, len(groups), (n_boot, len(groups)))
+            boot = sums[pick].sum(axis=1) / sizes[pick].sum(axis=1)[:, None]
+            lo, hi = np.percentile(boot, [2.5, 97.5], axis=0)
+            out.append({"class": cls, "fs": fs, "n": len(sel), "clusters": len(groups), "cover": hit.mean(axis=0).tolist(),
+                        "lo": lo.tolist(), "hi": hi.tolist()})
+    return out
+
+
+def coverage_check(read=common.read_json) -> dict:
+    """:data:`COVERAGE_CHECK` on the stored run ``andes_rates_cover58``, and the same intervals on the runs of
+    :data:`COVERAGE_POOL` pooled."""
+    lo, hi = 0.90, 0.97
+    docs = {tag: read(f"andes_rates_{tag}") for tag in COVERAGE_POOL}
+    fresh = coverage_intervals(docs["cover58"]["rows"], {int(k): v for k, v in docs["cover58"]["truths"].items()})
+    rows = [r for d in docs.values() for r in d["rows"]]
+    truths = {int(k): v for d in docs.values() for k, v in d["truths"].items()}
+    misses = [(c["class"], c["fs"], p) for c in fresh for p, x in zip(common.PARAMS, c["cover"], strict=True)
+              if not lo <= x <= hi]
+    return {"rule": COVERAGE_CHECK, "cells": fresh, "misses": misses, "met": not misses,
+            "pooled_tags": list(COVERAGE_POOL), "pooled": coverage_intervals(rows, truths)}
+
+
 def table(res: list[dict]) -> str:
     def f(v, se=None):
         if se is None:
@@ -201,7 +244,21 @@ def main(argv=None) -> dict:
     ap.add_argument("--input-noise", default="auto", choices=["auto", "measured"], help="IdentifyConfig.input_noise")
     ap.add_argument("--pmu-check", action="store_true", help="judge the stored --pmu runs by PMU_CHECK")
     ap.add_argument("--suffix", default="", help="with --pmu-check: the runs' tags end in this (_b: the second run)")
+    ap.add_argument("--coverage-check", action="store_true", help="judge the stored cover58 run by COVERAGE_CHECK")
     args = ap.parse_args(argv)
+    if args.coverage_check:
+        v = coverage_check()
+        print(f"rule: {v['rule']}")
+        for name, cs in (("seeds 71-80", v["cells"]), ("pooled " + " + ".join(v["pooled_tags"]), v["pooled"])):
+            print(name)
+            for c in cs:
+                print(f"  {c['class']} {c['fs']:g} frames/s (n {c['n']}, {c['clusters']} windows): " + " / ".join(
+                    f"{100 * x:.1f} [{100 * a:.1f}, {100 * b:.1f}]" for x, a, b in zip(c["cover"], c["lo"], c["hi"],
+                                                                                         strict=True)))
+        print(f"misses: {v['misses']}; verdict: {'met' if v['met'] else 'not met'}")
+        if not args.no_write:
+            common.write_json("andes_rates_coverage_check", v)
+        return v
     if args.pmu_check:
         v = pmu_check(suffix=args.suffix)
         print(f"rule: {v['rule']}")
