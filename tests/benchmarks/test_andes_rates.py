@@ -49,3 +49,41 @@ def test_the_cells_pair_each_answer_with_the_same_draw_at_100_frames_s():
     assert res["pmu01", 25.0]["refused"] == 1 and res["pmu01", 25.0]["n"] == 200
     assert res["exact", 100.0]["shift_vs_100"] == [0.0] * 4
     assert 0.85 < res["exact", 100.0]["cover"][0] < 1.0
+
+
+def _cover_rows(seeds, sd_over_se: float, rng) -> list[dict]:
+    """Rows of every noisy class and rate whose errors are sd_over_se × their SE in std (coverage of ±1.96 SE:
+    95 % at 1, about 73 % at 1.4), ten draws of each of seven windows per seed."""
+    truth = np.array([60.0, 5.0, 1.0, 2.0])
+    rows = []
+    for seed in seeds:
+        for j in range(7):
+            for k in range(10):
+                for cls in ar.CLASSES:
+                    for fs in ar.STEPS:
+                        d = truth * (1.0 + 0.05 * sd_over_se * rng.standard_normal(4))
+                        rows.append({"seed": seed, "window": j, "draw": k, "class": cls, "fs": fs, "d": d.tolist(),
+                                     "stderr": (0.05 * truth).tolist(), "flags": []})
+    return rows
+
+
+def test_the_coverage_check_passes_honest_errors_and_fails_a_run_whose_se_is_too_small():
+    """Honest SEs meet the rule, 95 % inside all but a few of the 48 intervals; the fresh run with errors 1.4 × the SE fails it in every
+    cell (the pooled intervals still cover the stored runs' rows)."""
+    rng = np.random.default_rng(3)
+    truths = {str(s): [60.0, 5.0, 1.0, 2.0] for s in range(100)}
+
+    def runs(fresh_sd):
+        out = {f"andes_rates_{t}": {"rows": _cover_rows(range(10 * i, 10 * i + 10), 1.0, rng), "truths": truths}
+               for i, t in enumerate(ar.COVERAGE_POOL[:-1])}
+        out["andes_rates_cover58"] = {"rows": _cover_rows(range(90, 100), fresh_sd, rng), "truths": truths}
+        return out
+
+    ok = ar.coverage_check(read=runs(1.0).__getitem__)
+    assert ok["met"] and not ok["misses"] and len(ok["cells"]) == 6
+    outside = sum(not lo < 0.95 < hi for c in ok["cells"] + ok["pooled"] for lo, hi in zip(c["lo"], c["hi"], strict=True))
+    assert outside <= 6
+    assert ok["pooled"][0]["n"] == 4 * 700 and ok["pooled"][0]["clusters"] == 4 * 70
+    bad = ar.coverage_check(read=runs(1.4).__getitem__)
+    assert not bad["met"] and len(bad["misses"]) == 24
+    assert all(hi < 0.90 for c in bad["cells"] for hi in c["hi"])
