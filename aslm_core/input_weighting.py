@@ -84,6 +84,13 @@ HISTORY_CHI2_MAX: float | None = 1.5
 #: ratio is about χ² with 2 degrees of freedom on a white band (at most 8.1 in 600 draws of white noise), 91–1,900 on
 #: ANDES's records at 25–100 frames/s (docs/numerics.md, "Stop 57").  inf: the floor band's median, as before stop 57.
 WHITE_LEVEL_LR_MIN = 20.0
+#: S's white P and Q variances at most what the residual's periodogram reads inside the fitted band (its median over
+#: ln 2, per sample): the residual there is the white noise plus the inputs' propagated error, so it bounds the white
+#: part from above.  It bites where the floor band misreads P's noise by several times, as with an M-class PMU at
+#: 25 frames/s, whose raised floor holds the motor's own content (docs/numerics.md, "Stop 58").  False: as before stop 58.
+WHITE_AT_MOST_RESIDUAL = True
+#: The fewest bins of the band below which :data:`WHITE_AT_MOST_RESIDUAL` leaves the white levels as they are.
+WHITE_AT_MOST_RESIDUAL_BINS = 8
 #: ``temporal`` form: S above the band is multiplied by this, so the whitened fit all but ignores those frequencies
 #: (the spectral form gives them weight zero, which a covariance cannot) [-].
 BAND_DOWNWEIGHT = 1e4
@@ -332,16 +339,19 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
         return None
     freqs = np.fft.rfftfreq(pb.l, pb.dt)
     temporal = form == "temporal"
+    floored = residual_floor and RESIDUAL_SMOOTH_HZ > 0
+    if floored or WHITE_AT_MOST_RESIDUAL:
+        resid -= pb.basis @ (pb.basis.T @ resid)
+        fr = np.fft.rfft(resid * _taper(pb.l), axis=0, norm="ortho")
+        if WHITE_AT_MOST_RESIDUAL:
+            white_var = white_at_most_residual(white_var, fr, freqs, band_hz, pb.l)
     # The temporal form reads S on the doubled grid: its covariance's lags then span the window unwrapped.
     grid = np.fft.rfftfreq(2 * pb.l, pb.dt) if temporal else freqs
     hz = np.concatenate([h, np.zeros_like(h)]) if temporal else h
     s = disturbance_spectrum(hz, grid, *input_error, white_var)
-    if residual_floor and RESIDUAL_SMOOTH_HZ > 0:
-
+    if floored:
         width = max(1, int(round(RESIDUAL_SMOOTH_HZ * pb.l * pb.dt)))
         kernel = np.ones(2 * (width // 2) + 1) / (2 * (width // 2) + 1)
-        resid -= pb.basis @ (pb.basis.T @ resid)
-        fr = np.fft.rfft(resid * _taper(pb.l), axis=0, norm="ortho")
         for c in range(2):
             pr = reflected_mean(fr[:, c].real ** 2 + fr[:, c].imag ** 2, kernel)
             if temporal:
@@ -367,6 +377,42 @@ def build_weighting(problem, d: np.ndarray, input_error: tuple[np.ndarray, np.nd
     w = tuple(x * keep for x in whitening(s))
     nuis = _stack(w, np.hstack([phi, zero]), np.hstack([zero, phi]), mult)
     return Weighting(w, nuis, np.linalg.inv(nuis.T @ nuis), samples)
+
+
+def white_at_most_residual(white_var: tuple[float, float], resid_f: np.ndarray, freqs: np.ndarray,
+                           band_hz: float, samples: int) -> tuple[float, float]:
+    """P's and Q's white variances for S, each at most the level the residual reads inside the fitted band.
+
+    Inside the band the residual of P (Q) is its white noise plus the inputs' error propagated through H, so its
+    periodogram's median over ln 2 (a χ²₂ ordinate's median is ln 2 × its mean) bounds the white part from above.  The
+    floor band's reading can exceed that bound several times where the band holds the channel's own content (an
+    M-class PMU at 25 frames/s; docs/numerics.md, "Stop 58").
+
+    Parameters
+    ----------
+    white_var : (float, float)
+        P's and Q's white variances from the floors [pu², per sample].
+    resid_f : ndarray, shape (m, 2), complex
+        The orthonormal DFT of the tapered residual of P and Q, the static part projected out.
+    freqs : ndarray, shape (m,)
+        The bins' frequencies [Hz].
+    band_hz : float
+        The fitted band's top [Hz].
+    samples : int
+        The residual's length, tapered by :func:`_taper` before its DFT.
+
+    Returns
+    -------
+    (float, float)
+        The variances, each the smaller of its floor's and the band's reading [pu², per sample]; unchanged where the
+        band has fewer than :data:`WHITE_AT_MOST_RESIDUAL_BINS` bins.
+    """
+    inside = (freqs > 0.0) & (freqs <= band_hz)
+    if int(inside.sum()) < WHITE_AT_MOST_RESIDUAL_BINS:
+        return white_var
+    gain = float(np.mean(_taper(samples) ** 2))  # the taper's loss of power
+    level = np.median(resid_f[inside].real ** 2 + resid_f[inside].imag ** 2, axis=0) / (math.log(2.0) * gain)
+    return tuple(min(w, float(x)) for w, x in zip(white_var, level, strict=True))
 
 
 def _simulate(pb, d: np.ndarray) -> bool:
