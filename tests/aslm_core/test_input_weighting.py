@@ -361,3 +361,42 @@ def test_no_separation_where_a_reporting_filter_shapes_the_band():
     prep.noise["floor_ratio_v"] = 2.0
     iw.separate_own_content(prep)
     assert not any(k.endswith("_white") for k in prep.noise)
+
+
+def test_the_white_level_is_at_most_what_a_white_residual_reads_in_the_band():
+    """A white residual of variance σ² reads σ² inside the band (its periodogram's median over ln 2, the taper's loss
+    undone): a floor 100 × above is brought down to it, one below is kept; a band of fewer than 8 bins changes
+    nothing."""
+    rng = np.random.default_rng(7)
+    l, fs, sd = 1000, 100.0, 1e-3
+    freqs = np.fft.rfftfreq(l, 1.0 / fs)
+    reads = []
+    for _ in range(20):
+        fr = np.fft.rfft(sd * rng.standard_normal((l, 2)) * iw._taper(l), axis=0, norm="ortho")
+        p, q = iw.white_at_most_residual((100.0 * sd**2, 0.5 * sd**2), fr, freqs, 10.0, l)
+        assert q == 0.5 * sd**2
+        reads.append(p / sd**2)
+    assert 0.9 < np.mean(reads) < 1.1 and 0.6 < min(reads) and max(reads) < 1.5
+    assert iw.white_at_most_residual((100.0, 100.0), fr, freqs, 0.7, l) == (100.0, 100.0)  # 7 bins below 0.7 Hz
+
+
+def test_the_weighting_takes_a_misread_white_level_down_to_the_residuals(windows, monkeypatch):
+    """With the bound, S (and so the whitening) is the same for P's and Q's white levels 1e3 × and 1e5 × the floors':
+    both are brought down to what the residual reads in the band. The floors' own levels are below that reading and
+    give another whitening. Without the bound (as before stop 58) the two misread levels whiten differently."""
+    w = windows[1][0]
+    d = identify(w, config=NONE).d
+    prep = prepare(w, floors=True, input_smoother="wiener")
+    pb = Problem(prep, w.f0, IdentifyConfig())
+    white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
+    band = iw.BAND_FRACTION / pb.dt
+
+    def whitening(scale: float) -> list[np.ndarray]:
+        return list(iw.build_weighting(pb, d, prep.input_error, tuple(scale * x for x in white), band).w)
+
+    high, higher, own = whitening(1e3), whitening(1e5), whitening(1.0)
+    assert all(np.array_equal(a, b) for a, b in zip(high, higher, strict=True))
+    assert not all(np.allclose(a, b) for a, b in zip(high, own, strict=True))
+    monkeypatch.setattr(iw, "WHITE_AT_MOST_RESIDUAL", False)
+    high, higher = whitening(1e3), whitening(1e5)
+    assert not all(np.allclose(a, b) for a, b in zip(high, higher, strict=True))
