@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
+import numba as nb
 import numpy as np
 from scipy import signal
 
@@ -268,31 +269,66 @@ def white_level(x: np.ndarray, fs: float, from_hz: float = FLOOR_FROM_HZ) -> tup
     if not scale > 0.0:
         return 0.0, 0.0
     y = p / scale
-    g = (f[None, :] / from_hz) ** -np.asarray(WHITE_LEVEL_EXPONENTS)[:, None]  # (K, m)
-    lo = 1e-9
-    w = np.full(g.shape[0], 0.5 * float(np.median(y)))
-    a = np.maximum(float(np.mean(y[:4])) - w, lo)
-    for _ in range(WHITE_LEVEL_ITER):
-        s = w[:, None] + a[:, None] * g
-        v = 1.0 / (s * s)
-        vg = v * g
-        # The normal equations of the weighted fit of y on [1, g], per exponent (2×2, solved in closed form).
-        s00, s01, s11 = v.sum(1), vg.sum(1), (vg * g).sum(1)
-        b0, b1 = v @ y, vg @ y
-        det = np.maximum(s00 * s11 - s01 * s01, 1e-300)
-        w_new = np.maximum((s11 * b0 - s01 * b1) / det, lo)
-        a = np.maximum((s00 * b1 - s01 * b0) / det, 0.0)
-        done = np.max(np.abs(w_new - w) / w_new) < WHITE_LEVEL_RTOL
-        w = w_new
-        if done:
-            break
-    s = w[:, None] + a[:, None] * g
-    nll = np.sum(np.log(s) + y / s, axis=1)
+    w, nll = _white_fit(y, f / from_hz, np.asarray(WHITE_LEVEL_EXPONENTS), 0.5 * float(np.median(y)),
+                        float(np.mean(y[:4])), WHITE_LEVEL_ITER, WHITE_LEVEL_RTOL)
     best = int(np.argmin(nll))
     lr = 2.0 * (float(y.size) - float(nll[best]))  # a white band at the mean: Σ log 1 + y = m
     top = float(np.median(y[-(y.size // 3):])) / math.log(2.0)  # a median of χ²₂ ordinates is ln 2 × their mean
     level = float(w[best]) if w[best] >= WHITE_LEVEL_TOP_FRACTION**2 * top else top
     return math.sqrt(level * scale * fs / 2.0), max(lr, 0.0)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _white_fit(y: np.ndarray, f_rel: np.ndarray, exponents: np.ndarray, w0: float, head: float, iterations: int,
+               rtol: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`white_level`'s fit of y ≈ w + A·f_rel^−k per exponent k by reweighted least squares (the Whittle
+    likelihood's weights 1/S²), from w = w0 and A = head − w0, all exponents iterated until every w moves by less than
+    rtol; each exponent's w and negative log-likelihood Σ log S + y/S.  Compiled: the loop over a few hundred bins and
+    ten exponents costs the interpreter ~0.2–0.9 ms a channel."""
+    n_k, m = exponents.size, y.size
+    lo = 1e-9
+    g = np.empty((n_k, m))
+    for k in range(n_k):
+        e = exponents[k]
+        whole = e == math.floor(e) and 0.0 < e <= 16.0  # powers by products: pow() would cost most of the fit
+        for j in range(m):
+            if whole:
+                inv, val = 1.0 / f_rel[j], 1.0
+                for _ in range(int(e)):
+                    val *= inv
+                g[k, j] = val
+            else:
+                g[k, j] = f_rel[j] ** -e
+    w = np.full(n_k, w0)
+    a = np.maximum(head - w, lo)
+    w_new = np.empty(n_k)
+    for _ in range(iterations):
+        moved = 0.0
+        for k in range(n_k):
+            # The normal equations of the weighted fit of y on [1, g], solved in closed form.
+            s00 = s01 = s11 = b0 = b1 = 0.0
+            for j in range(m):
+                s = w[k] + a[k] * g[k, j]
+                v = 1.0 / (s * s)
+                vg = v * g[k, j]
+                s00 += v
+                s01 += vg
+                s11 += vg * g[k, j]
+                b0 += v * y[j]
+                b1 += vg * y[j]
+            det = max(s00 * s11 - s01 * s01, 1e-300)
+            w_new[k] = max((s11 * b0 - s01 * b1) / det, lo)
+            a[k] = max((s00 * b1 - s01 * b0) / det, 0.0)
+            moved = max(moved, abs(w_new[k] - w[k]) / w_new[k])
+        w[:] = w_new
+        if moved < rtol:
+            break
+    nll = np.zeros(n_k)
+    for k in range(n_k):
+        for j in range(m):
+            s = w[k] + a[k] * g[k, j]
+            nll[k] += math.log(s) + y[j] / s
+    return w, nll
 
 
 @lru_cache(maxsize=32)

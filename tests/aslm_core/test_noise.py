@@ -393,6 +393,53 @@ def test_white_level_on_a_white_band_is_its_level_without_evidence_of_content(fs
     assert noise.white_level(np.zeros(int(10 * fs)), fs) == (0.0, 0.0)
 
 
+def _white_fit_interpreted(y, f_rel, exponents, w0, head, iterations, rtol):
+    """:func:`aslm_core.noise._white_fit` as numpy array operations (stop 57's form, before it was compiled)."""
+    g = f_rel[None, :] ** -np.asarray(exponents)[:, None]
+    w = np.full(g.shape[0], w0)
+    a = np.maximum(head - w, 1e-9)
+    for _ in range(iterations):
+        s = w[:, None] + a[:, None] * g
+        v = 1.0 / (s * s)
+        vg = v * g
+        s00, s01, s11 = v.sum(1), vg.sum(1), (vg * g).sum(1)
+        b0, b1 = v @ y, vg @ y
+        det = np.maximum(s00 * s11 - s01 * s01, 1e-300)
+        w_new = np.maximum((s11 * b0 - s01 * b1) / det, 1e-9)
+        a = np.maximum((s00 * b1 - s01 * b0) / det, 0.0)
+        done = np.max(np.abs(w_new - w) / w_new) < rtol
+        w = w_new
+        if done:
+            break
+    s = w[:, None] + a[:, None] * g
+    return w, np.sum(np.log(s) + y / s, axis=1)
+
+
+@pytest.mark.parametrize("fs", [25.0, 100.0])
+def test_the_compiled_white_fit_gives_the_interpreted_ones_answers(fs):
+    """The compiled kernel and the array form it replaced agree to rounding on falling content over noise, on white
+    noise and on a peak inside the band (the bands of the three tests around this one)."""
+    rng = np.random.default_rng(58)
+    n = int(10 * fs)
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    args = (np.asarray(noise.WHITE_LEVEL_EXPONENTS), noise.WHITE_LEVEL_ITER, noise.WHITE_LEVEL_RTOL)
+    for kind in ("falling", "white", "peak") * 5:
+        x = 1e-4 * rng.standard_normal(n)
+        if kind == "falling":
+            content = _falling_content(n, fs, rng)
+            x += 1e-2 * content / content.std()
+        elif kind == "peak":
+            x += 4e-4 * np.fft.irfft(np.fft.rfft(rng.standard_normal(n)) * np.exp(-0.5 * ((f - 8.0) / 0.8) ** 2), n)
+        fb, p = noise.periodogram(x, fs)
+        sel = (fb >= noise.FLOOR_FROM_HZ) & (fb < 0.5 * fs)
+        y = p[sel] / np.mean(p[sel])
+        start = (0.5 * float(np.median(y)), float(np.mean(y[:4])))
+        w, nll = noise._white_fit(y, fb[sel] / noise.FLOOR_FROM_HZ, args[0], *start, *args[1:])
+        w_ref, nll_ref = _white_fit_interpreted(y, fb[sel] / noise.FLOOR_FROM_HZ, args[0], *start, *args[1:])
+        np.testing.assert_allclose(w, w_ref, rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(nll, nll_ref, rtol=1e-12)
+
+
 def test_white_level_falls_back_to_the_bands_top_where_the_content_peaks_inside_it():
     """Own content with a peak at 7–9 Hz (a mode) over white noise at 30 frames/s, as in seed 95's window 99 at stop 57:
     a power law from 5 Hz cannot follow it and its fitted level fell to ~1e-4 of the noise; the band's top third,
