@@ -28,7 +28,7 @@ from aslm_core import (
     static,
 )
 from aslm_core.errors import NoEquilibriumError, WindowError
-from aslm_core.noise import InputSpectrum, reflected_mean
+from aslm_core.noise import InputSpectrum, reflected_mean, white_level
 from aslm_core.params import DYNAMIC_NAMES
 from aslm_core.preprocess import Prepared, prepare
 from aslm_core.problem import EQUILIBRIUM_MARGIN, Problem  # re-exported: Problem's users import it from here
@@ -585,7 +585,8 @@ def _static_and_excitation(problem: Problem, prep: Prepared, beta: np.ndarray, r
 def warmup() -> None:
     """Load (or compile) every numba kernel of the identifier, so later calls time only the work.
 
-    Identifies a small noise-free window built from eq. 4–5; takes about a second from a warm cache.
+    Identifies a small noise-free window built from eq. 4–5 and fits one white level
+    (:func:`aslm_core.noise.white_level`); takes about a second from a warm cache.
     """
     t = np.arange(601) * 0.01
     V = 1.0 + 0.003 * np.sin(2 * np.pi * 0.7 * t) + 0.002 * np.sin(2 * np.pi * 1.9 * t)
@@ -595,3 +596,4 @@ def warmup() -> None:
     window = Window(t, V, theta, p_im + 2.0 + V, q_im + 0.5 * V * V)
     for integrator in ("rk4", "euler"):
         identify(window, warm_start=d, config=IdentifyConfig(integrator=integrator, n_starts=1))
+    white_level(V, 100.0)  # noisy windows' white-level fit (a kernel of its own)
