@@ -183,16 +183,20 @@ def test_impulse_response_is_the_models_response_to_an_input_error(windows):
         assert err < 0.06 * np.sqrt(np.mean(actual[late, i] ** 2))
 
 
+def _weighting_inputs(w: Window):
+    """What :func:`aslm_core.input_weighting.build_weighting` takes for window w: the problem on the Wiener-smoothed
+    inputs, the output-error D, the prepared window, P's and Q's floors as variances, and the fitted band [Hz]."""
+    d = identify(w, config=NONE).d
+    prep = prepare(w, floors=True, input_smoother="wiener")
+    pb = Problem(prep, w.f0, IdentifyConfig())
+    return pb, d, prep, (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2), iw.BAND_FRACTION / pb.dt
+
+
 def test_the_fit_uses_the_bins_up_to_a_tenth_of_the_reporting_rate(windows):
     """Above BAND_FRACTION·fs the simulator's interpolated inputs depart from their samples' content and
     biased D at 25–30 frames/s (docs/numerics.md): those bins get zero weight, and the χ²'s degrees of freedom
     count only the kept ones."""
-    w = windows[1][0]
-    d = identify(w, config=NONE).d
-    prep = prepare(w, floors=True, input_smoother="wiener")
-    pb = Problem(prep, w.f0, IdentifyConfig())
-    white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
-    band = iw.BAND_FRACTION / pb.dt
+    pb, d, prep, white, band = _weighting_inputs(windows[1][0])
     weighting = iw.build_weighting(pb, d, prep.input_error, white, band)
     freqs = np.fft.rfftfreq(pb.l, pb.dt)
     above = freqs > band
@@ -384,12 +388,7 @@ def test_the_weighting_takes_a_misread_white_level_down_to_the_residuals(windows
     """With the bound, S (and so the whitening) is the same for P's and Q's white levels 1e3 × and 1e5 × the floors':
     both are brought down to what the residual reads in the band. The floors' own levels are below that reading and
     give another whitening. Without the bound (as before stop 58) the two misread levels whiten differently."""
-    w = windows[1][0]
-    d = identify(w, config=NONE).d
-    prep = prepare(w, floors=True, input_smoother="wiener")
-    pb = Problem(prep, w.f0, IdentifyConfig())
-    white = (prep.noise["noise_p"] ** 2, prep.noise["noise_q"] ** 2)
-    band = iw.BAND_FRACTION / pb.dt
+    pb, d, prep, white, band = _weighting_inputs(windows[1][0])
 
     def whitening(scale: float) -> list[np.ndarray]:
         return list(iw.build_weighting(pb, d, prep.input_error, tuple(scale * x for x in white), band).w)
