@@ -11,8 +11,9 @@ H(f) the model's response of (P, Q) to (V, θ) at the current D (the Fourier tra
 responses, by finite differences through the compiled simulator, the static part's slope added), P_x(f) the
 Wiener smoother's error spectrum (:func:`aslm_core.noise.wiener_smooth`) and σ_P, σ_Q the floors of P and Q
 (their white level under the floor band's own falling content, :func:`separate_own_content`, and at most what the
-residual reads inside the fitted band, :func:`white_at_most_residual`); its diagonal is floored by the output-error residual's smoothed periodogram (the true inputs' content beyond
-the smoother's cut-off, which P_x leaves out, still drives P and Q).  The residuals, their D-Jacobian and the static regressors are tapered (against the DFT's leakage into bins
+residual reads inside the fitted band, :func:`white_at_most_residual`); its diagonal is floored by the output-error
+residual's smoothed periodogram (the true inputs' content beyond the smoother's cut-off, which P_x leaves out, still
+drives P and Q).  The residuals, their D-Jacobian and the static regressors are tapered (against the DFT's leakage into bins
 where S is small) and taken to the frequency domain (an orthonormal DFT), whitened per frequency by S(f)^(−1/2) (the inverse of its Cholesky factor), the static part is
 projected out after whitening, and D is refined by Levenberg–Marquardt steps under the box and equilibrium
 constraint (:func:`aslm_core.optimize.qp_step`) on the Wiener-smoothed V, θ and the measured P, Q (no

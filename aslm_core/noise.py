@@ -283,8 +283,8 @@ def _white_fit(y: np.ndarray, f_rel: np.ndarray, exponents: np.ndarray, w0: floa
                rtol: float) -> tuple[np.ndarray, np.ndarray]:
     """:func:`white_level`'s fit of y ≈ w + A·f_rel^−k per exponent k by reweighted least squares (the Whittle
     likelihood's weights 1/S²), from w = w0 and A = head − w0, all exponents iterated until every w moves by less than
-    rtol; each exponent's w and negative log-likelihood Σ log S + y/S.  Compiled: the loop over a few hundred bins and
-    ten exponents costs the interpreter ~0.2–0.9 ms a channel."""
+    rtol; each exponent's w and negative log-likelihood Σ log S + y/S.  Compiled: as array operations the iterations
+    over a few hundred bins and ten exponents were most of a noisy window's cost of the fit (docs/numerics.md, "Stop 57")."""
     n_k, m = exponents.size, y.size
     lo = 1e-9
     g = np.empty((n_k, m))
