@@ -34,6 +34,13 @@ on fresh ambient seeds (:data:`PMU_CHECK_SEEDS`):
 Stop 56 read V and θ each at its own noise (docs/numerics.md, "Stop 56"); the same expectation, fixed before the
 runs, on fresh ambient seeds (:data:`PMU_CHECK_THIRD_SEEDS`), the same commands with ``--seeds 21 … 30`` and tags
 ending in ``_c``, then ``--pmu-check --suffix _c``.
+
+Stop 58 checked the standard errors with a white PMU on fresh ambient seeds, by a rule fixed before the run
+(:data:`COVERAGE_CHECK`), and read each cell's coverage with a bootstrap interval over windows, alone and pooled with the
+same estimator's runs on the earlier seeds (:data:`COVERAGE_POOL`):
+
+    .venv/bin/python -m benchmarks.andes_rates --seeds 71 72 73 74 75 76 77 78 79 80 --pmu white --tag cover58
+    .venv/bin/python -m benchmarks.andes_rates --coverage-check
 """
 
 from __future__ import annotations
@@ -63,7 +70,6 @@ CLASSES = ("exact", "pmu003", "pmu01")
 PMU_CHECK_SEEDS = tuple(range(11, 21))
 #: The fresh ambient seeds of the third run (stop 56).
 PMU_CHECK_THIRD_SEEDS = tuple(range(21, 31))
-#: Stop 55's expectation of the ANDES cross-check of ``input_noise="measured"``, fixed before its runs.
 #: Stop 58's check of the standard errors on fresh ambient seeds, fixed before their run (:func:`coverage_check`).
 COVERAGE_CHECK_SEEDS = tuple(range(71, 81))
 COVERAGE_CHECK = ("today's default (white PMU noise, input_noise='auto'; andes_rates --seeds 71 ... 80 --pmu white --tag "
@@ -72,6 +78,7 @@ COVERAGE_CHECK = ("today's default (white PMU noise, input_noise='auto'; andes_r
 #: The same estimator's white-PMU runs on the earlier, used seeds (21-30 and 51-60 rerun at stop 58; 61-70 stop 57's
 #: second confirmation, at its guard), pooled with the check's run (the seeds are disjoint).
 COVERAGE_POOL = ("white58_21", "white58_51", "white57b", "cover58")
+#: Stop 55's expectation of the ANDES cross-check of ``input_noise="measured"``, fixed before its runs.
 PMU_CHECK = ("with the fs5 filter and input_noise='measured', every rate's and noisy class's bias within the white PMU "
              "rows' (default) +- issue 11's target (0.01 at 0.03 %, 0.02 at 0.1 %) per parameter, and coverage inside "
              "88-97 % wherever the white rows' is")
