@@ -132,19 +132,19 @@ def test_the_motors_remainder_is_second_order_in_the_inputs_deviations():
 
 
 def test_with_the_remainder_the_exact_input_fit_is_unbiased_at_small_noise():
-    """Without the remainder a small P, Q noise moved a by +0.5–0.7 % on these records (the linear motor's misfit
-    reweighted between P and Q); with it the fit stays within 0.3 %."""
-    cases = common.cases(3, level=3, seed=41)
+    """Without the remainder a small P, Q noise moved a by +0.65 % on this record (the linear motor's misfit reweighted
+    between P and Q); with it the fit stays within 0.3 % (+0.18 %).  Record 2 of the same seed (+0.47 % and −0.01 %)
+    was dropped from the test at stop 58: the four fits took 90 s, the suite's slowest test."""
+    case = common.cases(1, level=3, seed=41)[0]
     rng = np.random.default_rng(0)
-    for case in (cases[0], cases[2]):
-        w = case.clean
-        d0 = np.asarray(case.truth.d, float)
-        P = w.P + 6e-6 * rng.standard_normal(w.P.size)
-        Q = w.Q + 6e-6 * rng.standard_normal(w.Q.size)
-        lin, _ = fdml(w.V, w.theta, P, Q, 0.01, w.f0, d0)
-        nl, _ = fdml(w.V, w.theta, P, Q, 0.01, w.f0, d0, nonlinear=2)
-        assert abs(lin[0] / d0[0] - 1.0) > 0.004
-        assert abs(nl[0] / d0[0] - 1.0) < 0.003
+    w = case.clean
+    d0 = np.asarray(case.truth.d, float)
+    P = w.P + 6e-6 * rng.standard_normal(w.P.size)
+    Q = w.Q + 6e-6 * rng.standard_normal(w.Q.size)
+    lin, _ = fdml(w.V, w.theta, P, Q, 0.01, w.f0, d0)
+    nl, _ = fdml(w.V, w.theta, P, Q, 0.01, w.f0, d0, nonlinear=2)
+    assert abs(lin[0] / d0[0] - 1.0) > 0.004
+    assert abs(nl[0] / d0[0] - 1.0) < 0.003
 
 
 def test_the_fit_finds_the_same_maximum_from_the_truth_and_from_3_percent_off():
