@@ -28,9 +28,8 @@ import argparse
 import numpy as np
 
 from benchmarks import common
-from benchmarks.input_noise_gain import BIAS_TARGET, RATES, run_name
 from benchmarks.rates_bias import COVERAGE_TARGET as COVERAGE
-from benchmarks.rates_bias import pooled_cells
+from benchmarks.white_level import generator_comparison
 
 #: The fresh ambient seeds of ANDES's records, the generator's fresh seed, and its fresh seed with a PMU's filter.
 ANDES_SEEDS = tuple(range(81, 91))
@@ -93,20 +92,11 @@ def andes_verdict(read=common.read_json) -> dict:
 
 def generator_verdict(read=common.read_json) -> dict:
     """(C) of :data:`RULE` on the stored ``input_noise_variants`` runs."""
-    def cells(tag: str) -> dict:
-        return {(fs, k): c for fs in RATES for k, c in pooled_cells([read(run_name(SEED, tag, fs))]).items()}
-
-    new, old = cells(TAG), cells(TAG + "_before")
-
-    def off_target(cs: dict) -> int:
-        return sum(abs(b) > BIAS_TARGET[k.split("|")[1]] for (_, k), c in cs.items() if k[0] in "23" for b in c["bias"])
-
-    ratios = np.array([np.array(new[k]["sigma"]) / np.array(old[k]["sigma"]) for k in new]).ravel()
-    outside = (_outside(c["coverage_95"] for c in new.values()), _outside(c["coverage_95"] for c in old.values()))
-    off = (off_target(new), off_target(old))
-    return {"coverage_outside": outside, "bias_off_target": off, "sigma_ratio_median": float(np.median(ratios)),
-            "sigma_ratio_range": [float(ratios.min()), float(ratios.max())],
-            "met": {"C1": outside[0] <= outside[1] + 2, "C2": float(np.median(ratios)) <= 1.01, "C3": off[0] <= off[1]}}
+    out = generator_comparison(TAG, TAG + "_before", SEED, read)
+    del out["cells"]  # the runs' own JSONs hold them
+    outside, off = out["coverage_outside"], out["bias_off_target"]
+    out["met"] = {"C1": outside[0] <= outside[1] + 2, "C2": out["sigma_ratio_median"] <= 1.01, "C3": off[0] <= off[1]}
+    return out
 
 
 def filter_verdict(read=common.read_json) -> dict:
