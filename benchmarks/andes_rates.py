@@ -187,13 +187,15 @@ def pmu_check(read=common.read_json, suffix: str = "") -> dict:
 
 def coverage_intervals(rows: list[dict], truths: dict, n_boot: int = 2000) -> list[dict]:
     """Per noisy class and rate, each parameter's coverage of ±1.96 SE with a 95 % bootstrap interval over clusters
-    (seed × window: a window's draws share its clean record, so they are not independent answers)."""
+    (seed × window: a window's draws share its clean record, so they are not independent answers), and the spread of
+    z = error / SE in the bulk, median |z| / 0.6745 (1 where the SE is right)."""
     out = []
     for cls in CLASSES[1:]:
         for fs in STEPS:
             sel = [r for r in rows if r["class"] == cls and r["fs"] == fs and "d" in r]
             truth = np.array([truths[r["seed"]] for r in sel])
-            hit = np.abs(np.array([r["d"] for r in sel]) - truth) < 1.96 * np.array([r["stderr"] for r in sel])
+            z = (np.array([r["d"] for r in sel]) - truth) / np.array([r["stderr"] for r in sel])
+            hit = np.abs(z) < 1.96
             cl = np.array([f"{r['seed']}/{r['window']}" for r in sel])
             groups = [np.flatnonzero(cl == c) for c in np.unique(cl)]
             sums = np.array([hit[g].sum(axis=0) for g in groups])
@@ -202,7 +204,8 @@ def coverage_intervals(rows: list[dict], truths: dict, n_boot: int = 2000) -> li
             boot = sums[pick].sum(axis=1) / sizes[pick].sum(axis=1)[:, None]
             lo, hi = np.percentile(boot, [2.5, 97.5], axis=0)
             out.append({"class": cls, "fs": fs, "n": len(sel), "clusters": len(groups), "cover": hit.mean(axis=0).tolist(),
-                        "lo": lo.tolist(), "hi": hi.tolist()})
+                        "lo": lo.tolist(), "hi": hi.tolist(),
+                        "z_spread": (np.median(np.abs(z), axis=0) / 0.6745).tolist()})
     return out
 
 
@@ -261,7 +264,8 @@ def main(argv=None) -> dict:
             for c in cs:
                 print(f"  {c['class']} {c['fs']:g} frames/s (n {c['n']}, {c['clusters']} windows): " + " / ".join(
                     f"{100 * x:.1f} [{100 * a:.1f}, {100 * b:.1f}]" for x, a, b in zip(c["cover"], c["lo"], c["hi"],
-                                                                                         strict=True)))
+                                                                                         strict=True))
+                      + "; z spread " + " / ".join(f"{x:.2f}" for x in c["z_spread"]))
         print(f"misses: {v['misses']}; verdict: {'met' if v['met'] else 'not met'}")
         if not args.no_write:
             common.write_json("andes_rates_coverage_check", v)

@@ -84,6 +84,8 @@ def test_the_coverage_check_passes_honest_errors_and_fails_a_run_whose_se_is_too
     outside = sum(not lo < 0.95 < hi for c in ok["cells"] + ok["pooled"] for lo, hi in zip(c["lo"], c["hi"], strict=True))
     assert outside <= 6
     assert ok["pooled"][0]["n"] == 4 * 700 and ok["pooled"][0]["clusters"] == 4 * 70
+    assert all(0.9 < x < 1.1 for c in ok["pooled"] for x in c["z_spread"])
     bad = ar.coverage_check(read=runs(1.4).__getitem__)
     assert not bad["met"] and len(bad["misses"]) == 24
     assert all(hi < 0.90 for c in bad["cells"] for hi in c["hi"])
+    assert all(1.25 < x < 1.55 for c in bad["cells"] for x in c["z_spread"])
