@@ -15,6 +15,10 @@ import numpy as np
 
 from aslm_core.noise import FLOOR_FROM_HZ, periodogram
 
+#: :func:`own_median_hz` reads the own fluctuation's spectrum only where its excess over the white floor, summed over the
+#: band, exceeds this many standard deviations of that sum under white noise alone (one-sided, ~2 % of windows without
+#: own fluctuation) [-].
+OWN_MEDIAN_Z = 2.0
 # Equivalent noise bandwidth of the preprocessing's 2nd-order Butterworth low-pass, × its cut-off:
 # (π/4)/sin(π/4).
 _LOWPASS_ENBW = (math.pi / 4.0) / math.sin(math.pi / 4.0)
@@ -83,7 +87,8 @@ def own_median_hz(resid: np.ndarray, fs: float, noise_std: float, lowpass_hz: fl
     less the white floor (flat at 2σ²/fs, shaped by the 2nd-order Butterworth low-pass where one was applied),
     accumulated from the lowest frequency; where that first reaches half its total.  Not clipped bin by bin:
     clipping would keep the floor's positive scatter, so that a residual without own fluctuation would read
-    about half the band instead of nothing.  Step-like switching reads low, a 2 Hz band-limited process near
+    about half the band instead of nothing; and nothing where the total is within :data:`OWN_MEDIAN_Z` standard
+    deviations of its scatter under white noise alone.  Step-like switching reads low, a 2 Hz band-limited process near
     1 Hz (docs/numerics.md, "Excitation indicators"); it means something where ``own_ratio`` is sizeable.
 
     Parameters
@@ -102,16 +107,19 @@ def own_median_hz(resid: np.ndarray, fs: float, noise_std: float, lowpass_hz: fl
     Returns
     -------
     float
-        [Hz]; NaN when nothing is left above the floor.
+        [Hz]; NaN when nothing stands out above the floor.
     """
     f, pxx = periodogram(resid, fs)
     floor = 2.0 * noise_std * noise_std / fs
     if lowpass_hz > 0.0:
         floor = floor / (1.0 + (f / lowpass_hz) ** 4)
     band = (f > 0.0) & (f <= top_hz)
-    own = pxx[band] - (floor[band] if np.ndim(floor) else floor)
+    fb_floor = floor[band] if np.ndim(floor) else np.full(int(band.sum()), floor)
+    own = pxx[band] - fb_floor
     total = float(own.sum())
-    if not total > 0.0:
+    # A periodogram bin of white noise scatters by its mean: the excess over the floor counts where it stands out of
+    # that scatter, not where an unbiased floor leaves half the windows a little above it.
+    if not total > OWN_MEDIAN_Z * math.sqrt(float(fb_floor @ fb_floor)):
         return math.nan
     cum = np.cumsum(own)
     i = int(np.argmax(cum >= 0.5 * total))

@@ -10,7 +10,7 @@ frequency f that covariance is the 2×2 spectrum
 H(f) the model's response of (P, Q) to (V, θ) at the current D (the Fourier transform of its impulse
 responses, by finite differences through the compiled simulator, the static part's slope added), P_x(f) the
 Wiener smoother's error spectrum (:func:`aslm_core.noise.wiener_smooth`) and σ_P, σ_Q the floors of P and Q
-(their white level under the floor band's own falling content, :func:`separate_own_content`, and at most what the
+(their white level under the floor band's own falling content, :func:`aslm_core.noise.output_floors`, and at most what the
 residual reads inside the fitted band, :func:`white_at_most_residual`); its diagonal is floored by the output-error
 residual's smoothed periodogram (the true inputs' content beyond the smoother's cut-off, which P_x leaves out, still
 drives P and Q).  The residuals, their D-Jacobian and the static regressors are tapered (against the DFT's leakage into bins
@@ -35,7 +35,7 @@ import numpy as np
 from scipy import signal
 
 from aslm_core import input_history, levinson, motor, optimize, static
-from aslm_core.noise import FLOOR_FROM_HZ, InputSpectrum, input_periodogram, reflected_mean, white_level
+from aslm_core.noise import FLOOR_FROM_HZ, OUTPUT_FLOOR_KEYS, InputSpectrum, input_periodogram, reflected_mean
 from aslm_core.preprocess import Prepared, prepare, white_floor
 from aslm_core.problem import Problem
 from aslm_core.window import Window
@@ -81,11 +81,6 @@ HISTORY_BAND_HZ: float | None = FLOOR_FROM_HZ
 #: window's residual (the history misses input error the window has) and the fit is redone with the floor.  About
 #: 5 standard deviations of χ² at 100 frames/s; it refits ~8 % of noisy windows [-].  None: no guard.
 HISTORY_CHI2_MAX: float | None = 1.5
-#: S's white P and Q levels separate the floor band's own falling content from the noise
-#: (:func:`aslm_core.noise.white_level`) where that fit's likelihood ratio against a white band exceeds this [-]: the
-#: ratio is about χ² with 2 degrees of freedom on a white band (at most 8.1 in 600 draws of white noise), 91–1,900 on
-#: ANDES's records at 25–100 frames/s (docs/numerics.md, "Stop 57").  inf: the floor band's median, as before stop 57.
-WHITE_LEVEL_LR_MIN = 20.0
 #: S's white P and Q variances at most what the residual's periodogram reads inside the fitted band (its median over
 #: ln 2, per sample): the residual there is the white noise plus the inputs' propagated error, so it bounds the white
 #: part from above.  It bites where the floor band misreads P's noise by several times, as with an M-class PMU at
@@ -547,7 +542,7 @@ def _weighted_descent(pb: Problem, prep: Prepared, d0: np.ndarray, margin: float
                       floor: bool) -> dict | None:
     """:func:`refine`'s fit in one form (:func:`build_weighting`'s ``band_hz``, ``form``, ``residual_floor``) from d0;
     its dict, or None."""
-    white = tuple(prep.noise.get(f"noise_{c}_white", prep.noise[f"noise_{c}"]) ** 2 for c in ("p", "q"))
+    white = tuple(prep.noise[f"noise_{c}"] ** 2 for c in ("p", "q"))
     d = np.array(d0, dtype=np.float64)
     iters = 0
     out = None
@@ -568,27 +563,6 @@ def _weighted_descent(pb: Problem, prep: Prepared, d0: np.ndarray, margin: float
     except np.linalg.LinAlgError:
         return None
     return {"d": d, "cost": out["cost"], "iterations": iters, "cov": cov, "chi2": chi2, "problem": pb}
-
-
-def separate_own_content(prep: Prepared) -> None:
-    """P's and Q's white levels for S with the floor band's own falling content separated, in place.
-
-    At 25–50 frames/s the floor band (5 Hz to the Nyquist frequency) of P and Q still holds the motor's fast response,
-    and its median (``noise_p``, ``noise_q``) reads it as noise: S then weighs P's bins as if white noise swamped them,
-    and the standard errors take the wrong shape (docs/numerics.md, "Stop 57").  Where
-    :func:`aslm_core.noise.white_level` finds such content (:data:`WHITE_LEVEL_LR_MIN`) and a lower white level,
-    that level is recorded as ``noise_p_white`` / ``noise_q_white`` [pu] and S uses it.  Not where a reporting
-    filter's roll-off was found on the inputs (``floor_ratio_*`` above 1): the band's fall is then the filter's.
-    """
-    if not math.isfinite(WHITE_LEVEL_LR_MIN):
-        return  # switched off: no fit to pay for
-    if any(prep.noise.get(f"floor_ratio_{c}", 1.0) != 1.0 for c in ("v", "theta", "p", "q")):
-        return
-    fs = 1.0 / prep.dt
-    for c, x in (("p", prep.P), ("q", prep.Q)):
-        sd, lr = white_level(x, fs)
-        if lr > WHITE_LEVEL_LR_MIN and sd < prep.noise[f"noise_{c}"]:
-            prep.noise[f"noise_{c}_white"] = sd
 
 
 def noisy_inputs(floors: dict[str, float]) -> bool:
@@ -613,7 +587,7 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
         Samples skipped at the start by the output-error fit [s].
     floors : dict
         The window's noise floors (``Prepared.noise``): the refinement runs only with noisy inputs
-        (:func:`noisy_inputs`).
+        (:func:`noisy_inputs`), and weighs P and Q by their levels here (:func:`aslm_core.noise.output_floors`).
     margin : float
         Equilibrium margin of the feasible set.
     input_spectrum : aslm_core.noise.InputSpectrum, optional
@@ -643,10 +617,12 @@ def weighted_fit(window: Window, config, d0: np.ndarray, skip_s: float, floors: 
             input_spectrum = None
     prep = prepare(window, max_gap_samples=config.max_gap_samples, min_duration_s=config.min_duration_s,
                    floors=True, input_smoother="wiener", input_spectrum=input_spectrum,
-                   input_tail=config.input_spectrum_tail, signal_cutoffs=BAND_AT_CUTOFF, input_noise=config.input_noise)
+                   input_tail=config.input_spectrum_tail, signal_cutoffs=BAND_AT_CUTOFF, input_noise=config.input_noise,
+                   output_white=False)
     if prep.input_error is None:
         return None
-    separate_own_content(prep)
+    # P's and Q's white levels from the same raw channels: the output-error fit's, not fitted again.
+    prep.noise.update({k: floors[k] for k in OUTPUT_FLOOR_KEYS if k in floors})
     used = input_spectrum is not None and all(white_floor(prep.noise, c) and prep.noise.get(f"noise_{c}", 0.0) > 0.0
                                               for c in ("v", "theta"))
     out = refine(prep, window.f0, config, d0, skip_s, margin, history=used)

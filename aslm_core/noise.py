@@ -41,6 +41,13 @@ WHITE_LEVEL_TOP_FRACTION = 0.1
 #: less than this fraction [-].
 WHITE_LEVEL_ITER = 40
 WHITE_LEVEL_RTOL = 1e-4
+#: P's and Q's white noise is read under the floor band's own falling content (:func:`output_floors`) where
+#: :func:`white_level`'s likelihood ratio against a white band exceeds this [-]: the ratio is about χ² with 2 degrees
+#: of freedom on a white band (at most 8.1 in 600 draws of white noise), 91–1,900 on ANDES's records at 25–100 frames/s
+#: (docs/numerics.md, "Stop 57").  inf: the floor band's median, as before stop 57.
+WHITE_LEVEL_LR_MIN = 20.0
+#: The floors' keys :func:`output_floors` sets.
+OUTPUT_FLOOR_KEYS = ("noise_p", "noise_q", "floor_p", "floor_q")
 #: Length of the local line whose value at a window's end is the centre of the point reflection [s].
 EDGE_FIT_S = 0.1
 #: Windows pooled into one input spectrum may differ in length (bin spacing) by this fraction: a window missing frames
@@ -276,6 +283,42 @@ def white_level(x: np.ndarray, fs: float, from_hz: float = FLOOR_FROM_HZ) -> tup
     top = float(np.median(y[-(y.size // 3):])) / math.log(2.0)  # a median of χ²₂ ordinates is ln 2 × their mean
     level = float(w[best]) if w[best] >= WHITE_LEVEL_TOP_FRACTION**2 * top else top
     return math.sqrt(level * scale * fs / 2.0), max(lr, 0.0)
+
+
+def output_floors(floors: dict[str, float], P: np.ndarray, Q: np.ndarray, fs: float) -> dict[str, float]:
+    """The floors with P's and Q's white noise read under their floor bands' own falling content.
+
+    At 25–50 frames/s the floor band of P and Q (5 Hz to the Nyquist frequency) still holds the motor's fast response,
+    and its median reads it as noise (2.5–3.8 × a PMU's P noise in std on ANDES's records at 25 frames/s; docs/numerics.md,
+    "Stop 57" and "Stop 59").  Where :func:`white_level` finds such content (its likelihood ratio above
+    :data:`WHITE_LEVEL_LR_MIN`) and a lower level, that level becomes ``noise_p`` (``noise_q``) and the band's median is
+    kept as ``floor_p`` (``floor_q``).  Not where a reporting filter's roll-off was found (``floor_ratio_*`` other than
+    1, ``input_noise="measured"``): the band's fall is then the filter's.
+
+    Parameters
+    ----------
+    floors : dict
+        :func:`channel_floors`' output (raised by a filter's reading where one was found).
+    P, Q : ndarray
+        The channels on a uniform grid, unfiltered [pu].
+    fs : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    dict
+        A copy of ``floors``, ``noise_p``, ``noise_q`` [pu] replaced where separated and ``floor_p``, ``floor_q`` [pu]
+        added there.
+    """
+    out = dict(floors)
+    if not math.isfinite(WHITE_LEVEL_LR_MIN) or any(
+            floors.get(f"floor_ratio_{c}", 1.0) != 1.0 for c in ("v", "theta", "p", "q")):
+        return out
+    for c, x in (("p", P), ("q", Q)):
+        sd, lr = white_level(x, fs)
+        if lr > WHITE_LEVEL_LR_MIN and sd < floors[f"noise_{c}"]:
+            out[f"floor_{c}"], out[f"noise_{c}"] = floors[f"noise_{c}"], sd
+    return out
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")

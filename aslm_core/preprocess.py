@@ -233,7 +233,8 @@ def incoherent_ratio(floors: dict[str, float], x: np.ndarray, fs: float, channel
 def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float = 5.0,
             lowpass_hz: float | None = None, floors: bool = False, input_smoother: str = "none",
             input_cutoff_hz: float = 3.0, input_spectrum: noise.InputSpectrum | None = None,
-            input_tail: bool = False, signal_cutoffs: bool = False, input_noise: str = "auto") -> Prepared:
+            input_tail: bool = False, signal_cutoffs: bool = False, input_noise: str = "auto",
+            output_white: bool = True) -> Prepared:
     """Check a window and bring it onto a clean uniform grid.
 
     Parameters
@@ -274,6 +275,10 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
         With the floors: ``auto`` takes an input whose floor band is not white noise's as exact (:func:`white_floor`);
         ``measured`` declares the channels a PMU's, which always carry noise, and reads a falling band's noise
         where a reporting filter is flat (:func:`measured_floors`).
+    output_white : bool
+        With the floors: P's and Q's noise read under their floor bands' own falling content where the band holds some
+        (:func:`aslm_core.noise.output_floors`; the band's median kept as ``floor_p``, ``floor_q``); False: the band's
+        median (the diagnosis's noise model, confirmed on it).
 
     Returns
     -------
@@ -347,6 +352,8 @@ def prepare(window: Window, *, max_gap_samples: int = 5, min_duration_s: float =
     est = noise.channel_floors(V, theta, P, Q, 1.0 / dt) if floors or wiener else {}
     if est and input_noise == "measured":
         flags += measured_floors(est, np.stack([V, theta, P, Q]), 1.0 / dt)
+    if est and output_white:
+        est = noise.output_floors(est, P, Q, 1.0 / dt)
     # The inputs' white noise: none where the floor band is not white (an exact input's own spectrum).
     white = {k: (est[k] if white_floor(est, k[6:]) else 0.0) for k in ("noise_v", "noise_theta") if k in est}
     if est:

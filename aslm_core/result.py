@@ -195,9 +195,10 @@ class IdentificationResult:
         ``_q`` (std of the residual's coloured part: the load's own fluctuation) [pu], ``own_ratio_p``,
         ``_q`` (that std over the measured ambient std) [-] and ``own_median_hz_p``, ``_q`` (its spectrum as one
         number: half of its variance lies below this frequency; absent when none is left) [Hz], ``input_ratio_v``, ``input_ratio_theta`` (the
-        inputs' ambient std over their white PMU noise std) [-], ``noise_p_white``, ``noise_q_white`` (where the
-        S-weighted refinement found P's or Q's floor band holding the channel's own falling content, the white noise
-        std under it, which the refinement weighs by; ``noise_p``, ``noise_q`` keep the band's median) [pu],
+        inputs' ambient std over their white PMU noise std) [-], ``floor_p``, ``floor_q`` (where P's or Q's floor
+        band holds the channel's own falling content, a motor's fast response at 25–50 frames/s, the band's median;
+        ``noise_p``, ``noise_q`` are then the white noise std under that content, :func:`aslm_core.noise.output_floors`)
+        [pu],
         ``rk4_substeps`` (RK4 steps per sample);
         with a disturbance model ``ar_order_p``, ``_q`` (the AR orders) and, for ``ar_iv``, ``iv_strength_p``, ``_q`` (the smallest share of D's whitened information that the
         instruments keep: 1 = all, near 0 = a weak instrument and large standard errors) [-], ``iv_overid``

@@ -4,7 +4,7 @@ At 25–50 frames/s the floor band of P and Q (5 Hz to the Nyquist frequency) st
 its median read that as noise (6–14 × the injected variance on ANDES's records at 25 frames/s, 1.3–2.4 × on the
 project's generator). The refinement's S then weighed P's bins as if white noise swamped them: H2's intervals covered
 97.9–98.1 % on ANDES at 25–50 frames/s and σ at 25 frames/s was larger than with the true level
-(:func:`aslm_core.input_weighting.separate_own_content`, docs/numerics.md, "Stop 57").
+(:func:`aslm_core.noise.output_floors`, since stop 59; docs/numerics.md, "Stop 57").
 
 The rule (:data:`RULE`) was fixed in this file before any run on its seeds. It judges the change against the tree
 before it (61d79a6) on the same windows and noise draws:
@@ -24,7 +24,9 @@ run, on fresh seeds (:data:`ANDES_SEEDS_SECOND`, :data:`SEED_SECOND`; tags ``whi
 ``_before``; ``--second``).
 
 ``--timing``: the separation's cost, one process, the same noisy windows (40 at 25 and at 100 frames/s) identified with
-it and without it (``WHITE_LEVEL_LR_MIN`` = inf: no fit), interleaved, 3 repetitions each, median ms.
+it and without it (``WHITE_LEVEL_LR_MIN`` = inf: no fit), interleaved, 3 repetitions each, median ms; since stop 59, when
+the separation reads P's and Q's noise for every window (``quality``, the own-fluctuation indicators), the same on the
+exact-input draws of those windows too.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from aslm_core import IdentifyConfig, identify, input_weighting  # noqa: E402
+from aslm_core import IdentifyConfig, identify, noise  # noqa: E402
 from benchmarks import common  # noqa: E402
 from benchmarks.input_noise_gain import BIAS_TARGET, RATES, run_name  # noqa: E402
 from benchmarks.rates_bias import COVERAGE_TARGET as COVERAGE  # noqa: E402
@@ -127,28 +129,29 @@ def generator_verdict(read=common.read_json, second: bool = False) -> dict:
     return out
 
 
-def timing(n: int = 40, fs: float = 25.0, reps: int = 3) -> dict:
-    """Median ms of one identification of noisy windows (the generator's DL 2, 0.1 % / 1e-3 rad, development seed 45)
-    with the separation and without it, interleaved."""
+def timing(n: int = 40, fs: float = 25.0, reps: int = 3, exact: bool = False) -> dict:
+    """Median ms of one identification of noisy windows (the generator's DL 2, 0.1 % / 1e-3 rad, development seed 45;
+    ``exact``: the same records with exact V and θ) with the separation and without it, interleaved."""
     from benchmarks.input_noise import noisy_draws
 
     cases = {2: common.cases(n, level=2, seed=45, fs=fs)}
-    windows = [w for _, _, cls, _, w in noisy_draws(cases, 45, n, levels=(2,)) if cls.startswith("0.1")]
+    windows = ([c.window for c in cases[2]] if exact else
+               [w for _, _, cls, _, w in noisy_draws(cases, 45, n, levels=(2,)) if cls.startswith("0.1")])
     config = IdentifyConfig()
     identify(windows[0], config=config)  # compile and warm the caches
     times: dict[str, list[float]] = {"separated": [], "before": []}
-    old = input_weighting.WHITE_LEVEL_LR_MIN
+    old = noise.WHITE_LEVEL_LR_MIN
     try:
         for _ in range(reps):
             for w in windows:
                 for name, lr in (("separated", old), ("before", float("inf"))):
-                    input_weighting.WHITE_LEVEL_LR_MIN = lr
+                    noise.WHITE_LEVEL_LR_MIN = lr
                     t0 = time.perf_counter()
                     identify(w, config=config)
                     times[name].append(time.perf_counter() - t0)
     finally:
-        input_weighting.WHITE_LEVEL_LR_MIN = old
-    return {"fs": fs, "windows": len(windows), "reps": reps,
+        noise.WHITE_LEVEL_LR_MIN = old
+    return {"fs": fs, "inputs": "exact" if exact else "0.1 % / 1e-3 rad", "windows": len(windows), "reps": reps,
             "ms_median": {k: 1e3 * float(np.median(v)) for k, v in times.items()}}
 
 
@@ -179,7 +182,7 @@ def main(argv=None) -> dict:
         out["met"] = all(met.values())
         print(f"verdict: {'met' if out['met'] else 'not met'}")
     if args.timing:
-        out["timing"] = [timing(fs=fs) for fs in (25.0, 100.0)]
+        out["timing"] = [timing(fs=fs, exact=exact) for exact in (False, True) for fs in (25.0, 100.0)]
         for t in out["timing"]:
             print(t)
     if not args.no_write and (args.verdict or args.timing):

@@ -45,10 +45,9 @@ class Identified(BaseModel):
                     "floor_plateau_dof (that ratio's degrees of freedom) [-], floor_ratio_v|theta|p|q (the factor "
                     "each channel's noise power was raised by, 1 where its band is white: V and θ each by its own "
                     "reading, P and Q by floor_plateau_ratio) [-] and floor_dof_theta (θ's reading's degrees of "
-                    "freedom) [-]; where the S-weighted refinement found P's or Q's floor band holding their own "
-                    "falling content (a motor's fast response at 25–50 frames/s) rather than noise alone, "
-                    "noise_p_white|q (the white noise std under that content, which the refinement weighs by; "
-                    "noise_p|q keep the band's median) [pu]")
+                    "freedom) [-]; where P's or Q's floor band holds the channel's own falling content (a motor's "
+                    "fast response at 25–50 frames/s) rather than noise alone, floor_p|q (the band's median; "
+                    "noise_p|q are then the white noise std under that content) [pu]")
     flags: list[str] = Field(default_factory=list,
                              description="Quality flags, e.g. at_bound:H2, static_split_unidentifiable")
     static_stderr: dict[str, float | None] = Field(

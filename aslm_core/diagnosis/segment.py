@@ -229,10 +229,11 @@ def conditional_mean(window: Window, *, tail: bool = False, input_noise: str = "
     depend on the fitted parameters (regression calibration, as the identifier's ``input_smoother="wiener"``,
     docs/numerics.md).  Exact inputs are left as measured, so their segment is the one built without this step.
     """
-    raw = prepare(window, floors=True, input_noise=input_noise)
+    # P's and Q's floors as the band's median: the diagnosis's noise model was confirmed on it (docs/diagnosis.md).
+    raw = prepare(window, floors=True, input_noise=input_noise, output_white=False)
     if not noisy_inputs(raw.noise):
         return raw, None
-    return raw, prepare(window, input_smoother="wiener", input_tail=tail, input_noise=input_noise)
+    return raw, prepare(window, input_smoother="wiener", input_tail=tail, input_noise=input_noise, output_white=False)
 
 
 def error_spectrum(raw: Prepared, smooth: Prepared) -> tuple[np.ndarray, np.ndarray]:
@@ -296,7 +297,7 @@ def make_segment(window: Window, *, skip_s: float = 1.0, train_fraction: float =
         (:func:`conditional_mean`); a recorded f is used as measured.
     """
     raw, smooth = (conditional_mean(window, tail=input_tail, input_noise=input_noise) if input_mean
-                   else (prepare(window, floors=True, input_noise=input_noise), None))
+                   else (prepare(window, floors=True, input_noise=input_noise, output_white=False), None))
     scale = filter_scales(raw)
     prep = raw if smooth is None else smooth
     exact = tuple(not (white_floor(raw.noise, c) and raw.noise[f"noise_{c}"] > 0.0) for c in ("v", "theta"))

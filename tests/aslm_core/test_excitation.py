@@ -54,12 +54,16 @@ def test_a_white_residual_at_its_floor_mostly_reads_nothing():
 
 
 def test_the_low_pass_shapes_the_floor_that_is_removed():
-    # A low-passed white residual with nothing of its own: the shaped floor leaves the floor's scatter about zero, so
-    # that, as for a white residual, some draws read something and most nothing (16 of 20 read nothing here); a flat
-    # floor would over-remove above the cut-off and read nothing on every draw.
+    # A low-passed white residual with a small own part (0.5–1.5 Hz): the floor shaped by the low-pass leaves the own
+    # part, read where half its power lies; a flat floor over-removes above the cut-off and reads nothing.  Without the
+    # own part the shaped floor reads nothing on most draws (its scatter about zero stays within OWN_MEDIAN_Z).
     rng = np.random.default_rng(10)
     b, a = signal.butter(2, 1.0, fs=FS)
-    got = [own_median_hz(signal.lfilter(b, a, 0.3 * rng.standard_normal(N)), FS, 0.3, lowpass_hz=1.0)
-           for _ in range(20)]
-    flat = [own_median_hz(signal.lfilter(b, a, 0.3 * rng.standard_normal(N)), FS, 0.3) for _ in range(20)]
-    assert 6 <= sum(math.isnan(g) for g in got) <= 17 and all(math.isnan(g) for g in flat)
+    truth = _band_median(0.5, 1.5)
+    residual = [signal.lfilter(b, a, 0.3 * rng.standard_normal(N)) for _ in range(20)]
+    own = [0.08 * _band_noise(rng, 0.5, 1.5) for _ in range(20)]
+    got = [own_median_hz(r + o, FS, 0.3, lowpass_hz=1.0) for r, o in zip(residual, own, strict=True)]
+    flat = [own_median_hz(r + o, FS, 0.3) for r, o in zip(residual, own, strict=True)]
+    alone = [own_median_hz(r, FS, 0.3, lowpass_hz=1.0) for r in residual]
+    assert sum(abs(g - truth) < 0.3 for g in got) >= 16 and all(math.isnan(g) for g in flat)
+    assert sum(math.isnan(g) for g in alone) >= 17

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import linalg
 
-from aslm_core import IdentifyConfig, Window, identify, static
+from aslm_core import IdentifyConfig, Window, identify, noise, static
 from aslm_core import input_weighting as iw
 from aslm_core.identify import Problem
 from aslm_core.levinson import whitening_matrix
@@ -338,18 +338,20 @@ def test_the_impulse_response_starts_where_the_splines_reach_back_begins():
 
 def test_the_refinement_weighs_p_by_its_white_level_without_its_own_falling_content(monkeypatch):
     """At 25 frames/s P's floor band (5–12.5 Hz) still holds the motor's fast response: window 0 of development seed
-    41's DL 3 reads P's floor at 7.7 × the injected variance.  The refinement's S takes the white level fitted under
-    that content (``noise_p_white``, 0.96 ×) and reports it; with the separation off (stop 56's S) the key is absent
-    and the answer differs."""
+    41's DL 3 reads P's floor at 7.7 × the injected variance.  The white level fitted under that content (0.96 ×) is
+    what ``quality`` reports as ``noise_p`` and what the refinement's S weighs by; the band's median is kept as
+    ``floor_p``.  With the separation off (stop 56's S) there is no ``floor_p``, ``noise_p`` is the median and the
+    answer differs."""
     c = make_cases(1, level=3, seed=41, fs=25.0, input_noise=False)[0]
     w = with_input_noise(c.window, V_REL, THETA_RAD, seed=0)
     injected = float(np.var(c.window.P - c.clean.P))
     r = identify(w)
-    assert r.quality["noise_p"] ** 2 > 4.0 * injected
-    assert 0.7 < r.quality["noise_p_white"] ** 2 / injected < 1.4
-    monkeypatch.setattr(iw, "WHITE_LEVEL_LR_MIN", float("inf"))
+    assert r.quality["floor_p"] ** 2 > 4.0 * injected
+    assert 0.7 < r.quality["noise_p"] ** 2 / injected < 1.4
+    monkeypatch.setattr(noise, "WHITE_LEVEL_LR_MIN", float("inf"))
     before = identify(w)
-    assert "noise_p_white" not in before.quality and "noise_q_white" not in before.quality
+    assert "floor_p" not in before.quality and "floor_q" not in before.quality
+    assert before.quality["noise_p"] == r.quality["floor_p"]
     assert not np.allclose(before.d, r.d, rtol=1e-6)
 
 
@@ -358,13 +360,11 @@ def test_no_separation_where_a_reporting_filter_shapes_the_band():
     the fall is not the channel's own content, and P's and Q's floors stay as ``measured_floors`` raised them."""
     c = make_cases(1, level=3, seed=41, fs=25.0, input_noise=False)[0]
     w = with_input_noise(c.window, V_REL, THETA_RAD, seed=0)
-    prep = prepare(w, floors=True)
-    iw.separate_own_content(prep)
-    assert prep.noise["noise_p_white"] < prep.noise["noise_p"]
-    prep = prepare(w, floors=True)
-    prep.noise["floor_ratio_v"] = 2.0
-    iw.separate_own_content(prep)
-    assert not any(k.endswith("_white") for k in prep.noise)
+    prep = prepare(w, floors=True, output_white=False)
+    separated = noise.output_floors(prep.noise, prep.P, prep.Q, 25.0)
+    assert separated["noise_p"] < separated["floor_p"] == prep.noise["noise_p"]
+    filtered = {**prep.noise, "floor_ratio_v": 2.0}
+    assert noise.output_floors(filtered, prep.P, prep.Q, 25.0) == filtered
 
 
 def test_the_white_level_is_at_most_what_a_white_residual_reads_in_the_band():

@@ -384,7 +384,7 @@ def test_white_level_separates_a_channels_own_falling_content_from_its_noise(fs)
 def test_white_level_on_a_white_band_is_its_level_without_evidence_of_content(fs):
     """On white noise alone the fit's likelihood ratio stays far below the refinement's threshold (χ² with 2 degrees
     of freedom: under 14 in 999 of 1,000), and its level is the noise's."""
-    from aslm_core.input_weighting import WHITE_LEVEL_LR_MIN
+    from aslm_core.noise import WHITE_LEVEL_LR_MIN
 
     rng = np.random.default_rng(571)
     out = np.array([noise.white_level(2e-4 * rng.standard_normal(int(10 * fs)), fs) for _ in range(200)])

@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from aslm_core import IdentifyConfig, identify, input_weighting, motor
+from aslm_core import IdentifyConfig, identify, input_weighting, motor, noise
 from aslm_core.identify import HALVES_Z_MAX, IV_SE_MAX, WEIGHTED_SHIFT_Z_MAX
 from aslm_sim.cases import make_cases
 from benchmarks.own_fluctuation import LEVEL
@@ -40,7 +40,7 @@ def test_weighted_answer_moved_far_from_output_error_is_flagged(monkeypatch):
     w, truth = bench_window(28, 0.0, "lowpass", 2)
     assert np.abs(identify(w, config=DEFAULT).d / truth - 1).max() < 0.11
     monkeypatch.setattr(input_weighting, "MAX_BAND_HZ", float("inf"))  # as the answer below was made
-    monkeypatch.setattr(input_weighting, "WHITE_LEVEL_LR_MIN", float("inf"))  # and P's floor as stop 27 read it
+    monkeypatch.setattr(noise, "WHITE_LEVEL_LR_MIN", float("inf"))  # and P's floor as stop 27 read it
     r = identify(w, config=NO_TAIL)
     assert r.d[3] / truth[3] - 1 == pytest.approx(0.252, abs=0.002)  # the stop-27 answer
     assert r.quality["weighted_shift_z"] > WEIGHTED_SHIFT_Z_MAX
@@ -53,7 +53,7 @@ def test_weighted_answer_with_a_wide_standard_error_is_flagged(monkeypatch):
     w, truth = bench_window(53, 0.0, "lowpass", 2)
     assert np.abs(identify(w, config=DEFAULT).d / truth - 1).max() < 0.08
     monkeypatch.setattr(input_weighting, "MAX_BAND_HZ", float("inf"))  # as the answer below was made
-    monkeypatch.setattr(input_weighting, "WHITE_LEVEL_LR_MIN", float("inf"))  # and P's floor as stop 27 read it
+    monkeypatch.setattr(noise, "WHITE_LEVEL_LR_MIN", float("inf"))  # and P's floor as stop 27 read it
     r = identify(w, config=NO_TAIL)
     assert r.d[3] / truth[3] - 1 == pytest.approx(-0.368, abs=0.002)
     assert r.stderr["Tm"] > IV_SE_MAX * abs(r.dynamic["Tm"])

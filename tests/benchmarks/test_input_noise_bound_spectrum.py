@@ -164,11 +164,11 @@ def test_efficiency_scores_the_stored_default_against_the_stored_bounds(monkeypa
     before stop 49's 4 Hz cap on the band and stop 57's white level of P and Q)."""
     import json
 
-    from aslm_core import input_weighting
+    from aslm_core import input_weighting, noise
     from benchmarks.input_noise_bound_spectrum import REFERENCE, efficiency
 
     monkeypatch.setattr(input_weighting, "MAX_BAND_HZ", float("inf"))
-    monkeypatch.setattr(input_weighting, "WHITE_LEVEL_LR_MIN", float("inf"))
+    monkeypatch.setattr(noise, "WHITE_LEVEL_LR_MIN", float("inf"))
 
     stored = json.loads((common.RESULTS / "input_noise_bound_spectrum_seed53.json").read_text())
     n = 3
