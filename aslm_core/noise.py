@@ -321,13 +321,14 @@ def output_floors(floors: dict[str, float], P: np.ndarray, Q: np.ndarray, fs: fl
     return out
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
+@nb.njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
 def _white_fit(y: np.ndarray, f_rel: np.ndarray, exponents: np.ndarray, w0: float, head: float, iterations: int,
                rtol: float) -> tuple[np.ndarray, np.ndarray]:
     """:func:`white_level`'s fit of y ≈ w + A·f_rel^−k per exponent k by reweighted least squares (the Whittle
     likelihood's weights 1/S²), from w = w0 and A = head − w0, all exponents iterated until every w moves by less than
     rtol; each exponent's w and negative log-likelihood Σ log S + y/S.  Compiled: as array operations the iterations
-    over a few hundred bins and ten exponents were most of a noisy window's cost of the fit (docs/numerics.md, "Stop 57")."""
+    over a few hundred bins and ten exponents were most of a noisy window's cost of the fit (docs/numerics.md, "Stop 57");
+    with fastmath, which lets the bin sums vectorise, since every window pays for it (docs/numerics.md, "Stop 59")."""
     n_k, m = exponents.size, y.size
     lo = 1e-9
     g = np.empty((n_k, m))
