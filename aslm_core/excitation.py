@@ -19,6 +19,7 @@ from aslm_core.noise import FLOOR_FROM_HZ, periodogram
 #: band, exceeds this many standard deviations of that sum under white noise alone (one-sided, ~2 % of windows without
 #: own fluctuation) [-].
 OWN_MEDIAN_Z = 2.0
+
 # Equivalent noise bandwidth of the preprocessing's 2nd-order Butterworth low-pass, × its cut-off:
 # (π/4)/sin(π/4).
 _LOWPASS_ENBW = (math.pi / 4.0) / math.sin(math.pi / 4.0)

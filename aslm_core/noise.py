@@ -289,8 +289,8 @@ def output_floors(floors: dict[str, float], P: np.ndarray, Q: np.ndarray, fs: fl
     """The floors with P's and Q's white noise read under their floor bands' own falling content.
 
     At 25–50 frames/s the floor band of P and Q (5 Hz to the Nyquist frequency) still holds the motor's fast response,
-    and its median reads it as noise (2.5–3.8 × a PMU's P noise in std on ANDES's records at 25 frames/s; docs/numerics.md,
-    "Stop 57" and "Stop 59").  Where :func:`white_level` finds such content (its likelihood ratio above
+    and its median reads it as noise, several times a PMU's P noise at 25 frames/s (docs/numerics.md, "Stop 57" and
+    "Stop 59").  Where :func:`white_level` finds such content (its likelihood ratio above
     :data:`WHITE_LEVEL_LR_MIN`) and a lower level, that level becomes ``noise_p`` (``noise_q``) and the band's median is
     kept as ``floor_p`` (``floor_q``).  Not where a reporting filter's roll-off was found (``floor_ratio_*`` other than
     1, ``input_noise="measured"``): the band's fall is then the filter's.
