@@ -161,3 +161,35 @@ def test_the_fit_finds_the_same_maximum_from_the_truth_and_from_3_percent_off():
     assert np.all(np.abs(ref / d - 1.0) < 5e-3)
     assert np.all(np.abs(got / ref - 1.0) < 1e-3)
     assert abs(rec["nll"] - rec_ref["nll"]) < 0.05
+
+
+def _verdict_cells(scale: dict) -> dict:
+    """Rows of the likelihood rule's six cells, windows 50-99: the likelihood's errors a fixed draw, the default's the
+    same draw times ``scale[(cell, parameter)]`` (1 elsewhere)."""
+    rng = np.random.default_rng(59)
+    cells = {}
+    for level in (1, 2, 3):
+        for cls in ("0.03 % / 3e-4 rad", "0.1 % / 1e-3 rad"):
+            key = f"{level}|{cls}"
+            err = 0.03 * rng.standard_normal((50, 4))
+            k = np.array([scale.get((key, j), 1.0) for j in range(4)])
+            cells[key] = [{"i": 50 + i, "fdml": (1.0 + e).tolist(), "default": (1.0 + k * e).tolist()}
+                          for i, e in enumerate(err)]
+    return cells
+
+
+def test_the_likelihood_rule_counts_each_cells_ratio():
+    from benchmarks.input_noise_fdml import likelihood_verdict
+
+    assert likelihood_verdict(_verdict_cells({}))["met"]
+    two = {("1|0.1 % / 1e-3 rad", 3): 1.5, ("2|0.03 % / 3e-4 rad", 0): 1.4}
+    assert likelihood_verdict(_verdict_cells(two))["met"]  # 22 of 24 within 1.3 x, none above 1.6 x
+    three = {**two, ("3|0.1 % / 1e-3 rad", 1): 1.35}
+    assert not likelihood_verdict(_verdict_cells(three))["met"]
+    assert not likelihood_verdict(_verdict_cells({("3|0.03 % / 3e-4 rad", 2): 1.7}))["met"]
+    cells = _verdict_cells({})
+    cells["1|0.1 % / 1e-3 rad"] = cells["1|0.1 % / 1e-3 rad"][:-1]
+    with pytest.raises(ValueError):
+        likelihood_verdict(cells)
+    del cells["1|0.1 % / 1e-3 rad"]
+    assert not likelihood_verdict(cells)["met"]
