@@ -255,7 +255,18 @@ def main(argv=None) -> dict:
     ap.add_argument("--pmu-check", action="store_true", help="judge the stored --pmu runs by PMU_CHECK")
     ap.add_argument("--suffix", default="", help="with --pmu-check: the runs' tags end in this (_b: the second run)")
     ap.add_argument("--coverage-check", action="store_true", help="judge the stored cover58 run by COVERAGE_CHECK")
+    ap.add_argument("--intervals", default=None, metavar="TAG",
+                    help="print each noisy cell's coverage with its bootstrap interval for the stored run of TAG; no run")
     args = ap.parse_args(argv)
+    if args.intervals:
+        doc = common.read_json(f"andes_rates_{args.intervals}")
+        cs = coverage_intervals(doc["rows"], {int(k): v for k, v in doc["truths"].items()})
+        for c in cs:
+            print(f"{c['class']} {c['fs']:g} frames/s (n {c['n']}, {c['clusters']} windows): " + " / ".join(
+                f"{100 * x:.1f} [{100 * a:.1f}, {100 * b:.1f}]" for x, a, b in zip(c["cover"], c["lo"], c["hi"],
+                                                                                     strict=True))
+                  + "; z spread " + " / ".join(f"{x:.2f}" for x in c["z_spread"]))
+        return {"cells": cs}
     if args.coverage_check:
         v = coverage_check()
         print(f"rule: {v['rule']}")

@@ -89,3 +89,15 @@ def test_the_coverage_check_passes_honest_errors_and_fails_a_run_whose_se_is_too
     assert not bad["met"] and len(bad["misses"]) == 24
     assert all(hi < 0.90 for c in bad["cells"] for hi in c["hi"])
     assert all(1.2 < x < 1.6 for c in bad["cells"] for x in c["z_spread"])
+
+
+def test_intervals_prints_a_stored_runs_coverage_with_its_bootstrap_intervals(monkeypatch, capsys):
+    """``--intervals TAG`` reads the stored run and gives each noisy cell's coverage and interval; SEs 1.4 × too small
+    cover about 73 %, their intervals below 90 %."""
+    rng = np.random.default_rng(5)
+    doc = {"rows": _cover_rows(range(10), 1.4, rng), "truths": {str(s): [60.0, 5.0, 1.0, 2.0] for s in range(10)}}
+    monkeypatch.setattr(ar.common, "read_json", {"andes_rates_somerun": doc}.__getitem__)
+    out = ar.main(["--intervals", "somerun"])
+    assert len(out["cells"]) == 6 and all(c["n"] == 700 for c in out["cells"])
+    assert all(hi < 0.90 for c in out["cells"] for hi in c["hi"])
+    assert "pmu01 50 frames/s (n 700, 70 windows)" in capsys.readouterr().out
