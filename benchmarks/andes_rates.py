@@ -223,6 +223,14 @@ def coverage_check(read=common.read_json) -> dict:
             "pooled_tags": list(COVERAGE_POOL), "pooled": coverage_intervals(rows, truths)}
 
 
+def _print_intervals(cells_: list[dict], indent: str = "") -> None:
+    """:func:`coverage_intervals`' cells, a line each: coverage [%] with its interval per parameter, and the z spread."""
+    for c in cells_:
+        print(f"{indent}{c['class']} {c['fs']:g} frames/s (n {c['n']}, {c['clusters']} windows): " + " / ".join(
+            f"{100 * x:.1f} [{100 * a:.1f}, {100 * b:.1f}]" for x, a, b in zip(c["cover"], c["lo"], c["hi"], strict=True))
+              + "; z spread " + " / ".join(f"{x:.2f}" for x in c["z_spread"]))
+
+
 def table(res: list[dict]) -> str:
     def f(v, se=None):
         if se is None:
@@ -261,22 +269,14 @@ def main(argv=None) -> dict:
     if args.intervals:
         doc = common.read_json(f"andes_rates_{args.intervals}")
         cs = coverage_intervals(doc["rows"], {int(k): v for k, v in doc["truths"].items()})
-        for c in cs:
-            print(f"{c['class']} {c['fs']:g} frames/s (n {c['n']}, {c['clusters']} windows): " + " / ".join(
-                f"{100 * x:.1f} [{100 * a:.1f}, {100 * b:.1f}]" for x, a, b in zip(c["cover"], c["lo"], c["hi"],
-                                                                                     strict=True))
-                  + "; z spread " + " / ".join(f"{x:.2f}" for x in c["z_spread"]))
+        _print_intervals(cs)
         return {"cells": cs}
     if args.coverage_check:
         v = coverage_check()
         print(f"rule: {v['rule']}")
         for name, cs in (("seeds 71-80", v["cells"]), ("pooled " + " + ".join(v["pooled_tags"]), v["pooled"])):
             print(name)
-            for c in cs:
-                print(f"  {c['class']} {c['fs']:g} frames/s (n {c['n']}, {c['clusters']} windows): " + " / ".join(
-                    f"{100 * x:.1f} [{100 * a:.1f}, {100 * b:.1f}]" for x, a, b in zip(c["cover"], c["lo"], c["hi"],
-                                                                                         strict=True))
-                      + "; z spread " + " / ".join(f"{x:.2f}" for x in c["z_spread"]))
+            _print_intervals(cs, "  ")
         print(f"misses: {v['misses']}; verdict: {'met' if v['met'] else 'not met'}")
         if not args.no_write:
             common.write_json("andes_rates_coverage_check", v)
