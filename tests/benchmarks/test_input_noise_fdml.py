@@ -193,3 +193,43 @@ def test_the_likelihood_rule_counts_each_cells_ratio():
         likelihood_verdict(cells)
     del cells["1|0.1 % / 1e-3 rad"]
     assert not likelihood_verdict(cells)["met"]
+
+
+def _efficiency_cells(scale: dict, control: float = 1.5) -> dict:
+    """Rows of the efficiency rule's six cells, windows 0-99: the likelihood's errors a fixed draw, the default's the
+    same draw times ``scale[(cell, parameter)]`` (1.05 elsewhere) plus a small independent part, the control's times
+    ``control``."""
+    rng = np.random.default_rng(60)
+    cells = {}
+    for level in (1, 2, 3):
+        for cls in ("0.03 % / 3e-4 rad", "0.1 % / 1e-3 rad"):
+            key = f"{level}|{cls}"
+            err = 0.03 * rng.standard_normal((100, 4))
+            own = 0.003 * rng.standard_normal((100, 4))
+            k = np.array([scale.get((key, j), 1.05) for j in range(4)])
+            cells[key] = [{"i": i, "fdml": (1.0 + e).tolist(), "default": (1.0 + k * e + o).tolist(),
+                           "control": (1.0 + control * e).tolist()} for i, (e, o) in enumerate(zip(err, own, strict=True))]
+    return cells
+
+
+def test_the_efficiency_rule_needs_the_mean_no_cell_clearly_off_and_a_control_that_fails():
+    from benchmarks.input_noise_fdml import efficiency_verdict
+
+    v = efficiency_verdict(_efficiency_cells({}))
+    assert v["met"] and 1.04 < v["default"]["geometric_mean"] < 1.07
+    assert not v["control"]["passes"] and v["control"]["geometric_mean"] > 1.15
+    # Every ratio 1.2: the mean fails though no single cell is clearly above 1.3.
+    everywhere = {(f"{lv}|{c}", j): 1.2 for lv in (1, 2, 3) for c in ("0.03 % / 3e-4 rad", "0.1 % / 1e-3 rad")
+                  for j in range(4)}
+    v = efficiency_verdict(_efficiency_cells(everywhere))
+    assert not v["met"] and not v["default"]["wholly_above_1_3"]
+    # One cell x parameter at 2: the mean holds (1.08) but its interval lies above 1.3.
+    v = efficiency_verdict(_efficiency_cells({("2|0.1 % / 1e-3 rad", 3): 2.0}))
+    assert v["default"]["geometric_mean"] <= 1.15
+    assert v["default"]["wholly_above_1_3"] == ["2|0.1 % / 1e-3 rad Tm"] and not v["met"]
+    # A control as good as the default: the rule cannot tell them apart, so it is not met.
+    assert not efficiency_verdict(_efficiency_cells({}, control=1.05))["met"]
+    cells = _efficiency_cells({})
+    cells["3|0.1 % / 1e-3 rad"] = cells["3|0.1 % / 1e-3 rad"][1:]
+    with pytest.raises(ValueError):
+        efficiency_verdict(cells)
