@@ -577,6 +577,48 @@ def _efficiency(cells: dict, name: str, rng: np.random.Generator) -> dict:
             "passes": len(flat) == 24 and geo <= EFFICIENCY_GEO_MAX and not above}
 
 
+#: The development runs the efficiency rule's thresholds were read from: seed 43's windows 0-99, every noisy cell.
+EFFICIENCY_DEV_RUNS = ("input_noise_fdml_seed43_dl12_003_nl", "input_noise_fdml_seed43_dl12_01_nl",
+                       "input_noise_fdml_seed43_dl3_003_nl_s59", "input_noise_fdml_seed43_dl3_01_nl_s59", *LIKELIHOOD_RUNS)
+
+
+def efficiency_development(resamples: int = 1000) -> dict:
+    """:data:`EFFICIENCY_RULE`'s development reading: the stored likelihood answers of :data:`EFFICIENCY_DEV_RUNS`
+    against this tree's default and control on the same windows and draws, their :func:`_efficiency`, and how often
+    :data:`LIKELIHOOD_RULE`'s count is met by the default on ``resamples`` draws of 50 of the 100 windows."""
+    stored: dict = {}
+    for name in EFFICIENCY_DEV_RUNS:
+        for key, rows in json.loads((common.RESULTS / f"{name}.json").read_text())["cells"].items():
+            stored.update({(key, row["i"]): row["fdml"] for row in rows})
+    cases = {level: common.cases(100, level=level, seed=43) for level in LEVELS}
+    cells: dict[str, list] = {}
+    for i, _level, _cls, key, c, w, r in identified_draws(noisy_draws(cases, 43, 100, LEVELS), 0, None, DEFAULT):
+        truth = np.asarray(c.truth.d, float)
+        cells.setdefault(key, []).append({"i": i, "fdml": stored[key, i], "default": (r.d / truth).tolist(),
+                                          "control": (identify(w, config=CONTROL).d / truth).tolist()})
+    rng = np.random.default_rng(43)
+    out = {name: _efficiency(cells, name, rng) for name in ("default", "control")}
+    met = 0
+    for _ in range(resamples):
+        idx = {key: rng.integers(0, len(rows), 50) for key, rows in cells.items()}
+        flat = [x for key, rows in sorted(cells.items()) for x in
+                np.array([rows[k]["default"] for k in idx[key]]).std(axis=0, ddof=1)
+                / np.array([rows[k]["fdml"] for k in idx[key]]).std(axis=0, ddof=1)]
+        met += sum(x <= 1.3 for x in flat) >= 22 and max(flat) <= 1.6
+    return {**out, "likelihood_rule_met_fraction": met / resamples, "resamples": resamples}
+
+
+def _print_efficiency(v: dict) -> None:
+    """The default's and the control's :func:`_efficiency`, printed."""
+    for name in ("default", "control"):
+        e = v[name]
+        for key, r in e["ratios"].items():
+            print(f"{name:8s} {key:24s} sigma / likelihood's: " + " / ".join(f"{x:.2f}" for x in r)
+                  + "  (bootstrap 2.5 %: " + " / ".join(f"{x:.2f}" for x in e["bootstrap_low"][key]) + ")")
+        print(f"{name}: geometric mean {e['geometric_mean']:.3f}; wholly above 1.3: "
+              f"{', '.join(e['wholly_above_1_3']) or 'none'}; passes (1) and (2): {e['passes']}")
+
+
 def efficiency_verdict(cells: dict) -> dict:
     """:data:`EFFICIENCY_RULE` on the per-window rows of its runs ({cell: rows}, each row with ``default``, ``fdml``
     and ``control``, D/D_true): the default's and the control's :func:`_efficiency`, and the verdict."""
@@ -614,6 +656,8 @@ def main(argv=None) -> dict:
                          "the transient of (none given: 0, the integrator; two real unknowns a real pole, four a pair)")
     ap.add_argument("--out", default=None)
     ap.add_argument("--likelihood-verdict", action="store_true", help="judge LIKELIHOOD_RUNS by LIKELIHOOD_RULE; no run")
+    ap.add_argument("--efficiency-development", action="store_true",
+                    help="EFFICIENCY_RULE's reading on its development runs, with this tree's default and control")
     ap.add_argument("--efficiency-verdict", action="store_true", help="judge EFFICIENCY_RUNS by EFFICIENCY_RULE; no run")
     args = ap.parse_args(argv)
     if args.report:
@@ -628,17 +672,19 @@ def main(argv=None) -> dict:
               f"{'met' if v['met'] else 'not met'}")
         common.write_json("input_noise_fdml_likelihood_verdict", v)
         return v
+    if args.efficiency_development:
+        v = efficiency_development()
+        _print_efficiency(v)
+        print(f"stop 59's likelihood rule met by the default on {v['likelihood_rule_met_fraction']:.1%} of "
+              f"{v['resamples']} draws of 50 windows")
+        if not args.no_write:
+            common.write_json("input_noise_fdml_efficiency_development", v)
+        return v
     if args.efficiency_verdict:
         cells = {k: v for name in EFFICIENCY_RUNS
                  for k, v in json.loads((common.RESULTS / f"{name}.json").read_text())["cells"].items()}
         v = efficiency_verdict(cells)
-        for name in ("default", "control"):
-            e = v[name]
-            for key, r in e["ratios"].items():
-                print(f"{name:8s} {key:24s} sigma / likelihood's: " + " / ".join(f"{x:.2f}" for x in r)
-                      + "  (bootstrap 2.5 %: " + " / ".join(f"{x:.2f}" for x in e["bootstrap_low"][key]) + ")")
-            print(f"{name}: geometric mean {e['geometric_mean']:.3f}; wholly above 1.3: "
-                  f"{', '.join(e['wholly_above_1_3']) or 'none'}; passes (1) and (2): {e['passes']}")
+        _print_efficiency(v)
         print(f"verdict: {'met' if v['met'] else 'not met'}")
         common.write_json("input_noise_fdml_efficiency_verdict", v)
         return v
