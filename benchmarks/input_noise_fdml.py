@@ -605,7 +605,39 @@ def efficiency_development(resamples: int = 1000) -> dict:
                 np.array([rows[k]["default"] for k in idx[key]]).std(axis=0, ddof=1)
                 / np.array([rows[k]["fdml"] for k in idx[key]]).std(axis=0, ddof=1)]
         met += sum(x <= 1.3 for x in flat) >= 22 and max(flat) <= 1.6
-    return {**out, "likelihood_rule_met_fraction": met / resamples, "resamples": resamples}
+    return {**out, "likelihood_rule_met_fraction": met / resamples, "resamples": resamples,
+            "issue_targets": issue_targets(cells, 43)}
+
+
+def issue_targets(cells: dict, seed: int) -> dict:
+    """Issue 11's σ targets on the windows of ``cells`` ({cell: rows} with ``default`` and ``fdml``, D/D_true, windows 0
+    to n−1 of generator ``seed``), a reading beside :data:`EFFICIENCY_RULE`: σ ≤ 0.05 at 0.1 % / 1e-3 rad, σ ≤ 1.3 × the
+    default's σ on the same windows with exact V and θ at 0.03 % / 3e-4 rad; per cell the target, both estimators' σ,
+    and which parameters each meets."""
+    n = 1 + max(row["i"] for rows in cells.values() for row in rows)
+    exact = {}
+    for level in LEVELS:
+        cs = common.cases(n, level=level, seed=seed)
+        exact[level] = np.array([identify(c.window, config=DEFAULT).d / np.asarray(c.truth.d, float)
+                                 for c in cs]).std(axis=0, ddof=1)
+    out = {}
+    for key, rows in sorted(cells.items()):
+        level = int(key.split("|")[0])
+        target = np.full(4, 0.05) if key.endswith("0.1 % / 1e-3 rad") else 1.3 * exact[level]
+        sd = {name: np.array([row[name] for row in rows]).std(axis=0, ddof=1) for name in ("default", "fdml")}
+        out[key] = {"target": target.tolist(), **{name: v.tolist() for name, v in sd.items()},
+                    **{f"{name}_meets": (v <= target).tolist() for name, v in sd.items()}}
+    return out
+
+
+def _print_targets(targets: dict) -> None:
+    """:func:`issue_targets`' reading, printed."""
+    for key, t in targets.items():
+        print(f"{key:24s} target " + " / ".join(f"{x:.3f}" for x in t["target"]) + " | default "
+              + " / ".join(f"{x:.3f}{'' if m else '*'}" for x, m in zip(t["default"], t["default_meets"], strict=True))
+              + " | likelihood "
+              + " / ".join(f"{x:.3f}{'' if m else '*'}" for x, m in zip(t["fdml"], t["fdml_meets"], strict=True)))
+    print("(* : above issue 11's target; a reading, not part of the rule)")
 
 
 def _print_efficiency(v: dict) -> None:
@@ -675,6 +707,7 @@ def main(argv=None) -> dict:
     if args.efficiency_development:
         v = efficiency_development()
         _print_efficiency(v)
+        _print_targets(v["issue_targets"])
         print(f"stop 59's likelihood rule met by the default on {v['likelihood_rule_met_fraction']:.1%} of "
               f"{v['resamples']} draws of 50 windows")
         if not args.no_write:
@@ -685,6 +718,8 @@ def main(argv=None) -> dict:
                  for k, v in json.loads((common.RESULTS / f"{name}.json").read_text())["cells"].items()}
         v = efficiency_verdict(cells)
         _print_efficiency(v)
+        v["issue_targets"] = issue_targets(cells, 100)
+        _print_targets(v["issue_targets"])
         print(f"verdict: {'met' if v['met'] else 'not met'}")
         common.write_json("input_noise_fdml_efficiency_verdict", v)
         return v
