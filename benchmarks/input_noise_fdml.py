@@ -27,6 +27,11 @@ in D and the slopes, each of these scaled by its curvature; restarted while a re
     .venv/bin/python -m benchmarks.input_noise_fdml [--seed 41] [--n 50] [--cells "3|0.1 % / 1e-3 rad"] [--nonlinear 2]
         [--oracle-noise] [--oracle-spectrum] [--own-model] [--difference] [--exact DL] [--check] [--report NAME]
         [--circular [gaussian|phases|segment]] [--edge [POLE ...]]
+    .venv/bin/python -m benchmarks.input_noise_fdml --likelihood-verdict | --efficiency-verdict | --efficiency-development
+
+``--efficiency-verdict`` judges stop 60's :data:`EFFICIENCY_RULE` (the default's σ against this estimator's on fresh seed
+100) from its stored runs and reads issue 11's σ targets beside it; ``--efficiency-development`` prints the same on the
+rule's development windows (seed 43's 0-99) with this tree's default and control.
 
 ``--circular``, ``--edge`` (stop 54): data drawn from the fit's own model with the latent inputs circular Gaussian, the
 window's own with their phases scrambled, or a segment of a longer Gaussian draw (:func:`circular_draw`); and the
