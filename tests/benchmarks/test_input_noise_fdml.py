@@ -163,19 +163,28 @@ def test_the_fit_finds_the_same_maximum_from_the_truth_and_from_3_percent_off():
     assert abs(rec["nll"] - rec_ref["nll"]) < 0.05
 
 
-def _verdict_cells(scale: dict) -> dict:
-    """Rows of the likelihood rule's six cells, windows 50-99: the likelihood's errors a fixed draw, the default's the
-    same draw times ``scale[(cell, parameter)]`` (1 elsewhere)."""
+def _rule_cells(scale: dict, windows: range = range(50, 100), base: float = 1.0, own: float = 0.0,
+                control: float | None = None) -> dict:
+    """Rows of a rule's six cells over ``windows``: the likelihood's errors a fixed draw, the default's the same draw
+    times ``scale[(cell, parameter)]`` (``base`` elsewhere) plus an independent part of std ``own``, the control's (where
+    given) the draw times ``control``."""
     rng = np.random.default_rng(59)
     cells = {}
     for level in (1, 2, 3):
         for cls in ("0.03 % / 3e-4 rad", "0.1 % / 1e-3 rad"):
             key = f"{level}|{cls}"
-            err = 0.03 * rng.standard_normal((50, 4))
-            k = np.array([scale.get((key, j), 1.0) for j in range(4)])
-            cells[key] = [{"i": 50 + i, "fdml": (1.0 + e).tolist(), "default": (1.0 + k * e).tolist()}
-                          for i, e in enumerate(err)]
+            err = 0.03 * rng.standard_normal((len(windows), 4))
+            extra = own * rng.standard_normal((len(windows), 4))
+            k = np.array([scale.get((key, j), base) for j in range(4)])
+            cells[key] = [{"i": i, "fdml": (1.0 + e).tolist(), "default": (1.0 + k * e + o).tolist(),
+                           **({} if control is None else {"control": (1.0 + control * e).tolist()})}
+                          for i, e, o in zip(windows, err, extra, strict=True)]
     return cells
+
+
+def _verdict_cells(scale: dict) -> dict:
+    """The likelihood rule's rows, windows 50-99 (:func:`_rule_cells`)."""
+    return _rule_cells(scale)
 
 
 def test_the_likelihood_rule_counts_each_cells_ratio():
@@ -196,20 +205,9 @@ def test_the_likelihood_rule_counts_each_cells_ratio():
 
 
 def _efficiency_cells(scale: dict, control: float = 1.5) -> dict:
-    """Rows of the efficiency rule's six cells, windows 0-99: the likelihood's errors a fixed draw, the default's the
-    same draw times ``scale[(cell, parameter)]`` (1.05 elsewhere) plus a small independent part, the control's times
-    ``control``."""
-    rng = np.random.default_rng(60)
-    cells = {}
-    for level in (1, 2, 3):
-        for cls in ("0.03 % / 3e-4 rad", "0.1 % / 1e-3 rad"):
-            key = f"{level}|{cls}"
-            err = 0.03 * rng.standard_normal((100, 4))
-            own = 0.003 * rng.standard_normal((100, 4))
-            k = np.array([scale.get((key, j), 1.05) for j in range(4)])
-            cells[key] = [{"i": i, "fdml": (1.0 + e).tolist(), "default": (1.0 + k * e + o).tolist(),
-                           "control": (1.0 + control * e).tolist()} for i, (e, o) in enumerate(zip(err, own, strict=True))]
-    return cells
+    """The efficiency rule's rows, windows 0-99 (:func:`_rule_cells`): the default 1.05 × the likelihood's errors
+    where ``scale`` does not say otherwise, plus a small independent part."""
+    return _rule_cells(scale, range(100), base=1.05, own=0.003, control=control)
 
 
 def test_the_efficiency_rule_needs_the_mean_no_cell_clearly_off_and_a_control_that_fails():
