@@ -549,7 +549,8 @@ def likelihood_verdict(cells: dict) -> dict:
 #: Stop 60's check of the default's efficiency against this estimator, fixed (with its thresholds, tuned on seed 43's
 #: windows 0-99) before its runs on windows of a seed no run had drawn (:func:`efficiency_verdict`; docs/numerics.md,
 #: "Stop 60: the default's efficiency against the joint likelihood").  Stop 59's rule above counted cells whose σ ratio
-#: over 50 windows stayed within 1.3; on seed 43's windows 0-99 the default meets it in 18 % of resamples of 50 windows:
+#: over 50 windows stayed within 1.3; on seed 43's windows 0-99 the default meets it in 16 % of resamples of 50 windows
+#: (``--efficiency-development``):
 #: one far window decides a cell's σ, so that count mostly measured the draw.
 EFFICIENCY_RULE = ("generator seed 100's windows 0-99, every noisy cell (DL 1-3 x 0.03 % / 3e-4 rad and 0.1 % / 1e-3 "
                    "rad), this tree's default and this estimator with --nonlinear 2 from the default's D; per cell x "
